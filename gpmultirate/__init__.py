@@ -1,5 +1,27 @@
-"""Fast-rate impulse-response identification from slow-rate output measurements."""
+"""Fast-rate impulse-response identification from slow-rate output measurements.
+
+The FIR impulse response is a Gaussian process over continuous lag, observed
+through a downsampled convolution with the known fast-rate input.  See
+:class:`FIRGaussianProcess` for the estimator and :mod:`gpmultirate.kernels`
+for the prior covariances.
+"""
 
 from gpmultirate._version import __version__
+from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
+from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
+from gpmultirate.frequency import FrequencyResponse
+from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.observed import ObservedKernel
+from gpmultirate.operator import DownsampledConvolution
 
-__all__ = ["__version__"]
+__all__ = [
+    "DownsampledConvolution",
+    "FIRGaussianProcess",
+    "FrequencyResponse",
+    "IdentifiabilityError",
+    "LeastSquaresFIR",
+    "NumericalWarning",
+    "ObservedKernel",
+    "__version__",
+    "goodness_of_fit",
+]

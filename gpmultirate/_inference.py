@@ -1,0 +1,164 @@
+"""Linear algebra of the Gaussian-process posterior in the data space.
+
+With ``Ky = Phi K Phi^T + gamma I_M`` (the covariance of the slow data) and
+its Cholesky factor ``L``:
+
+* posterior mean of the coefficients, eq. (15): ``K Phi^T Ky^{-1} y``;
+* posterior covariance: ``K - B^T B`` with ``B = L^{-1} Phi K``;
+* log marginal likelihood, eq. (19) with the noise inside the determinant:
+  ``-1/2 y^T Ky^{-1} y - 1/2 log det Ky - M/2 log(2 pi)``;
+* its gradient by the trace identity
+  ``d/dtheta_j = 1/2 tr((a a^T - Ky^{-1}) dKy/dtheta_j)`` with
+  ``a = Ky^{-1} y``, evaluated as ``1/2 sum(A * dK_j)`` with
+  ``A = Phi^T (a a^T - Ky^{-1}) Phi`` so that no ``Phi dK Phi^T`` product is
+  formed per hyperparameter.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy import linalg
+
+from gpmultirate.exceptions import NumericalWarning
+
+LOG_2PI = np.log(2.0 * np.pi)
+
+
+def robust_cholesky(A: np.ndarray, what: str = "data covariance") -> tuple[np.ndarray, float]:
+    """Lower Cholesky factor of a symmetric matrix, adding jitter if needed.
+
+    Returns the factor and the jitter that was added to the diagonal.  A
+    :class:`~gpmultirate.exceptions.NumericalWarning` is emitted when jitter
+    was needed; a :class:`ValueError` when even large jitter fails.
+    """
+    if not np.all(np.isfinite(A)):
+        raise ValueError(f"the {what} has non-finite entries; check the hyperparameters")
+    try:
+        return linalg.cholesky(A, lower=True, check_finite=False), 0.0
+    except linalg.LinAlgError:
+        pass
+    scale = float(np.mean(np.abs(np.diag(A)))) or 1.0
+    for relative in 10.0 ** np.arange(-12, -3):
+        jitter = relative * scale
+        try:
+            L = linalg.cholesky(
+                A + jitter * np.eye(A.shape[0]), lower=True, check_finite=False
+            )
+        except linalg.LinAlgError:
+            continue
+        warnings.warn(
+            f"the {what} is not numerically positive definite; added {jitter:.2g} "
+            "to its diagonal",
+            NumericalWarning,
+            stacklevel=3,
+        )
+        return L, jitter
+    raise ValueError(
+        f"the {what} is not positive definite even with jitter "
+        f"{1e-4 * scale:.2g}; increase noise_level or check the kernel"
+    )
+
+
+class GaussianCoefficients:
+    """Gaussian distribution of FIR coefficients with covariance ``K - B^T B``.
+
+    The covariance is kept in this factored form so that linear functionals
+    (outputs, FRF values) never need the ``P x P`` posterior covariance.
+    """
+
+    def __init__(self, coef: np.ndarray, K: np.ndarray, B: np.ndarray):
+        self.coef = coef
+        self.K = K
+        self.B = B
+
+    def linear_map(self, A: np.ndarray, full_cov: bool = False):
+        """Mean and covariance (or variance) of ``A g`` for a ``(q, P)`` matrix ``A``."""
+        mean = A @ self.coef
+        if full_cov:
+            BA = self.B @ A.T
+            cov = A @ self.K @ A.T - BA.T @ BA
+            return mean, 0.5 * (cov + cov.T)
+        return mean, np.maximum(self.cross_variance(A, A), 0.0)
+
+    def cross_variance(self, A1: np.ndarray, A2: np.ndarray) -> np.ndarray:
+        """Row-wise covariances ``Cov(A1[k] g, A2[k] g)``, i.e. ``diag(A1 Sigma A2^T)``."""
+        prior = np.einsum("ij,ij->i", A1 @ self.K, A2)
+        return prior - np.einsum("ij,ij->j", self.B @ A1.T, self.B @ A2.T)
+
+    def covariance(self) -> np.ndarray:
+        """The ``P x P`` covariance ``K - B^T B``."""
+        cov = self.K - self.B.T @ self.B
+        return 0.5 * (cov + cov.T)
+
+
+class DataSpacePosterior(GaussianCoefficients):
+    """Posterior of the FIR coefficients given slow data, in the M x M data space.
+
+    Parameters
+    ----------
+    operator : DownsampledConvolution
+    kernel : sklearn Kernel over lags
+    noise_level : float
+        Noise variance ``gamma`` of the slow samples.
+    y : ndarray of shape (M,)
+    """
+
+    def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
+        Phi = operator.matrix
+        K = operator.kernel_matrix(kernel)
+        PhiK = Phi @ K
+        Ky = PhiK @ Phi.T
+        Ky = 0.5 * (Ky + Ky.T)
+        Ky[np.diag_indices_from(Ky)] += noise_level
+        self.L, self.jitter = robust_cholesky(Ky)
+        self.alpha = linalg.cho_solve((self.L, True), y, check_finite=False)
+        B = linalg.solve_triangular(self.L, PhiK, lower=True, check_finite=False)
+        # eq. (15): K Phi^T (Phi K Phi^T + gamma I)^{-1} y
+        super().__init__(PhiK.T @ self.alpha, K, B)
+        self.log_marginal_likelihood = float(
+            -0.5 * y @ self.alpha
+            - np.log(np.diag(self.L)).sum()
+            - 0.5 * y.shape[0] * LOG_2PI
+        )
+
+    def at_lags(self, operator, kernel, lags: np.ndarray, full_cov: bool):
+        """Posterior mean and variance (or covariance) of ``g`` at real lags."""
+        cross = operator.cross_covariance(kernel, lags[:, None])
+        mean = cross @ self.alpha
+        V = linalg.solve_triangular(self.L, cross.T, lower=True, check_finite=False)
+        if full_cov:
+            cov = kernel(lags[:, None]) - V.T @ V
+            return mean, 0.5 * (cov + cov.T)
+        var = kernel.diag(lags[:, None]) - np.einsum("ij,ij->j", V, V)
+        return mean, np.maximum(var, 0.0)
+
+
+def log_marginal_likelihood(
+    operator, kernel, noise_level: float, y: np.ndarray, eval_gradient: bool, noise_free: bool
+):
+    """Log evidence of the slow data and its gradient with respect to log hyperparameters.
+
+    The gradient has the kernel's ``theta`` first and, when ``noise_free`` is
+    true, the derivative with respect to ``log(noise_level)`` last.
+    """
+    Phi = operator.matrix
+    if eval_gradient:
+        K, dK = operator.kernel_matrix(kernel, eval_gradient=True)
+    else:
+        K = operator.kernel_matrix(kernel)
+    Ky = Phi @ K @ Phi.T
+    Ky = 0.5 * (Ky + Ky.T)
+    Ky[np.diag_indices_from(Ky)] += noise_level
+    L, _ = robust_cholesky(Ky)
+    alpha = linalg.cho_solve((L, True), y, check_finite=False)
+    value = float(-0.5 * y @ alpha - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI)
+    if not eval_gradient:
+        return value
+    W = np.outer(alpha, alpha) - linalg.cho_solve((L, True), np.eye(y.shape[0]), check_finite=False)
+    A = Phi.T @ W @ Phi
+    grad = 0.5 * np.einsum("ij,ijk->k", A, dK)
+    if noise_free:
+        grad = np.append(grad, 0.5 * np.trace(W) * noise_level)
+    return value, grad

@@ -1,0 +1,128 @@
+"""A lag kernel seen through the observation operator, as a scikit-learn kernel."""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
+
+from gpmultirate.operator import DownsampledConvolution
+
+__all__ = ["ObservedKernel"]
+
+
+class ObservedKernel(GenericKernelMixin, Kernel):
+    """Covariance ``Phi K Phi^T`` of the slow-rate data, indexed by slow sample.
+
+    The inputs ``X`` are slow-sample indices (``np.arange(M)[:, None]``); the
+    value at ``(m, n)`` is ``(Phi K Phi^T)[m, n]`` where ``K`` is ``kernel``
+    at lags ``0..P-1``.  Its hyperparameters are those of ``kernel`` (named
+    ``kernel__<name>``), with analytic gradients, so that
+    ``GaussianProcessRegressor(kernel=ObservedKernel(k, op) + WhiteKernel(gamma))``
+    fits the slow data exactly as :class:`~gpmultirate.FIRGaussianProcess`.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        Prior covariance of the impulse response over lag.
+    operator : DownsampledConvolution
+        The observation operator built from the training input.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process import GaussianProcessRegressor
+    >>> from sklearn.gaussian_process.kernels import WhiteKernel
+    >>> from gpmultirate import DownsampledConvolution, ObservedKernel
+    >>> from gpmultirate.kernels import TC
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(60)
+    >>> op = DownsampledConvolution(u, factor=3, order=30)
+    >>> X = np.arange(op.n_outputs)[:, None]
+    >>> y = op.matvec(0.8 ** np.arange(30))
+    >>> kernel = ObservedKernel(TC(alpha=0.8), op) + WhiteKernel(1e-4, "fixed")
+    >>> gpr = GaussianProcessRegressor(kernel, optimizer=None).fit(X, y)
+    >>> bool(np.allclose(gpr.predict(X), y, atol=0.05))
+    True
+    """
+
+    def __init__(self, kernel: Kernel, operator: DownsampledConvolution):
+        self.kernel = kernel
+        self.operator = operator
+
+    def get_params(self, deep: bool = True) -> dict:
+        """Get the parameters, including ``kernel__<name>`` with ``deep=True``."""
+        params = dict(kernel=self.kernel, operator=self.operator)
+        if deep:
+            params.update(
+                ("kernel__" + key, value) for key, value in self.kernel.get_params().items()
+            )
+        return params
+
+    @property
+    def hyperparameters(self) -> list:
+        """The hyperparameters of the inner kernel, prefixed with ``kernel__``."""
+        return [
+            Hyperparameter(
+                "kernel__" + h.name, h.value_type, h.bounds, h.n_elements, h.fixed
+            )
+            for h in self.kernel.hyperparameters
+        ]
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Log of the free hyperparameters of the inner kernel."""
+        return self.kernel.theta
+
+    @theta.setter
+    def theta(self, theta) -> None:
+        self.kernel.theta = theta
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Log bounds of the free hyperparameters of the inner kernel."""
+        return self.kernel.bounds
+
+    def __eq__(self, other) -> bool:
+        if type(self) is not type(other):
+            return False
+        return self.kernel == other.kernel and self.operator == other.operator
+
+    def _indices(self, X, name: str) -> np.ndarray:
+        X = np.asarray(X)
+        index = X[:, 0] if X.ndim == 2 else X
+        index_int = np.asarray(np.rint(index), dtype=int) if index.size else index.astype(int)
+        if (
+            index.ndim != 1
+            or index.size == 0
+            or not np.array_equal(index_int, index)
+            or index_int.min() < 0
+            or index_int.max() >= self.operator.n_outputs
+        ):
+            raise ValueError(
+                f"{name} must hold slow-sample indices in 0..{self.operator.n_outputs - 1} "
+                "with shape (n, 1)"
+            )
+        return index_int
+
+    def __call__(self, X, Y=None, eval_gradient: bool = False):
+        """Return ``(Phi K Phi^T)[X, Y]`` and optionally its gradient."""
+        rows = self._indices(X, "X")
+        if eval_gradient:
+            if Y is not None:
+                raise ValueError("gradient can only be evaluated when Y is None")
+            cov, grad = self.operator.covariance(self.kernel, eval_gradient=True)
+            return cov[np.ix_(rows, rows)], grad[np.ix_(rows, rows)]
+        cols = rows if Y is None else self._indices(Y, "Y")
+        cov = self.operator.covariance(self.kernel)
+        return cov[np.ix_(rows, cols)]
+
+    def diag(self, X) -> np.ndarray:
+        """Return the prior variance of the noise-free slow output at ``X``."""
+        return np.diag(self(X)).copy()
+
+    def is_stationary(self) -> bool:
+        """Return False: the data covariance depends on the input record."""
+        return False
+
+    def __repr__(self) -> str:
+        return f"ObservedKernel({self.kernel!r}, {self.operator!r})"
