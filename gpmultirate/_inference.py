@@ -21,6 +21,7 @@ import warnings
 import numpy as np
 from scipy import linalg
 
+from gpmultirate._contraction import kernel_with_contractor
 from gpmultirate.exceptions import NumericalWarning
 
 LOG_2PI = np.log(2.0 * np.pi)
@@ -145,7 +146,7 @@ def log_marginal_likelihood(
     """
     Phi = operator.matrix
     if eval_gradient:
-        K, dK = operator.kernel_matrix(kernel, eval_gradient=True)
+        K, contract = kernel_with_contractor(kernel, operator.lags[:, 0])
     else:
         K = operator.kernel_matrix(kernel)
     Ky = Phi @ K @ Phi.T
@@ -158,7 +159,7 @@ def log_marginal_likelihood(
         return value
     W = np.outer(alpha, alpha) - linalg.cho_solve((L, True), np.eye(y.shape[0]), check_finite=False)
     A = Phi.T @ W @ Phi
-    grad = 0.5 * np.einsum("ij,ijk->k", A, dK)
+    grad = 0.5 * contract(0.5 * (A + A.T))
     if noise_free:
         grad = np.append(grad, 0.5 * np.trace(W) * noise_level)
     return value, grad
