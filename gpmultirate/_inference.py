@@ -21,7 +21,7 @@ import warnings
 import numpy as np
 from scipy import linalg
 
-from gpmultirate._contraction import kernel_with_contractor
+from gpmultirate._structured import observed_with_contractor
 from gpmultirate.exceptions import NumericalWarning
 
 LOG_2PI = np.log(2.0 * np.pi)
@@ -144,13 +144,8 @@ def log_marginal_likelihood(
     The gradient has the kernel's ``theta`` first and, when ``noise_free`` is
     true, the derivative with respect to ``log(noise_level)`` last.
     """
-    Phi = operator.matrix
-    if eval_gradient:
-        K, contract = kernel_with_contractor(kernel, operator.lags[:, 0])
-    else:
-        K = operator.kernel_matrix(kernel)
-    Ky = Phi @ K @ Phi.T
-    Ky = 0.5 * (Ky + Ky.T)
+    S, contract = observed_with_contractor(kernel, operator, need_gradient=eval_gradient)
+    Ky = S.copy()
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     alpha = linalg.cho_solve((L, True), y, check_finite=False)
@@ -158,8 +153,8 @@ def log_marginal_likelihood(
     if not eval_gradient:
         return value
     W = np.outer(alpha, alpha) - linalg.cho_solve((L, True), np.eye(y.shape[0]), check_finite=False)
-    A = Phi.T @ W @ Phi
-    grad = 0.5 * contract(0.5 * (A + A.T))
+    W = 0.5 * (W + W.T)
+    grad = 0.5 * contract(W)
     if noise_free:
         grad = np.append(grad, 0.5 * np.trace(W) * noise_level)
     return value, grad

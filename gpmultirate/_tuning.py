@@ -25,7 +25,7 @@ from scipy import linalg, optimize
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
-from gpmultirate.kernels import PK
+from gpmultirate.kernels import DC, PK, SS, TC
 
 # L-BFGS-B settings: tighter than scipy's defaults, which stop early on the
 # flat, long valleys of the evidence.
@@ -155,19 +155,71 @@ def _clip(x, bounds):
     return np.clip(x, low, high)
 
 
-def free_resonance_indices(kernel) -> list[int]:
-    """Positions in ``kernel.theta`` of the free ``omega`` of each PK term."""
+def _free_lag_hyperparameters(kernel):
+    """Yield ``(position in theta, leaf name, owner)`` of free lag-kernel hyperparameters."""
     params = kernel.get_params()
-    indices, position = [], 0
+    position = 0
     for h in kernel.hyperparameters:
         if h.fixed:
             continue
-        if h.name == "omega" or h.name.endswith("__omega"):
-            owner = kernel if h.name == "omega" else params[h.name[: -len("__omega")]]
-            if isinstance(owner, PK):
-                indices.append(position)
+        prefix, _, leaf = h.name.rpartition("__")
+        owner = params[prefix] if prefix else kernel
+        if isinstance(owner, (TC, DC, SS, PK)):
+            yield position, leaf, owner
         position += h.n_elements
-    return indices
+
+
+def free_resonance_indices(kernel) -> list[int]:
+    """Positions in ``kernel.theta`` of the free ``omega`` of each PK term."""
+    return [
+        i for i, leaf, owner in _free_lag_hyperparameters(kernel)
+        if leaf == "omega" and isinstance(owner, PK)
+    ]
+
+
+class DecayRateTransform:
+    """Optimizer coordinates in which decay parameters are well scaled.
+
+    A decay or correlation parameter ``a`` in (0, 1] (``alpha``, ``beta``)
+    enters ``theta`` as ``log a``, which is tiny and badly scaled for the
+    values near 1 that impulse responses need.  The optimizer works on
+    ``z = log(-log a)``, the log of the decay rate per sample, instead;
+    the other coordinates are unchanged.
+    """
+
+    # decay rates below this are treated as zero (a = 1 within rounding)
+    MIN_RATE = 1e-10
+
+    def __init__(self, kernel, n_theta: int):
+        self.indices = np.array(
+            [i for i, leaf, _ in _free_lag_hyperparameters(kernel) if leaf in ("alpha", "beta")],
+            dtype=int,
+        )
+        self.n_theta = n_theta
+
+    def to_z(self, theta):
+        z = np.array(theta, dtype=float)
+        rate = np.maximum(-z[self.indices], self.MIN_RATE)
+        z[self.indices] = np.log(rate)
+        return z
+
+    def to_theta(self, z):
+        theta = np.array(z, dtype=float)
+        theta[self.indices] = -np.exp(theta[self.indices])
+        return theta
+
+    def bounds(self, theta_bounds):
+        b = np.array(theta_bounds, dtype=float)
+        low = -b[self.indices, 1]  # smallest rate comes from the largest value
+        high = -b[self.indices, 0]
+        b[self.indices, 0] = np.log(np.maximum(low, self.MIN_RATE))
+        b[self.indices, 1] = np.log(np.maximum(high, self.MIN_RATE))
+        return b
+
+    def gradient(self, grad_theta, theta):
+        g = np.array(grad_theta, dtype=float)
+        g[self.indices] *= theta[self.indices]  # d theta / d z = theta
+        return g
 
 
 def grid_search_resonances(objective, theta, bounds, indices):
@@ -189,16 +241,41 @@ def grid_search_resonances(objective, theta, bounds, indices):
     return theta
 
 
-def minimize_lbfgs(objective_and_gradient, theta0, bounds):
-    """One bounded L-BFGS-B run; returns the scipy result."""
-    return optimize.minimize(
-        objective_and_gradient,
-        theta0,
-        jac=True,
-        method="L-BFGS-B",
-        bounds=bounds,
-        options=LBFGS_OPTIONS,
+def resonance_window(theta, bounds, indices):
+    """Restrict each resonance frequency to ``RESONANCE_SPAN`` around its grid optimum.
+
+    The evidence has a local optimum at every resonance of the system (and a
+    flat one at zero amplitude); without a window, a prior resonance can
+    drift to another mode or die during the gradient refinement.
+    """
+    bounds = np.array(bounds, dtype=float)
+    half = np.log(RESONANCE_SPAN)
+    for i in indices:
+        bounds[i, 0] = max(bounds[i, 0], theta[i] - half)
+        bounds[i, 1] = min(bounds[i, 1], theta[i] + half)
+    return bounds
+
+
+def minimize_lbfgs(objective_and_gradient, theta0, bounds, transform=None):
+    """One bounded L-BFGS-B run in ``transform`` coordinates; returns the result in theta."""
+    if transform is None:
+        return optimize.minimize(
+            objective_and_gradient, theta0, jac=True, method="L-BFGS-B",
+            bounds=bounds, options=LBFGS_OPTIONS,
+        )
+
+    def in_z(z):
+        theta = transform.to_theta(z)
+        value, grad = objective_and_gradient(theta)
+        return value, transform.gradient(grad, theta)
+
+    z_bounds = transform.bounds(bounds)
+    z0 = np.clip(transform.to_z(theta0), z_bounds[:, 0], z_bounds[:, 1])
+    result = optimize.minimize(
+        in_z, z0, jac=True, method="L-BFGS-B", bounds=z_bounds, options=LBFGS_OPTIONS
     )
+    result.x = np.clip(transform.to_theta(result.x), bounds[:, 0], bounds[:, 1])
+    return result
 
 
 def warn_if_not_converged(result) -> None:

@@ -348,11 +348,13 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
                 theta0 = _tuning.grid_search_resonances(
                     lambda th: objective(th, eval_gradient=False), theta0, bounds, resonances
                 )
-            runs = [_tuning.minimize_lbfgs(objective, theta0, bounds)]
+                bounds = _tuning.resonance_window(theta0, bounds, resonances)
+            transform = _tuning.DecayRateTransform(self.kernel_, theta0.shape[0])
+            runs = [_tuning.minimize_lbfgs(objective, theta0, bounds, transform)]
             rng = check_random_state(self.random_state)
             for _ in range(n_restarts):
                 start = rng.uniform(bounds[:, 0], bounds[:, 1])
-                runs.append(_tuning.minimize_lbfgs(objective, start, bounds))
+                runs.append(_tuning.minimize_lbfgs(objective, start, bounds, transform))
         finite = [r for r in runs if np.isfinite(r.fun)]
         if not finite:
             raise ValueError(

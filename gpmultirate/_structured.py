@@ -1,0 +1,157 @@
+"""Data covariance ``Phi K Phi^T`` and its gradient contraction, term by term.
+
+The evidence and its gradient need ``S = Phi K Phi^T`` (``M x M``) and, for
+a symmetric ``W``, the scalars ``tr(W Phi dK_j Phi^T)``.  Forming the
+``P x P`` matrix ``K`` and ``A = Phi^T W Phi`` costs ``O(M P^2)`` per
+evaluation; the structure of the kernels avoids it:
+
+* DC: ``K = D T D`` with ``D = diag(alpha^(t/2))`` and the Toeplitz matrix
+  ``T = beta^|i-j|``, whose product with a row vector is a pair of
+  first-order recursive filters (causal and anticausal).  The derivative
+  with respect to ``log beta`` is ``|i-j| beta^|i-j|``, a second-order
+  filter.  Cost ``O(M P + M^2 P)`` instead of ``O(M P^2)``.
+* PK: rank two, so ``S`` and every contraction come from four products
+  ``Phi v``.
+* ConstantKernel: rank one, or a scalar factor of a product.
+* anything else: the dense path of :mod:`gpmultirate._contraction`.
+
+The operator's lags are always the integer grid ``0..P-1``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
+
+from gpmultirate._contraction import _select, kernel_with_contractor
+from gpmultirate.kernels import DC, PK
+
+
+def observed_with_contractor(kernel, operator, need_gradient: bool = True):
+    """Return ``S = Phi K Phi^T`` and ``contract(W) -> [tr(W Phi dK_j Phi^T)]_j``.
+
+    ``W`` must be symmetric.  The entries follow ``kernel.theta``.  With
+    ``need_gradient=False`` the contractor is None.
+    """
+    Phi = operator.matrix
+    lags = operator.lags[:, 0]
+    if isinstance(kernel, Sum):
+        S1, c1 = observed_with_contractor(kernel.k1, operator, need_gradient)
+        S2, c2 = observed_with_contractor(kernel.k2, operator, need_gradient)
+        contract = (lambda W: np.concatenate([c1(W), c2(W)])) if need_gradient else None
+        return S1 + S2, contract
+    if isinstance(kernel, Product) and (
+        isinstance(kernel.k1, ConstantKernel) or isinstance(kernel.k2, ConstantKernel)
+    ):
+        return _constant_product(kernel, operator, need_gradient)
+    if isinstance(kernel, ConstantKernel):
+        ones = Phi.sum(axis=1)
+        value = float(kernel.constant_value)
+        S = value * np.outer(ones, ones)
+        if kernel.hyperparameter_constant_value.fixed:
+            return S, (lambda W: np.empty(0))
+        return S, (lambda W: np.array([value * ones @ W @ ones]))
+    if type(kernel) is DC:
+        return _dc(kernel, Phi, lags, need_gradient)
+    if type(kernel) is PK:
+        return _pk(kernel, Phi, lags)
+    return _dense(kernel, Phi, lags, need_gradient)
+
+
+def _constant_product(kernel, operator, need_gradient):
+    first = isinstance(kernel.k1, ConstantKernel)
+    constant, other = (kernel.k1, kernel.k2) if first else (kernel.k2, kernel.k1)
+    value = float(constant.constant_value)
+    S_other, c_other = observed_with_contractor(other, operator, need_gradient)
+    S = value * S_other
+    if not need_gradient:
+        return S, None
+    free = not constant.hyperparameter_constant_value.fixed
+
+    def contract(W):
+        own = np.array([np.sum(W * S)]) if free else np.empty(0)
+        rest = c_other(value * W)
+        return np.concatenate([own, rest] if first else [rest, own])
+
+    return S, contract
+
+
+def _dense(kernel, Phi, lags, need_gradient):
+    if not need_gradient:
+        K = kernel(lags[:, None])
+        return _sym(Phi @ K @ Phi.T), None
+    K, contract_p = kernel_with_contractor(kernel, lags)
+    S = _sym(Phi @ K @ Phi.T)
+
+    def contract(W):
+        A = Phi.T @ W @ Phi
+        return contract_p(_sym(A))
+
+    return S, contract
+
+
+def _two_sided(X, causal_b, causal_a, include_center: bool):
+    """Filter every row of ``X`` with a symmetric two-sided recursive filter.
+
+    The causal part has transfer function ``b(z)/a(z)``; the anticausal part
+    is its mirror image.  With ``include_center`` the zero-lag tap (present in
+    both halves) is counted once.
+    """
+    causal = signal.lfilter(causal_b, causal_a, X, axis=1)
+    anticausal = signal.lfilter(causal_b, causal_a, X[:, ::-1], axis=1)[:, ::-1]
+    total = causal + anticausal
+    if include_center:
+        total -= causal_b[0] * X
+    return total
+
+
+def _dc(kernel: DC, Phi, lags, need_gradient):
+    values = kernel._check_hyperparameters()
+    alpha, beta = values["alpha"], values["beta"]
+    G = Phi * alpha ** (lags / 2.0)
+    # H = G T with T[i, j] = beta^|i - j|: causal + anticausal AR(1), centre once
+    H = _two_sided(G, [1.0], [1.0, -beta], include_center=True)
+    S = _sym(H @ G.T)
+    if not need_gradient:
+        return S, None
+
+    def contract(W):
+        WG = W @ G
+        # d/dlog(alpha): K * (t_i + t_j)/2  ->  tr(W (G t) T G^T) = sum((G t) * (W H))
+        d_alpha = np.sum((G * lags) * (W @ H))
+        # d/dlog(beta): K * |i - j| -> filter with taps k beta^k (zero at k = 0)
+        GD = _two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
+        d_beta = np.sum(GD * WG)
+        return _select(kernel, ["alpha", "beta"], [d_alpha, d_beta])
+
+    return S, contract
+
+
+def _pk(kernel: PK, Phi, lags):
+    values = kernel._check_hyperparameters()
+    alpha, omega = values["alpha"], values["omega"]
+    var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
+    c, s = kernel._parts(lags, alpha, omega)
+    pc, ps = Phi @ c, Phi @ s
+    S = var1 * np.outer(pc, pc) + var2 * np.outer(ps, ps)
+
+    def contract(W):
+        ptc, pts = Phi @ (lags * c), Phi @ (lags * s)
+        Wc, Ws = W @ pc, W @ ps
+        return _select(
+            kernel,
+            ["alpha", "omega", "sigma1", "sigma2"],
+            [
+                var1 * (ptc @ Wc) + var2 * (pts @ Ws),
+                2.0 * omega * (-var1 * (pts @ Wc) + var2 * (ptc @ Ws)),
+                2.0 * var1 * (pc @ Wc),
+                2.0 * var2 * (ps @ Ws),
+            ],
+        )
+
+    return S, contract
+
+
+def _sym(A):
+    return 0.5 * (A + A.T)
