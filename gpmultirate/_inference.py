@@ -124,6 +124,10 @@ class DataSpacePosterior(GaussianCoefficients):
             - 0.5 * y.shape[0] * LOG_2PI
         )
 
+    def mean_at_lags(self, operator, kernel, lags: np.ndarray) -> np.ndarray:
+        """Posterior mean of ``g`` at real lags."""
+        return operator.cross_covariance(kernel, lags[:, None]) @ self.alpha
+
     def at_lags(self, operator, kernel, lags: np.ndarray, full_cov: bool):
         """Posterior mean and variance (or covariance) of ``g`` at real lags."""
         cross = operator.cross_covariance(kernel, lags[:, None])
@@ -134,6 +138,82 @@ class DataSpacePosterior(GaussianCoefficients):
             return mean, 0.5 * (cov + cov.T)
         var = kernel.diag(lags[:, None]) - np.einsum("ij,ij->j", V, V)
         return mean, np.maximum(var, 0.0)
+
+
+class ParameterSpacePosterior(GaussianCoefficients):
+    """Posterior of the FIR coefficients in the parameter space, for ``M > P``.
+
+    With ``K = F F^T`` (eigen-decomposition, dropping directions of
+    numerically zero prior variance) and ``g = F z``, ``z ~ N(0, I)``, the
+    posterior mean of ``z`` solves the stacked least-squares problem
+
+        min_z ||y - Phi F z||^2 / gamma + ||z||^2,
+
+    which is solved by a QR factorisation of ``[Phi F / sqrt(gamma); I]``:
+    its accuracy is that of least squares, not of the ``M x M`` matrix
+    ``Phi K Phi^T + gamma I``, whose condition number grows as ``1/gamma``
+    when ``M > P``.  The evidence follows from the same factor:
+    ``y^T Ky^{-1} y`` is the minimum above and
+    ``log det Ky = M log gamma + log det(R^T R)``.
+    """
+
+    def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
+        Phi = operator.matrix
+        K = operator.kernel_matrix(kernel)
+        values, vectors = linalg.eigh(0.5 * (K + K.T), check_finite=False)
+        keep = values > max(values.max(), 0.0) * 1e-14
+        if not np.any(keep):
+            raise ValueError("the kernel matrix is zero at lags 0..order-1")
+        self.inv_root = vectors[:, keep] / np.sqrt(values[keep])  # F^{+T}
+        F = vectors[:, keep] * np.sqrt(values[keep])
+        root_noise = np.sqrt(noise_level)
+        rank = F.shape[1]
+        stacked = np.vstack([Phi @ F / root_noise, np.eye(rank)])
+        Q, R = linalg.qr(stacked, mode="economic", check_finite=False)
+        z = linalg.solve_triangular(R, Q[: y.shape[0]].T @ (y / root_noise), check_finite=False)
+        self.z = z
+        self.R = R
+        residual = y - Phi @ (F @ z)
+        quad = residual @ residual / noise_level + z @ z
+        log_det = y.shape[0] * np.log(noise_level) + 2.0 * np.log(np.abs(np.diag(R))).sum()
+        self.log_marginal_likelihood = float(-0.5 * quad - 0.5 * log_det - 0.5 * y.shape[0] * LOG_2PI)
+        self.factor = linalg.solve_triangular(R, F.T, trans="T", check_finite=False).T
+        super().__init__(F @ z, K, None)
+
+    def cross_variance(self, A1: np.ndarray, A2: np.ndarray) -> np.ndarray:
+        return np.einsum("ij,ij->i", A1 @ self.factor, A2 @ self.factor)
+
+    def linear_map(self, A: np.ndarray, full_cov: bool = False):
+        mean = A @ self.coef
+        AF = A @ self.factor
+        if full_cov:
+            return mean, AF @ AF.T
+        return mean, np.einsum("ij,ij->i", AF, AF)
+
+    def covariance(self) -> np.ndarray:
+        return self.factor @ self.factor.T
+
+    def mean_at_lags(self, operator, kernel, lags: np.ndarray) -> np.ndarray:
+        """Posterior mean of ``g`` at real lags."""
+        return kernel(lags[:, None], operator.lags) @ (self.inv_root @ self.z)
+
+    def at_lags(self, operator, kernel, lags: np.ndarray, full_cov: bool):
+        """Posterior of ``g(lags)``: the prior conditional on ``g(0..P-1)``, averaged."""
+        J = kernel(lags[:, None], operator.lags) @ self.inv_root
+        mean = J @ self.z
+        JS = J @ linalg.solve_triangular(self.R, np.eye(self.R.shape[0]), check_finite=False)
+        if full_cov:
+            cov = kernel(lags[:, None]) - J @ J.T + JS @ JS.T
+            return mean, 0.5 * (cov + cov.T)
+        var = kernel.diag(lags[:, None]) - np.einsum("ij,ij->i", J, J) + np.einsum("ij,ij->i", JS, JS)
+        return mean, np.maximum(var, 0.0)
+
+
+def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
+    """The posterior in whichever space is smaller: data (``M <= P``) or parameters."""
+    if operator.n_outputs > operator.order:
+        return ParameterSpacePosterior(operator, kernel, noise_level, y)
+    return DataSpacePosterior(operator, kernel, noise_level, y)
 
 
 def log_marginal_likelihood(

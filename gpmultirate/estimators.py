@@ -19,11 +19,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import _tuning
-from gpmultirate._inference import (
-    DataSpacePosterior,
-    GaussianCoefficients,
-    log_marginal_likelihood,
-)
+from gpmultirate._inference import GaussianCoefficients, log_marginal_likelihood, posterior
 from gpmultirate._validation import (
     check_bounds,
     check_int,
@@ -203,6 +199,9 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         (scikit-learn's sign and constants: higher is better).
     operator_ : DownsampledConvolution
         The observation operator of the training input.
+    optimizer_result_ : scipy.optimize.OptimizeResult or None
+        The best L-BFGS-B run (``x`` in ``theta`` coordinates), or None when
+        nothing was tuned.
 
     Examples
     --------
@@ -272,6 +271,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         noise = check_positive(self.noise_level, "noise_level")
         self.operator_ = operator
         self._y = y
+        self.optimizer_result_ = None
         self.kernel_ = self._initial_kernel(u, y)
         self._noise_bounds = self._resolve_noise_bounds(y)
         if self.optimizer is not None:
@@ -279,7 +279,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
                 noise = float(np.clip(noise, *self._noise_bounds))
             noise = self._optimize(noise, n_restarts)
         self.noise_level_ = noise
-        self._distribution = DataSpacePosterior(self.operator_, self.kernel_, noise, y)
+        self._distribution = posterior(self.operator_, self.kernel_, noise, y)
         self.coef_ = self._distribution.coef
         self.log_marginal_likelihood_value_ = self._distribution.log_marginal_likelihood
         return self
@@ -308,21 +308,20 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
     def _noise_is_free(self) -> bool:
         return not isinstance(self._noise_bounds, str)
 
-    def _split(self, theta):
+    def _split(self, theta, fixed_noise: float):
+        """Kernel and noise level of a ``theta``; ``fixed_noise`` when the noise is not tuned."""
         n_kernel = self.kernel_.theta.shape[0]
         kernel = self.kernel_.clone_with_theta(theta[:n_kernel])
-        noise = float(np.exp(theta[n_kernel])) if self._noise_is_free else self.noise_level_fixed
+        noise = float(np.exp(theta[n_kernel])) if self._noise_is_free else fixed_noise
         return kernel, noise
 
     def _optimize(self, noise: float, n_restarts: int) -> float:
         y, operator = self._y, self.operator_
-        self.noise_level_fixed = noise
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NumericalWarning)
             noise = _tuning.prefit_scale_and_noise(
                 operator, self.kernel_, noise, self._noise_bounds, y
             )
-            self.noise_level_fixed = noise
             theta0 = self.kernel_.theta
             bounds = self.kernel_.bounds.reshape(-1, 2)
             if self._noise_is_free:
@@ -332,7 +331,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
                 return noise
 
             def objective(theta, eval_gradient=True):
-                kernel, noise_level = self._split(theta)
+                kernel, noise_level = self._split(theta, noise)
                 try:
                     result = log_marginal_likelihood(
                         operator, kernel, noise_level, y, eval_gradient, self._noise_is_free
@@ -364,9 +363,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         best = min(finite, key=lambda r: r.fun)
         _tuning.warn_if_not_converged(best)
         self.optimizer_result_ = best
-        kernel, noise = self._split(best.x)
-        self.kernel_ = kernel
-        del self.noise_level_fixed
+        self.kernel_, noise = self._split(best.x, noise)
         return noise
 
     # ------------------------------------------------------------ evidence
@@ -395,11 +392,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         n_expected = self.kernel_.theta.shape[0] + int(self._noise_is_free)
         if theta.shape[0] != n_expected:
             raise ValueError(f"theta must have {n_expected} entries; got {theta.shape[0]}")
-        self.noise_level_fixed = self.noise_level_
-        try:
-            kernel, noise = self._split(theta)
-        finally:
-            del self.noise_level_fixed
+        kernel, noise = self._split(theta, self.noise_level_)
         return log_marginal_likelihood(
             self.operator_, kernel, noise, self._y, eval_gradient, self._noise_is_free
         )
@@ -431,8 +424,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             raise ValueError("return_std and return_cov cannot both be True")
         lags = self._lags(lags)
         if not (return_std or return_cov):
-            cross = self.operator_.cross_covariance(self.kernel_, lags[:, None])
-            return cross @ self._distribution.alpha
+            return self._distribution.mean_at_lags(self.operator_, self.kernel_, lags)
         mean, second = self._distribution.at_lags(
             self.operator_, self.kernel_, lags, full_cov=return_cov
         )
