@@ -13,6 +13,7 @@ from gpmultirate.frequency import FrequencyResponse
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observed import ObservedKernel
 from gpmultirate.operator import DownsampledConvolution
+from gpmultirate.persistence import ModelFileError, load_model, save_model
 
 __all__ = [
     "DownsampledConvolution",
@@ -20,8 +21,11 @@ __all__ = [
     "FrequencyResponse",
     "IdentifiabilityError",
     "LeastSquaresFIR",
+    "ModelFileError",
     "NumericalWarning",
     "ObservedKernel",
     "__version__",
     "goodness_of_fit",
+    "load_model",
+    "save_model",
 ]

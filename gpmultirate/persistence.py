@@ -1,0 +1,678 @@
+"""Saving fitted FIR models to portable files and loading them back.
+
+:func:`save_model` writes a fitted :class:`~gpmultirate.FIRGaussianProcess`
+or :class:`~gpmultirate.LeastSquaresFIR` to an ``.npz`` archive of plain
+numbers; :func:`load_model` reads it back without unpickling anything and
+without importing any name found in the file, so loading a file from an
+untrusted source cannot run code.  (Fitted models also round-trip through
+:mod:`pickle`, but a pickle must only be loaded from a trusted source.)
+
+File format, version 1
+----------------------
+An uncompressed ``.npz`` archive (:func:`numpy.savez`) with the members
+
+``header``
+    ``uint8`` array of UTF-8 JSON: ``format`` (``"gpmultirate-model"``),
+    ``format_version``, ``library_version``, ``estimator`` (class name),
+    ``params`` (constructor parameters), ``fitted`` (``factor``, ``order``,
+    ``offset``, the fitted hyperparameters, ...) and ``sha256``.
+``u``, ``coef``
+    Training input and fitted coefficients (little-endian float64).
+``y_slow``
+    Slow training output (FIRGaussianProcess): loading conditions the
+    stored kernel on it again, which reproduces the fitted model exactly.
+``coef_covariance``
+    Coefficient covariance (LeastSquaresFIR).
+
+A kernel is a JSON tree such as ``{"class": "Sum", "k1": {...}, "k2": {...}}``
+or ``{"class": "DC", "params": {"alpha": 0.9, ...}}`` whose classes must be
+in :data:`KERNEL_CLASSES`.  Values JSON cannot hold exactly are tagged
+objects ``{"type": "tuple" | "ndarray" | "float" | "kernel" | "RandomState", ...}``.
+
+``sha256`` is the hex digest of the header without its ``sha256`` entry,
+serialised as ``json.dumps(header, sort_keys=True, separators=(",", ":"))``
+plus a newline, followed for every other member, in name order, by the line
+``"{name}:{dtype.str}:{comma-separated shape}\\n"`` and the array's bytes, so
+any change to the file is detected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import types
+import warnings
+import zipfile
+from typing import Any, BinaryIO, Union
+
+import numpy as np
+from scipy.optimize import OptimizeResult
+from sklearn.gaussian_process.kernels import (
+    RBF,
+    ConstantKernel,
+    DotProduct,
+    Exponentiation,
+    ExpSineSquared,
+    Kernel,
+    Matern,
+    Product,
+    RationalQuadratic,
+    Sum,
+    WhiteKernel,
+)
+from sklearn.utils.validation import check_is_fitted
+
+from gpmultirate._inference import GaussianCoefficients
+from gpmultirate._version import __version__
+from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
+from gpmultirate.kernels import DC, PK, SS, TC
+from gpmultirate.operator import DownsampledConvolution
+
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "KERNEL_CLASSES",
+    "ModelFileError",
+    "describe_kernel",
+    "kernel_from_description",
+    "load_model",
+    "save_model",
+]
+
+PathOrFile = Union[str, os.PathLike, BinaryIO]
+
+FORMAT_NAME = "gpmultirate-model"
+FORMAT_VERSION = 1
+
+#: The only kernel classes a model file may name, by class name.
+KERNEL_CLASSES = types.MappingProxyType(
+    {
+        cls.__name__: cls
+        for cls in (
+            ConstantKernel, WhiteKernel, RBF, Matern, RationalQuadratic, ExpSineSquared,
+            DotProduct, Sum, Product, Exponentiation, TC, DC, SS, PK,
+        )
+    }
+)
+# constructor arguments of the composite kernels that are kernels themselves
+_KERNEL_SLOTS = {"Sum": ("k1", "k2"), "Product": ("k1", "k2"), "Exponentiation": ("kernel",)}
+_ESTIMATORS = {cls.__name__: cls for cls in (FIRGaussianProcess, LeastSquaresFIR)}
+_ARRAYS = {
+    "FIRGaussianProcess": ("u", "y_slow", "coef"),
+    "LeastSquaresFIR": ("u", "coef", "coef_covariance"),
+}
+# the plain-data part of scipy's L-BFGS-B result (hess_inv is an operator object)
+_OPTIMIZER_FIELDS = ("x", "fun", "jac", "nit", "nfev", "njev", "status", "success", "message")
+_ARRAY_DTYPES = frozenset(
+    ["bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64",
+     "float16", "float32", "float64"]
+)
+_NON_FINITE = {"inf": np.inf, "-inf": -np.inf, "nan": np.nan}
+
+
+class ModelFileError(ValueError):
+    """A model file is not a valid gpmultirate model file for this version.
+
+    Raised by :func:`load_model` for a file that is not a gpmultirate
+    archive, is corrupted (checksum mismatch, truncated), was written by a
+    different major version of the library or a newer file format, or names
+    a kernel class that may not be loaded.
+
+    Examples
+    --------
+    >>> from gpmultirate.persistence import ModelFileError
+    >>> issubclass(ModelFileError, ValueError)
+    True
+    """
+
+
+# ----------------------------------------------------------------- saving
+def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) -> None:
+    """Write a fitted model to a portable ``.npz`` file.
+
+    The file holds the training data, the fitted hyperparameters and the
+    constructor parameters as plain numbers and JSON, never pickled
+    objects; see the module documentation for the format.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess or LeastSquaresFIR
+        A fitted model.  Its kernels must be built from
+        :data:`KERNEL_CLASSES`, and its parameters must be numbers, strings,
+        tuples, arrays, kernels or a ``numpy.random.RandomState``.
+    path : str, path-like or binary file object
+        Destination, written exactly as named (no ``.npz`` is appended).
+
+    Raises
+    ------
+    sklearn.exceptions.NotFittedError
+        If ``model`` is not fitted.
+    ValueError
+        If a kernel or parameter cannot be stored; the message names it.
+    TypeError
+        If ``model`` is not one of the two estimators.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import FIRGaussianProcess
+    >>> from gpmultirate.kernels import DC
+    >>> from gpmultirate.persistence import load_model, save_model
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(90)
+    >>> y_slow = np.convolve(u, 0.8 ** np.arange(30))[:90][::3]
+    >>> model = FIRGaussianProcess(C(1.0) * DC(), factor=3, order=30, optimizer=None)
+    >>> model = model.fit(u, y_slow)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "model.npz")
+    ...     save_model(model, path)
+    ...     loaded = load_model(path)
+    >>> bool(np.array_equal(loaded.predict(u), model.predict(u)))
+    True
+    """
+    name = type(model).__name__
+    if _ESTIMATORS.get(name) is not type(model):
+        raise TypeError(
+            "model must be a FIRGaussianProcess or LeastSquaresFIR (not a subclass); "
+            f"got {type(model).__qualname__}"
+        )
+    check_is_fitted(model, "coef_")
+    operator = model.operator_
+    fitted: dict[str, Any] = {
+        "factor": int(operator.factor),
+        "order": int(operator.order),
+        "offset": int(operator.offset),
+    }
+    arrays = {"u": operator.u, "coef": model.coef_}
+    if isinstance(model, FIRGaussianProcess):
+        arrays["y_slow"] = model._y
+        result = getattr(model, "optimizer_result_", None)
+        fitted.update(
+            kernel_=describe_kernel(model.kernel_),
+            noise_level_=_encode(model.noise_level_, "noise_level_"),
+            log_marginal_likelihood_value_=_encode(
+                model.log_marginal_likelihood_value_, "log_marginal_likelihood_value_"
+            ),
+            optimizer_result_=None if result is None else _encode_optimizer_result(result),
+        )
+    else:
+        arrays["coef_covariance"] = model.coef_covariance_
+        fitted["noise_variance_"] = _encode(model.noise_variance_, "noise_variance_")
+    header = {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "library_version": __version__,
+        "estimator": name,
+        "params": {
+            key: _encode(value, f"parameter {key!r}")
+            for key, value in model.get_params(deep=False).items()
+        },
+        "fitted": fitted,
+    }
+    # little-endian float64 everywhere, whatever the machine
+    arrays = {key: np.ascontiguousarray(value, dtype="<f8") for key, value in arrays.items()}
+    header["sha256"] = _checksum(header, arrays)
+    encoded = json.dumps(header, sort_keys=True, allow_nan=False).encode("utf-8")
+    members = {"header": np.frombuffer(encoded, dtype=np.uint8), **arrays}
+    if hasattr(path, "write"):
+        np.savez(path, **members)
+    else:
+        with open(path, "wb") as file:
+            np.savez(file, **members)
+
+
+def describe_kernel(kernel: Kernel) -> dict:
+    """JSON-ready description of a kernel built from :data:`KERNEL_CLASSES`.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+
+    Returns
+    -------
+    dict
+        ``{"class": name, "params": {...}}`` for a single kernel, with the
+        kernel-valued arguments (``k1``, ``k2`` or ``kernel``) as nested
+        descriptions for composite ones.
+
+    Raises
+    ------
+    ValueError
+        For a kernel class outside :data:`KERNEL_CLASSES`.
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel
+    >>> from gpmultirate.kernels import TC
+    >>> from gpmultirate.persistence import describe_kernel, kernel_from_description
+    >>> tree = describe_kernel(ConstantKernel(2.0) * TC(alpha=0.8))
+    >>> tree["class"], tree["k2"]["params"]["alpha"]
+    ('Product', 0.8)
+    >>> kernel_from_description(tree)
+    1.41**2 * TC(alpha=0.8)
+    """
+    name = type(kernel).__name__
+    if KERNEL_CLASSES.get(name) is not type(kernel):
+        raise ValueError(
+            f"cannot save kernel class {type(kernel).__module__}.{type(kernel).__qualname__}: "
+            f"model files only hold the kernels {', '.join(KERNEL_CLASSES)}"
+        )
+    params = kernel.get_params(deep=False)
+    tree: dict[str, Any] = {"class": name}
+    for slot in _KERNEL_SLOTS.get(name, ()):
+        tree[slot] = describe_kernel(params.pop(slot))
+    if params:
+        tree["params"] = {key: _encode(value, f"{name}.{key}") for key, value in params.items()}
+    return tree
+
+
+def kernel_from_description(tree: dict) -> Kernel:
+    """Rebuild a kernel from :func:`describe_kernel`'s description.
+
+    Only classes of :data:`KERNEL_CLASSES` are instantiated; nothing is
+    imported by name.
+
+    Parameters
+    ----------
+    tree : dict
+
+    Returns
+    -------
+    sklearn Kernel
+
+    Raises
+    ------
+    ModelFileError
+        For an unknown class or a malformed description.
+
+    Examples
+    --------
+    >>> from gpmultirate.persistence import kernel_from_description
+    >>> kernel_from_description({"class": "DC", "params": {"alpha": 0.5, "beta": 0.7}})
+    DC(alpha=0.5, beta=0.7)
+    """
+    if not isinstance(tree, dict) or not isinstance(tree.get("class"), str):
+        raise ModelFileError(
+            f"a kernel description must be an object with a 'class'; got {tree!r}"
+        )
+    name = tree["class"]
+    if name not in KERNEL_CLASSES:
+        raise ModelFileError(
+            f"unknown kernel class {name!r} in the model file; only "
+            f"{', '.join(KERNEL_CLASSES)} can be loaded"
+        )
+    slots = _KERNEL_SLOTS.get(name, ())
+    unexpected = set(tree) - {"class", "params", *slots}
+    missing = [slot for slot in slots if slot not in tree]
+    if unexpected or missing:
+        raise ModelFileError(
+            f"malformed {name} kernel description: unexpected entries {sorted(unexpected)}, "
+            f"missing {missing}"
+        )
+    params = tree.get("params", {})
+    if not isinstance(params, dict):
+        raise ModelFileError(f"the params of a {name} kernel must be an object; got {params!r}")
+    arguments = {key: _decode(value) for key, value in params.items()}
+    arguments.update({slot: kernel_from_description(tree[slot]) for slot in slots})
+    try:
+        return KERNEL_CLASSES[name](**arguments)
+    except TypeError as exc:
+        raise ModelFileError(f"invalid arguments for kernel {name}: {exc}") from exc
+
+
+# ---------------------------------------------------------------- loading
+def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
+    """Load a model written by :func:`save_model`.
+
+    The archive is read with ``allow_pickle=False`` and kernels are
+    rebuilt from a fixed list of classes, so loading runs no code from the
+    file.  A :class:`FIRGaussianProcess` is rebuilt by conditioning the
+    stored kernel on the stored data, with the stored noise level; this
+    repeats the last step of ``fit`` and reproduces its predictions bit for
+    bit on the same platform (a warning reports any difference, which can
+    only come from different numerical libraries).  The loaded model has the
+    original constructor parameters, so ``get_params`` and refitting behave
+    as for the saved model.
+
+    Parameters
+    ----------
+    path : str, path-like or binary file object
+
+    Returns
+    -------
+    FIRGaussianProcess or LeastSquaresFIR
+        The fitted model.
+
+    Raises
+    ------
+    ModelFileError
+        If the file is not a gpmultirate model file, is corrupted, was
+        written by a different major version of gpmultirate or a newer file
+        format, or names a kernel class that may not be loaded.
+    FileNotFoundError
+        If ``path`` does not exist.
+
+    Examples
+    --------
+    >>> import io
+    >>> import numpy as np
+    >>> from gpmultirate import LeastSquaresFIR
+    >>> from gpmultirate.persistence import load_model, save_model
+    >>> rng = np.random.default_rng(1)
+    >>> u = rng.standard_normal(90)
+    >>> y_slow = np.convolve(u, 0.5 ** np.arange(8))[:90][::3]
+    >>> buffer = io.BytesIO()
+    >>> save_model(LeastSquaresFIR(factor=3, order=8).fit(u, y_slow), buffer)
+    >>> _ = buffer.seek(0)
+    >>> load_model(buffer).coef_[:3].round(6)
+    array([1.  , 0.5 , 0.25])
+    """
+    if hasattr(path, "read"):
+        members = _read_archive(path)
+    else:
+        with open(path, "rb") as file:
+            members = _read_archive(file)
+    header = _parse_header(members.pop("header", None))
+    _check_versions(header)
+    if header.get("sha256") != _checksum(header, members):
+        raise ModelFileError(
+            "the model file is corrupted: its SHA-256 checksum does not match its contents"
+        )
+    name = header.get("estimator")
+    if name not in _ESTIMATORS:
+        raise ModelFileError(f"unknown estimator {name!r} in the model file")
+    if sorted(members) != sorted(_ARRAYS[name]):
+        raise ModelFileError(
+            f"a {name} file must hold the arrays {sorted(_ARRAYS[name])}; got {sorted(members)}"
+        )
+    try:
+        arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
+        if name == "FIRGaussianProcess":
+            return _load_gaussian_process(header, arrays)
+        return _load_least_squares(header, arrays)
+    except ModelFileError:
+        raise
+    except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as exc:
+        raise ModelFileError(f"the {name} model file is invalid: {exc}") from exc
+
+
+def _read_archive(file: BinaryIO) -> dict[str, np.ndarray]:
+    unreadable = (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError)
+    try:
+        archive = np.load(file, allow_pickle=False)
+    except unreadable as exc:
+        raise ModelFileError(
+            f"not a gpmultirate model file: not an .npz archive, or a truncated one ({exc})"
+        ) from exc
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ModelFileError("not a gpmultirate model file: an .npy array, not an .npz archive")
+    with archive:
+        try:
+            return {key: archive[key] for key in archive.files}
+        except unreadable as exc:
+            raise ModelFileError(
+                f"the model file is corrupted or truncated, or holds pickled objects: {exc}"
+            ) from exc
+
+
+def _parse_header(raw) -> dict:
+    if raw is None:
+        raise ModelFileError("not a gpmultirate model file: the archive has no 'header'")
+    if raw.dtype != np.uint8 or raw.ndim != 1:
+        raise ModelFileError("not a gpmultirate model file: 'header' is not a byte array")
+    try:
+        header = json.loads(bytes(raw).decode("utf-8"), parse_constant=_reject_constant)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise ModelFileError(f"the model file header is not valid JSON: {exc}") from exc
+    if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+        raise ModelFileError(
+            f"not a gpmultirate model file: the header's format is not {FORMAT_NAME!r}"
+        )
+    return header
+
+
+def _reject_constant(token: str):
+    raise ValueError(f"{token} is not allowed in the header")
+
+
+def _check_versions(header: dict) -> None:
+    version = header.get("format_version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ModelFileError(f"invalid format_version {version!r} in the model file header")
+    if version > FORMAT_VERSION:
+        raise ModelFileError(
+            f"the model file has format version {version}, newer than the version "
+            f"{FORMAT_VERSION} this gpmultirate {__version__} reads; upgrade gpmultirate"
+        )
+    written_by = header.get("library_version")
+    if _major(written_by) != _major(__version__):
+        raise ModelFileError(
+            f"the model file was written by gpmultirate {written_by}, whose major version "
+            f"differs from the running gpmultirate {__version__}; load it with gpmultirate "
+            f"{_major(written_by)}.x, or refit the model"
+        )
+
+
+def _major(version) -> int | None:
+    head = version.split(".")[0] if isinstance(version, str) else ""
+    return int(head) if head.isdigit() else None
+
+
+def _checksum(header: dict, arrays: dict[str, np.ndarray]) -> str:
+    digest = hashlib.sha256()
+    content = {key: value for key, value in header.items() if key != "sha256"}
+    canonical = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    digest.update(canonical.encode("utf-8") + b"\n")
+    for name in sorted(arrays):
+        array = arrays[name]
+        shape = ",".join(str(n) for n in array.shape)
+        digest.update(f"{name}:{array.dtype.str}:{shape}\n".encode("utf-8"))
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()
+
+
+def _float_vector_or_matrix(name: str, array: np.ndarray) -> np.ndarray:
+    ndim = 2 if name == "coef_covariance" else 1
+    if array.dtype.kind != "f" or array.ndim != ndim:
+        raise ModelFileError(
+            f"array {name!r} must be {ndim}-D float; got {array.dtype} of shape {array.shape}"
+        )
+    return np.array(array, dtype=float)
+
+
+def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
+    params = _decode_params(header, FIRGaussianProcess)
+    fitted = _section(header, "fitted")
+    # the last step of fit, at the stored hyperparameters
+    refit = dict(
+        params,
+        kernel=kernel_from_description(fitted["kernel_"]),
+        noise_level=_number(fitted, "noise_level_"),
+        optimizer=None,
+    )
+    model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
+    _check_layout(model.operator_, fitted)
+    _warn_if_not_reproduced(
+        model.coef_, arrays["coef"],
+        model.log_marginal_likelihood_value_, _number(fitted, "log_marginal_likelihood_value_"),
+    )
+    model.set_params(**params)
+    result = fitted.get("optimizer_result_")
+    if result is not None:
+        if not isinstance(result, dict) or set(result) - set(_OPTIMIZER_FIELDS):
+            raise ModelFileError(f"invalid optimizer_result_ in the model file: {result!r}")
+        model.optimizer_result_ = OptimizeResult(
+            {key: _decode(value) for key, value in result.items()}
+        )
+    return model
+
+
+def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
+    # fit keeps no y_slow, so the fitted arrays are restored rather than recomputed
+    params = _decode_params(header, LeastSquaresFIR)
+    fitted = _section(header, "fitted")
+    model = LeastSquaresFIR(**params)
+    operator = DownsampledConvolution(
+        arrays["u"], _integer(fitted, "factor"), _integer(fitted, "order"),
+        _integer(fitted, "offset"),
+    )
+    _check_layout(operator, {key: getattr(model, key) for key in ("factor", "order", "offset")})
+    coef, covariance = arrays["coef"], arrays["coef_covariance"]
+    P = operator.order
+    if coef.shape != (P,) or covariance.shape != (P, P):
+        raise ModelFileError(
+            f"coef and coef_covariance must have shapes ({P},) and ({P}, {P}); "
+            f"got {coef.shape} and {covariance.shape}"
+        )
+    model.operator_ = operator
+    model.coef_ = coef
+    model.noise_variance_ = _number(fitted, "noise_variance_")
+    model.coef_covariance_ = covariance
+    model._distribution = GaussianCoefficients(coef, covariance, np.zeros((0, P)))
+    return model
+
+
+def _decode_params(header: dict, estimator: type) -> dict:
+    params = _section(header, "params")
+    unknown = set(params) - set(estimator().get_params(deep=False))
+    if unknown:
+        raise ModelFileError(
+            f"unknown {estimator.__name__} parameters {sorted(unknown)} in the model file"
+        )
+    return {key: _decode(value) for key, value in params.items()}
+
+
+def _section(header: dict, key: str) -> dict:
+    value = header.get(key)
+    if not isinstance(value, dict):
+        raise ModelFileError(f"the model file header has no {key!r} object")
+    return value
+
+
+def _number(section: dict, key: str) -> float:
+    value = _decode(section.get(key))
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelFileError(f"header entry {key!r} must be a number; got {value!r}")
+    return float(value)
+
+
+def _integer(section: dict, key: str) -> int:
+    value = section.get(key)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ModelFileError(f"header entry {key!r} must be an integer; got {value!r}")
+    return value
+
+
+def _check_layout(operator: DownsampledConvolution, fitted: dict) -> None:
+    for key in ("factor", "order", "offset"):
+        if fitted.get(key) != getattr(operator, key):
+            raise ModelFileError(
+                f"inconsistent model file: {key} is {fitted.get(key)!r} in the header "
+                f"but {getattr(operator, key)} for the stored data"
+            )
+
+
+def _warn_if_not_reproduced(coef, saved_coef, evidence, saved_evidence) -> None:
+    if coef.shape != saved_coef.shape:
+        raise ModelFileError(
+            f"inconsistent model file: {saved_coef.shape[0]} saved coefficients for "
+            f"order {coef.shape[0]}"
+        )
+    if np.array_equal(coef, saved_coef) and evidence == saved_evidence:
+        return
+    scale = float(np.max(np.abs(saved_coef))) or 1.0
+    warnings.warn(
+        "the loaded model differs from the saved one (coefficients by up to "
+        f"{np.max(np.abs(coef - saved_coef)) / scale:.2g} relative, log marginal "
+        f"likelihood {evidence!r} instead of {saved_evidence!r}); the numerical "
+        "libraries differ from those that wrote the file",
+        UserWarning,
+        stacklevel=4,
+    )
+
+
+# ------------------------------------------------------ plain-data values
+def _encode(value, where: str):
+    """Return a JSON value that :func:`_decode` turns back into ``value``."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if np.isfinite(value) else {"type": "float", "value": repr(value)}
+    if isinstance(value, tuple):
+        return {"type": "tuple", "items": [_encode(item, where) for item in value]}
+    if isinstance(value, list):
+        return [_encode(item, where) for item in value]
+    if isinstance(value, np.ndarray) and value.dtype.name in _ARRAY_DTYPES:
+        return {
+            "type": "ndarray",
+            "dtype": value.dtype.name,
+            "shape": list(value.shape),
+            "data": [_encode(item, where) for item in value.ravel().tolist()],
+        }
+    if isinstance(value, Kernel):
+        return {"type": "kernel", "tree": describe_kernel(value)}
+    if isinstance(value, np.random.RandomState):
+        kind, keys, position, has_gauss, cached = value.get_state(legacy=True)
+        return {
+            "type": "RandomState",
+            "keys": keys.tolist(),
+            "pos": int(position),
+            "has_gauss": int(has_gauss),
+            "cached_gaussian": float(cached),
+        }
+    raise ValueError(
+        f"cannot save {where} of type {type(value).__name__}: model files hold numbers, "
+        "strings, tuples, lists, numeric arrays, kernels and numpy RandomState only"
+    )
+
+
+def _decode(value):
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, list):
+        return [_decode(item) for item in value]
+    kind = value.get("type") if isinstance(value, dict) else None
+    if kind == "kernel":
+        return kernel_from_description(value.get("tree"))
+    try:
+        if kind == "float" and value["value"] in _NON_FINITE:
+            return _NON_FINITE[value["value"]]
+        if kind == "tuple" and isinstance(value["items"], list):
+            return tuple(_decode(item) for item in value["items"])
+        if kind == "ndarray" and value["dtype"] in _ARRAY_DTYPES:
+            data = [_decode(item) for item in value["data"]]
+            return np.array(data, dtype=value["dtype"]).reshape(value["shape"])
+        if kind == "RandomState":
+            random_state = np.random.RandomState()
+            random_state.set_state(
+                (
+                    "MT19937",
+                    np.array(value["keys"], dtype=np.uint32),
+                    int(value["pos"]),
+                    int(value["has_gauss"]),
+                    float(value["cached_gaussian"]),
+                )
+            )
+            return random_state
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise ModelFileError(f"malformed {kind} value in the model file header: {exc}") from exc
+    raise ModelFileError(f"unsupported value in the model file header: {value!r}")
+
+
+def _encode_optimizer_result(result) -> dict:
+    return {
+        key: _encode(
+            result[key].decode() if isinstance(result[key], bytes) else result[key],
+            f"optimizer_result_.{key}",
+        )
+        for key in _OPTIMIZER_FIELDS
+        if key in result
+    }
