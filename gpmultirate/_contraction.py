@@ -53,6 +53,8 @@ def kernel_with_contractor(kernel, lags: np.ndarray):
             return builder(kernel, lags)
     K, dK = kernel(lags[:, None], eval_gradient=True)
     n = dK.shape[2]
+    if n == 0:
+        return K, _nothing
     return K, lambda A: A.reshape(-1) @ dK.reshape(-1, n)
 
 

@@ -119,13 +119,15 @@ def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
             grad.append(np.sum(common * g))
         return value, np.array(grad)
 
-    bounds = []
-    if fit_scale:
-        bounds.append(_scale_range(kernel))
-    if fit_noise:
-        bounds.append(tuple(np.log(noise_bounds)))
     mean_s = float(np.mean(s)) or 1.0
     scale0 = np.log(power / mean_s)
+    bounds = []
+    if fit_scale:
+        # the data's own scale is searched without the kernel's bounds, so that
+        # bounds that do not admit it are reported instead of silently binding
+        bounds.append((scale0 - 60.0, scale0 + 60.0))
+    if fit_noise:
+        bounds.append(tuple(np.log(noise_bounds)))
     starts = []
     for relative_noise in (1e-1, 1e-3, 1e-5, 1e-7):
         x = []
@@ -145,8 +147,24 @@ def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
         if np.isfinite(result.fun) and (best is None or result.fun < best.fun):
             best = result
     if fit_scale:
+        _warn_if_scale_out_of_bounds(kernel, best.x[0])
         scale_kernel(kernel, float(np.exp(best.x[0])))
     return float(np.exp(best.x[-1])) if fit_noise else noise_level
+
+
+def _warn_if_scale_out_of_bounds(kernel, log_scale: float) -> None:
+    low, high = _scale_range(kernel)
+    if low is None or low - np.log(10.0) <= log_scale <= high + np.log(10.0):
+        return
+    names = ", ".join(name for name, _ in _scale_paths(kernel))
+    warnings.warn(
+        f"the data call for the kernel to be scaled by {np.exp(log_scale):.3g}, which the "
+        f"bounds of its amplitude hyperparameters ({names}) do not allow; the fit will be "
+        "poor. Widen those bounds to the units of u and y, or use kernel=None, whose "
+        "bounds follow the data.",
+        ConvergenceWarning,
+        stacklevel=4,
+    )
 
 
 def _clip(x, bounds):

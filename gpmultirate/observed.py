@@ -88,21 +88,22 @@ class ObservedKernel(GenericKernelMixin, Kernel):
         return self.kernel == other.kernel and self.operator == other.operator
 
     def _indices(self, X, name: str) -> np.ndarray:
-        X = np.asarray(X)
-        index = X[:, 0] if X.ndim == 2 else X
-        index_int = np.asarray(np.rint(index), dtype=int) if index.size else index.astype(int)
-        if (
-            index.ndim != 1
-            or index.size == 0
-            or not np.array_equal(index_int, index)
-            or index_int.min() < 0
-            or index_int.max() >= self.operator.n_outputs
-        ):
-            raise ValueError(
-                f"{name} must hold slow-sample indices in 0..{self.operator.n_outputs - 1} "
-                "with shape (n, 1)"
-            )
-        return index_int
+        message = (
+            f"{name} must hold slow-sample indices in 0..{self.operator.n_outputs - 1} "
+            "with shape (n, 1)"
+        )
+        try:
+            X = np.asarray(X, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(message) from exc
+        if X.ndim == 2 and X.shape[1] == 1:
+            X = X[:, 0]
+        if X.ndim != 1 or X.size == 0 or not np.all(np.isfinite(X)):
+            raise ValueError(message)
+        index = X.astype(int)
+        if not np.array_equal(index, X) or index.min() < 0 or index.max() >= self.operator.n_outputs:
+            raise ValueError(message)
+        return index
 
     def __call__(self, X, Y=None, eval_gradient: bool = False):
         """Return ``(Phi K Phi^T)[X, Y]`` and optionally its gradient."""
