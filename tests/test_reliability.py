@@ -1,0 +1,142 @@
+"""Units invariance, hard numerics and determinism."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import linalg
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+import gpmultirate as gm
+from gpmultirate import simulation as sim
+from gpmultirate.kernels import DC, PK, TC
+
+
+@pytest.fixture(scope="module")
+def experiment():
+    system = sim.paper_system(0.1)
+    u = sim.multisine(300, random_state=1)
+    u_val = sim.multisine(300, random_state=2)
+    data = sim.simulate_experiment(system, u, 3, snr_db=50, random_state=3)
+    return data, u_val, system.simulate(u_val)
+
+
+@pytest.mark.parametrize("u_scale, y_scale", [(1e3, 1e-7), (1e-4, 1e5)])
+def test_units_do_not_change_the_default_fit(experiment, u_scale, y_scale):
+    data, u_val, y_val = experiment
+    reference = gm.FIRGaussianProcess(factor=3, order=300).fit(data.u, data.y_slow)
+    scaled = gm.FIRGaussianProcess(factor=3, order=300).fit(
+        data.u * u_scale, data.y_slow * y_scale
+    )
+    gof = reference.score(u_val, y_val)
+    assert scaled.score(u_val * u_scale, y_val * y_scale) == pytest.approx(gof, abs=0.1)
+    band = reference.frequency_response(sample_time=0.1)
+    band_scaled = scaled.frequency_response(sample_time=0.1)
+    ratio = y_scale / u_scale
+    np.testing.assert_allclose(band_scaled.magnitude_upper, band.magnitude_upper * ratio, rtol=1e-3)
+    np.testing.assert_allclose(band_scaled.magnitude_lower, band.magnitude_lower * ratio, rtol=1e-3)
+    lags = np.array([0.5, 10.25])
+    _, std = reference.impulse_response(lags, return_std=True)
+    _, std_scaled = scaled.impulse_response(lags, return_std=True)
+    np.testing.assert_allclose(std_scaled, std * ratio, rtol=1e-3)
+
+
+def test_amplitude_bounds_that_exclude_the_data_scale_warn(experiment):
+    data, _, _ = experiment
+    with pytest.warns(ConvergenceWarning, match="constant_value"):
+        gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(
+            data.u * 1e3, data.y_slow * 1e-7
+        )
+
+
+def _assert_sound(model, u):
+    lags = np.linspace(0, model.coef_.size + 5, 57)
+    mean, std = model.impulse_response(lags, return_std=True)
+    y, y_std = model.predict(u, return_std=True)
+    frf = model.frequency_response(sample_time=1.0)
+    for values in (model.coef_, mean, std, y, y_std, frf.magnitude_upper, frf.phase_upper):
+        assert np.all(np.isfinite(values))
+    assert np.all(std >= 0) and np.all(y_std >= 0)
+    assert np.isfinite(model.log_marginal_likelihood_value_)
+
+
+HARD_KERNELS = {
+    "alpha close to 1": C(1.0) * DC(alpha=1 - 1e-9, beta=1 - 1e-9),
+    "TC alpha = 1": C(1.0) * TC(alpha=1.0),
+    "resonance near 0": PK(alpha=0.99, omega=1e-3),
+    "resonance at Nyquist": PK(alpha=0.99, omega=np.pi),
+    "two identical poles": PK(alpha=0.95, omega=0.8) + PK(alpha=0.95, omega=0.8),
+    "rank-2 prior only": PK(alpha=0.9, omega=0.5, alpha_bounds="fixed"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HARD_KERNELS))
+@pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
+def test_hard_kernels_fit_soundly_or_refuse_clearly(experiment, name, optimizer):
+    data, _, _ = experiment
+    model = gm.FIRGaussianProcess(
+        HARD_KERNELS[name], factor=3, order=120, noise_level=1e-10, optimizer=optimizer
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", (gm.NumericalWarning, ConvergenceWarning))
+        try:
+            model.fit(data.u, data.y_slow)
+        except linalg.LinAlgError:  # pragma: no cover - the failure this test guards against
+            pytest.fail("LinAlgError escaped to the user")
+        except ValueError as exc:
+            assert str(exc)
+            return
+    _assert_sound(model, data.u)
+
+
+@pytest.mark.parametrize("noise", [1e-14, 1e-300])
+@pytest.mark.parametrize("order", [60, 300])
+def test_tiny_noise_levels(experiment, noise, order):
+    data, _, _ = experiment
+    model = gm.FIRGaussianProcess(
+        C(1.0) * DC(alpha=0.95, beta=0.9), factor=3, order=order, noise_level=noise, optimizer=None
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", gm.NumericalWarning)
+        model.fit(data.u, data.y_slow)
+    _assert_sound(model, data.u)
+
+
+@pytest.mark.parametrize(
+    "make_input",
+    [
+        lambda rng: sim.zoh_input(300, 3, random_state=rng),
+        lambda rng: sim.zoh_input(300, 3, random_state=rng) + 1e-9 * rng.standard_normal(300),
+        lambda rng: np.cumsum(np.cumsum(rng.standard_normal(300))),  # strongly coloured
+        lambda rng: np.r_[1.0, np.zeros(299)],  # impulse
+    ],
+    ids=["zoh", "nearly-zoh", "coloured", "impulse"],
+)
+def test_hard_inputs(make_input):
+    rng = np.random.default_rng(0)
+    u = make_input(rng)
+    y = sim.paper_system(0.1).simulate(u)[::3]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", (gm.NumericalWarning, ConvergenceWarning))
+        model = gm.FIRGaussianProcess(factor=3, order=150).fit(u, y)
+    _assert_sound(model, u)
+
+
+def test_identical_inputs_give_bit_identical_results(experiment):
+    data, _, _ = experiment
+    kernel = C(1.0) * DC(alpha=0.9, beta=0.9) + PK.from_hz(2.0, 0.1, alpha=0.95)
+
+    def run():
+        model = gm.FIRGaussianProcess(
+            kernel, factor=3, order=200, n_restarts_optimizer=2, random_state=7
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            model.fit(data.u, data.y_slow)
+        draws = model.sample_impulse_responses([0.5, 3.5], n_samples=4, random_state=3)
+        return model.coef_, model.kernel_.theta, model.noise_level_, draws
+
+    first, second = run(), run()
+    for a, b in zip(first, second):
+        np.testing.assert_array_equal(a, b)
