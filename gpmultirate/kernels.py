@@ -95,6 +95,20 @@ class _LagKernel(Kernel):
         return f"{type(self).__name__}({args})"
 
 
+class _DecayKernel(_LagKernel):
+    """A lag kernel with the single hyperparameter ``alpha`` (TC, SS)."""
+
+    _ranges = (("alpha", 0.0, 1.0),)
+
+    def __init__(self, alpha: float = 0.9, alpha_bounds=(1e-4, 1.0)):
+        self.alpha = alpha
+        self.alpha_bounds = alpha_bounds
+
+    @property
+    def hyperparameter_alpha(self) -> Hyperparameter:
+        return Hyperparameter("alpha", "numeric", self.alpha_bounds)
+
+
 def _is_grid(t: np.ndarray) -> bool:
     """True for the lags 0, 1, ..., n-1, where Toeplitz shortcuts apply."""
     return t.shape[0] > 0 and t[0] == 0 and np.array_equal(t, np.arange(t.shape[0]))
@@ -128,7 +142,7 @@ def _stack(gradients, fixed_flags):
     return np.stack(free, axis=-1)
 
 
-class TC(_LagKernel):
+class TC(_DecayKernel):
     r"""Tuned-correlated (first-order stable spline) kernel.
 
     .. math:: k(t, s) = \alpha^{\max(t, s)}
@@ -149,16 +163,6 @@ class TC(_LagKernel):
            [0.5  , 0.5  , 0.177],
            [0.177, 0.177, 0.177]])
     """
-
-    _ranges = (("alpha", 0.0, 1.0),)
-
-    def __init__(self, alpha: float = 0.9, alpha_bounds=(1e-4, 1.0)):
-        self.alpha = alpha
-        self.alpha_bounds = alpha_bounds
-
-    @property
-    def hyperparameter_alpha(self) -> Hyperparameter:
-        return Hyperparameter("alpha", "numeric", self.alpha_bounds)
 
     def __call__(self, X, Y=None, eval_gradient=False):
         """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``."""
@@ -247,7 +251,7 @@ class DC(_LagKernel):
         return alpha ** check_lags(X, "X")
 
 
-class SS(_LagKernel):
+class SS(_DecayKernel):
     r"""Second-order stable-spline kernel (paper eq. 17, without ``lambda``).
 
     .. math:: k(t, s) = \frac{\alpha^{t + s + \max(t, s)}}{2} - \frac{\alpha^{3\max(t, s)}}{6}
@@ -266,16 +270,6 @@ class SS(_LagKernel):
     >>> SS(alpha=0.5).diag(np.array([[0.0], [1.0]])).round(4)
     array([0.3333, 0.0417])
     """
-
-    _ranges = (("alpha", 0.0, 1.0),)
-
-    def __init__(self, alpha: float = 0.9, alpha_bounds=(1e-4, 1.0)):
-        self.alpha = alpha
-        self.alpha_bounds = alpha_bounds
-
-    @property
-    def hyperparameter_alpha(self) -> Hyperparameter:
-        return Hyperparameter("alpha", "numeric", self.alpha_bounds)
 
     def __call__(self, X, Y=None, eval_gradient=False):
         """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``."""
