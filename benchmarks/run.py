@@ -1,0 +1,242 @@
+"""Benchmarks of marginal-likelihood tuning, against plain reference implementations.
+
+Run ``python benchmarks/run.py`` (all cases) or ``--cases paper_dc paper_pk``.
+Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own.
+Printed: wall time, peak memory, validation goodness of fit, and the time ratio
+against
+
+* ``reference``: the paper's formulas written plainly -- the kernel matrix,
+  ``Phi K Phi^T + gamma I`` and a Cholesky per evaluation, eq. (15) for the
+  estimate, the corrected eq. (19) for the evidence, and
+  ``scipy.optimize.minimize(method="L-BFGS-B")`` with finite-difference
+  gradients, from the same initial hyperparameters;
+* ``sklearn``: scikit-learn's ``GaussianProcessRegressor`` with
+  ``ObservedKernel(kernel, operator) + WhiteKernel`` on slow-sample indices.
+
+Results go to ``benchmarks/output/results.json`` and a plot of time against
+``N`` (``--scaling``) to ``benchmarks/output/scaling.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+OUTPUT = Path(__file__).resolve().parent / "output"
+
+
+# ---------------------------------------------------------------- problems
+def paper_problem(n_samples=600, factor=3, seed=0):
+    """One Monte Carlo run of the paper's simulation study at size ``n_samples``."""
+    from gpmultirate import simulation as sim
+
+    rng = np.random.default_rng(seed)
+    system = sim.paper_system(0.1, perturbation=0.1, random_state=rng)
+    u = sim.multisine(n_samples, random_state=rng)
+    u_val = sim.multisine(n_samples, random_state=rng)
+    data = sim.simulate_experiment(system, u, factor, snr_db=rng.uniform(40, 60), random_state=rng)
+    return data.u, data.y_slow, u_val, system.simulate(u_val)
+
+
+def paper_kernel(name, T=0.1):
+    from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+    from gpmultirate.kernels import DC, PK
+
+    a, b = np.exp(-0.5 * T), np.exp(-0.1 * T)
+    kernel = C(1.0) * DC(alpha=a, beta=b)
+    if name == "PK":
+        kernel = kernel + PK.from_hz(0.4, T, alpha=a) + PK.from_hz(2.0, T, alpha=a)
+    return kernel
+
+
+# -------------------------------------------------------------- estimators
+def fit_ours(kernel, u, y, factor, order, noise=1e-5):
+    import gpmultirate as gm
+
+    model = gm.FIRGaussianProcess(kernel, factor=factor, order=order, noise_level=noise)
+    model.fit(u, y)
+    return model.predict
+
+
+def fit_reference(kernel, u, y, factor, order, noise=1e-5):
+    """Eq. (15) and the corrected eq. (19), dense, finite-difference L-BFGS-B."""
+    from scipy import linalg, optimize
+
+    Phi = np.zeros((len(range(0, len(u), factor)), order))
+    for m, n in enumerate(range(0, len(u), factor)):
+        for i in range(min(order, n + 1)):
+            Phi[m, i] = u[n - i]
+    lags = np.arange(order, dtype=float)[:, None]
+    bounds = np.vstack([kernel.bounds, [np.log(1e-12 * np.mean(y**2)), np.log(10 * np.mean(y**2))]])
+
+    def negative_evidence(theta):
+        K = kernel.clone_with_theta(theta[:-1])(lags)
+        Ky = Phi @ K @ Phi.T + np.exp(theta[-1]) * np.eye(Phi.shape[0])
+        try:
+            L = linalg.cholesky(Ky, lower=True)
+        except linalg.LinAlgError:
+            return 1e25
+        a = linalg.cho_solve((L, True), y)
+        return 0.5 * y @ a + np.log(np.diag(L)).sum()
+
+    theta0 = np.clip(np.append(kernel.theta, np.log(noise)), bounds[:, 0], bounds[:, 1])
+    best = optimize.minimize(negative_evidence, theta0, method="L-BFGS-B", bounds=bounds)
+    K = kernel.clone_with_theta(best.x[:-1])(lags)
+    Ky = Phi @ K @ Phi.T + np.exp(best.x[-1]) * np.eye(Phi.shape[0])
+    coef = K @ Phi.T @ np.linalg.solve(Ky, y)
+    return lambda u_new: np.convolve(u_new, coef)[: len(u_new)]
+
+
+def fit_sklearn(kernel, u, y, factor, order, noise=1e-5):
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import WhiteKernel
+
+    import gpmultirate as gm
+
+    operator = gm.DownsampledConvolution(u, factor, order)
+    power = np.mean(y**2)
+    gp_kernel = gm.ObservedKernel(kernel, operator) + WhiteKernel(
+        noise, (1e-12 * power, 10 * power)
+    )
+    X = np.arange(operator.n_outputs)[:, None]
+    gpr = GaussianProcessRegressor(gp_kernel, alpha=1e-12).fit(X, y)
+    fitted = gpr.kernel_.k1
+    K = fitted.kernel(operator.lags)
+    coef = K @ operator.matrix.T @ gpr.alpha_
+    return lambda u_new: np.convolve(u_new, coef)[: len(u_new)]
+
+
+FITTERS = {"ours": fit_ours, "reference": fit_reference, "sklearn": fit_sklearn}
+
+
+# ------------------------------------------------------------------- cases
+def paper_case(kernel_name, implementation, n_samples=600):
+    from gpmultirate import goodness_of_fit
+
+    u, y, u_val, y_val = paper_problem(n_samples)
+    start = time.perf_counter()
+    predict = FITTERS[implementation](paper_kernel(kernel_name), u, y, 3, n_samples)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "gof": goodness_of_fit(y_val, predict(u_val))}
+
+
+def study_case(n_runs=100):
+    from gpmultirate.experiments import run_paper_study
+
+    start = time.perf_counter()
+    result = run_paper_study(
+        n_runs=n_runs, orders=(50, 100, 150, 600), n_jobs=2, random_state=0, progress=False
+    )
+    seconds = time.perf_counter() - start
+    gof = {m: float(np.nanmean(result.gof[m][:, -1])) for m in ("DC", "PK")}
+    return {"seconds": seconds, "gof": gof}
+
+
+CASES = {
+    "paper_dc": ("paper size N = P = 600, F = 3, DC", ["ours", "reference", "sklearn"]),
+    "paper_pk": ("paper size, DC + 2 PK", ["ours", "reference"]),
+    "p_equals_n_6000": ("P = N = 6000 (M = 2000), DC", ["ours"]),
+    "study_100": ("100-run Monte Carlo study", ["ours"]),
+}
+
+
+def run_case(name, implementation, n_samples=None):
+    if name == "paper_dc":
+        return paper_case("DC", implementation, n_samples or 600)
+    if name == "paper_pk":
+        return paper_case("PK", implementation, n_samples or 600)
+    if name == "p_equals_n_6000":
+        return paper_case("DC", implementation, n_samples or 6000)
+    if name == "study_100":
+        return study_case()
+    raise ValueError(f"unknown case {name!r}")
+
+
+def in_subprocess(name, implementation, n_samples=None, timeout=1800):
+    command = [sys.executable, __file__, "--child", name, implementation]
+    if n_samples:
+        command += ["--n-samples", str(n_samples)]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout} s"}
+    if done.returncode != 0:
+        return {"error": done.stderr.strip().splitlines()[-1] if done.stderr else "failed"}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    parser.add_argument("--scaling", action="store_true", help="also time against N")
+    parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    parser.add_argument("--n-samples", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        warnings.simplefilter("ignore")
+        result = run_case(*args.child, args.n_samples)
+        result["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(json.dumps(result))
+        return 0
+
+    OUTPUT.mkdir(exist_ok=True)
+    results = {}
+    print(f"{'case':42s} {'impl':10s} {'time s':>9s} {'peak MB':>8s} {'GoF %':>9s} {'ratio':>7s}")
+    for name in args.cases:
+        title, implementations = CASES[name]
+        results[name] = {}
+        for implementation in implementations:
+            r = in_subprocess(name, implementation)
+            results[name][implementation] = r
+            ours = results[name].get("ours", {}).get("seconds")
+            if "error" in r:
+                print(f"{title:42s} {implementation:10s} {r['error']}")
+                continue
+            ratio = r["seconds"] / ours if ours else float("nan")
+            gof = r["gof"] if isinstance(r["gof"], float) else np.mean(list(r["gof"].values()))
+            print(
+                f"{title:42s} {implementation:10s} {r['seconds']:9.2f} {r['peak_mb']:8.0f} "
+                f"{gof:9.3f} {ratio:7.1f}"
+            )
+    if args.scaling:
+        results["scaling"] = scaling()
+    (OUTPUT / "results.json").write_text(json.dumps(results, indent=2))
+    return 0
+
+
+def scaling(sizes=(300, 600, 1200, 2400)):
+    """Time of the DC fit against N in the regime P = N (and the dense reference)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = []
+    for n in sizes:
+        ours = in_subprocess("paper_dc", "ours", n)
+        reference = in_subprocess("paper_dc", "reference", n) if n <= 1200 else {}
+        rows.append({"n": n, "ours": ours.get("seconds"), "reference": reference.get("seconds")})
+        print(f"P = N = {n:6d}: ours {ours.get('seconds')}, reference {reference.get('seconds')}")
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    for key in ("ours", "reference"):
+        points = [(r["n"], r[key]) for r in rows if r[key]]
+        ax.loglog(*zip(*points), "o-", label=key)
+    ax.set_xlabel("N = P")
+    ax.set_ylabel("fit time (s)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(OUTPUT / "scaling.png", dpi=120)
+    return rows
+
+
+if __name__ == "__main__":
+    sys.exit(main())
