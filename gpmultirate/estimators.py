@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 
 import numpy as np
@@ -17,6 +18,7 @@ from sklearn.base import BaseEstimator, clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted
+from threadpoolctl import threadpool_limits
 
 from gpmultirate import _tuning
 from gpmultirate._inference import GaussianCoefficients, log_marginal_likelihood, posterior
@@ -138,6 +140,18 @@ class _FIRModelMixin:
             sample_time=sample_time,
             factor=self.operator_.factor,
         )
+
+
+# Below this size the matrices of a fit are too small for threaded BLAS to pay
+# off, and on a busy machine its threads spin against each other: one thread.
+_SINGLE_THREAD_SIZE = 1500
+
+
+def _blas_threads_for(operator):
+    """Limit BLAS to one thread for small problems; no limit otherwise."""
+    if max(operator.n_outputs, operator.order) <= _SINGLE_THREAD_SIZE:
+        return threadpool_limits(limits=1, user_api="blas")
+    return contextlib.nullcontext()
 
 
 def _check_slow_output(y_slow, operator) -> np.ndarray:
@@ -274,12 +288,13 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         self.optimizer_result_ = None
         self.kernel_ = self._initial_kernel(u, y)
         self._noise_bounds = self._resolve_noise_bounds(y)
-        if self.optimizer is not None:
-            if not isinstance(self._noise_bounds, str):
-                noise = float(np.clip(noise, *self._noise_bounds))
-            noise = self._optimize(noise, n_restarts)
+        with _blas_threads_for(operator):
+            if self.optimizer is not None:
+                if not isinstance(self._noise_bounds, str):
+                    noise = float(np.clip(noise, *self._noise_bounds))
+                noise = self._optimize(noise, n_restarts)
+            self._distribution = posterior(self.operator_, self.kernel_, noise, y)
         self.noise_level_ = noise
-        self._distribution = posterior(self.operator_, self.kernel_, noise, y)
         self.coef_ = self._distribution.coef
         self.log_marginal_likelihood_value_ = self._distribution.log_marginal_likelihood
         return self
