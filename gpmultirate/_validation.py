@@ -11,14 +11,95 @@ import numbers
 import numpy as np
 
 
+def as_real_array(x, name: str) -> np.ndarray:
+    """Return a new float array of ``x``; complex, text and objects are refused."""
+    if isinstance(x, (str, bytes, dict)) or x is None:
+        raise ValueError(f"{name} must be an array of real numbers; got {type(x).__name__}")
+    try:
+        raw = np.asarray(x)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of real numbers") from exc
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(
+            f"{name} must be an array of real numbers; got dtype {raw.dtype} "
+            "(complex values are not accepted)"
+        )
+    return np.array(raw, dtype=float)
+
+
+def check_array(x, name: str, *, rows: int | None = None, ndims=(1, 2)) -> np.ndarray:
+    """Return ``x`` as a new finite float array with the given dimensions and rows."""
+    arr = as_real_array(x, name)
+    if arr.ndim not in ndims:
+        raise ValueError(f"{name} must have {' or '.join(map(str, ndims))} dimensions; got shape {arr.shape}")
+    if rows is not None and arr.shape[0] != rows:
+        raise ValueError(f"{name} must have {rows} rows; got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return arr
+
+
+def check_rng(random_state, name: str = "random_state"):
+    """scikit-learn's ``check_random_state`` with errors that name the argument."""
+    from sklearn.utils import check_random_state
+
+    if isinstance(random_state, (bool, float, str)):
+        raise ValueError(f"{name} must be None, an int seed or a RandomState; got {random_state!r}")
+    if isinstance(random_state, np.random.Generator):
+        # scikit-learn works with RandomState: seed one from the generator
+        return np.random.RandomState(random_state.integers(2**32, dtype=np.uint64))
+    try:
+        return check_random_state(random_state)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} is invalid: {exc}") from exc
+
+
+def check_kernel(kernel, name: str = "kernel"):
+    """Check a scikit-learn kernel's hyperparameter values and bounds.
+
+    Every value must be real, finite and positive, every bound of a free
+    hyperparameter a pair ``0 < low <= high``; lag kernels also check their
+    own ranges (``alpha <= 1`` ...) on a test evaluation.
+    """
+    from sklearn.gaussian_process.kernels import Kernel
+
+    if not isinstance(kernel, Kernel):
+        raise ValueError(f"{name} must be a scikit-learn Kernel over lags; got {type(kernel).__name__}")
+    params = kernel.get_params()
+    for h in kernel.hyperparameters:
+        value = params.get(h.name)
+        try:
+            values = as_real_array(value, f"{name} hyperparameter {h.name}")
+        except ValueError as exc:
+            raise ValueError(f"{name} hyperparameter {h.name}: {exc}") from None
+        if not (np.all(np.isfinite(values)) and np.all(values > 0)):
+            raise ValueError(f"{name} hyperparameter {h.name} must be finite and positive; got {value!r}")
+        if h.fixed:
+            continue
+        bounds_name = f"{h.name.rpartition('__')[2]}_bounds"
+        try:
+            bounds = np.asarray(h.bounds, dtype=float).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"{name} {bounds_name} must be a pair (low, high) or 'fixed'; got {h.bounds!r}"
+            ) from None
+        if not (
+            np.all(np.isfinite(bounds)) and np.all(bounds[:, 0] > 0)
+            and np.all(bounds[:, 0] <= bounds[:, 1])
+        ):
+            raise ValueError(
+                f"{name} {bounds_name} must satisfy 0 < low <= high (finite); got {h.bounds!r}"
+            )
+    try:
+        kernel(np.zeros((1, 1)))
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+    return kernel
+
+
 def check_signal(x, name: str, *, min_length: int = 1) -> np.ndarray:
     """Return ``x`` as a new finite 1-D float array."""
-    if isinstance(x, (str, bytes)) or x is None:
-        raise ValueError(f"{name} must be a 1-D array of real numbers; got {type(x).__name__}")
-    try:
-        arr = np.array(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a 1-D array of real numbers") from exc
+    arr = as_real_array(x, name)
     if arr.ndim == 2 and 1 in arr.shape and arr.size > 0:
         arr = arr.reshape(-1)
     if arr.ndim != 1:

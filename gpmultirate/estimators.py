@@ -16,7 +16,6 @@ import numpy as np
 from scipy import linalg
 from sklearn.base import BaseEstimator, clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
-from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
@@ -25,6 +24,8 @@ from gpmultirate._inference import GaussianCoefficients, log_marginal_likelihood
 from gpmultirate._validation import (
     check_bounds,
     check_int,
+    check_kernel,
+    check_rng,
     check_level,
     check_positive,
     check_signal,
@@ -98,6 +99,8 @@ class _FIRModelMixin:
             raise ValueError(
                 f"y_fast must have the length of u ({u.shape[0]}); got {y_fast.shape[0]}"
             )
+        if np.ptp(y_fast) == 0:
+            raise ValueError("y_fast must not be constant: the goodness of fit is undefined")
         return goodness_of_fit(y_fast, self.predict(u))
 
     def frequency_response(
@@ -277,11 +280,14 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         order = u.shape[0] if self.order is None else self.order
         operator = DownsampledConvolution(u, self.factor, order, self.offset)
         y = _check_slow_output(y_slow, operator)
-        if self.optimizer not in ("marginal_likelihood", None):
+        if not (self.optimizer is None or (
+            isinstance(self.optimizer, str) and self.optimizer == "marginal_likelihood"
+        )):
             raise ValueError(
                 f"optimizer must be 'marginal_likelihood' or None; got {self.optimizer!r}"
             )
         n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
+        check_rng(self.random_state)
         noise = check_positive(self.noise_level, "noise_level")
         self.operator_ = operator
         self._y = y
@@ -304,14 +310,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             # scale reference: output power per unit input power
             reference = (np.mean(y**2) or 1.0) / (np.mean(u**2) or 1.0)
             return ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC()
-        if not isinstance(self.kernel, Kernel):
-            raise ValueError(
-                "kernel must be a scikit-learn Kernel over lags; "
-                f"got {type(self.kernel).__name__}"
-            )
-        kernel = clone(self.kernel)
-        kernel.theta  # noqa: B018 - raises early for malformed kernels
-        return kernel
+        return check_kernel(clone(check_kernel(self.kernel)))
 
     def _resolve_noise_bounds(self, y):
         if isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto":
@@ -365,7 +364,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
                 bounds = _tuning.resonance_window(theta0, bounds, resonances)
             transform = _tuning.DecayRateTransform(self.kernel_, theta0.shape[0])
             runs = [_tuning.minimize_lbfgs(objective, theta0, bounds, transform)]
-            rng = check_random_state(self.random_state)
+            rng = check_rng(self.random_state)
             for _ in range(n_restarts):
                 start = rng.uniform(bounds[:, 0], bounds[:, 1])
                 runs.append(_tuning.minimize_lbfgs(objective, start, bounds, transform))
@@ -468,7 +467,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         mean, cov = self.impulse_response(lags, return_cov=True)
         values, vectors = linalg.eigh(cov, check_finite=False)
         root = vectors * np.sqrt(np.maximum(values, 0.0))
-        rng = check_random_state(random_state)
+        rng = check_rng(random_state)
         return mean[:, None] + root @ rng.standard_normal((mean.shape[0], n_samples))
 
 

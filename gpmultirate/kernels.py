@@ -15,8 +15,12 @@ with respect to ``theta``.  The paper's overall scale ``lambda`` is
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
+
+from gpmultirate._validation import as_real_array, check_bounds, check_positive
 
 __all__ = ["TC", "DC", "SS", "PK", "check_lags"]
 
@@ -41,10 +45,7 @@ def check_lags(X, name: str = "X") -> np.ndarray:
     >>> check_lags([[0.0], [1.5]])
     array([0. , 1.5])
     """
-    try:
-        lags = np.array(X, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an array of real lags; got {type(X).__name__}") from exc
+    lags = as_real_array(X, name)
     if lags.ndim == 2 and lags.shape[1] == 1:
         lags = lags[:, 0]
     if lags.ndim != 1:
@@ -72,7 +73,7 @@ class _LagKernel(Kernel):
         values = {}
         for name, low, high in self._ranges:
             value = getattr(self, name)
-            if not (np.isscalar(value) and np.isreal(value)) or isinstance(value, (bool, str)):
+            if isinstance(value, (bool, str)) or not isinstance(value, numbers.Real):
                 raise ValueError(f"{name} must be a real number; got {value!r}")
             value = float(value)
             if not np.isfinite(value) or not (low < value <= high):
@@ -388,17 +389,19 @@ class PK(_LagKernel):
         -------
         PK
         """
-        if not (np.isscalar(sample_time) and np.isfinite(sample_time) and sample_time > 0):
-            raise ValueError(f"sample_time must be a positive number; got {sample_time!r}")
-        if not (np.isscalar(frequency) and np.isfinite(frequency) and frequency > 0):
-            raise ValueError(f"frequency must be a positive number of Hz; got {frequency!r}")
+        sample_time = check_positive(sample_time, "sample_time")
+        frequency = check_positive(frequency, "frequency")
+        if frequency > 0.5 / sample_time:
+            raise ValueError(
+                f"frequency must not exceed the fast Nyquist frequency {0.5 / sample_time:g} Hz; "
+                f"got {frequency:g}"
+            )
         scale = 2.0 * np.pi * sample_time
         if frequency_bounds is not None:
-            if isinstance(frequency_bounds, str):
-                kwargs["omega_bounds"] = frequency_bounds
-            else:
-                low, high = frequency_bounds
-                kwargs["omega_bounds"] = (low * scale, high * scale)
+            bounds = check_bounds(frequency_bounds, "frequency_bounds")
+            kwargs["omega_bounds"] = (
+                bounds if isinstance(bounds, str) else (bounds[0] * scale, bounds[1] * scale)
+            )
         return cls(omega=frequency * scale, **kwargs)
 
     def frequency_hz(self, sample_time: float) -> float:

@@ -39,6 +39,6 @@ def goodness_of_fit(y_true, y_pred) -> float:
             f"y_pred must have the length of y_true ({y_true.shape[0]}); got {y_pred.shape[0]}"
         )
     spread = np.sum((y_true - y_true.mean()) ** 2)
-    if spread == 0:
+    if np.ptp(y_true) == 0 or spread == 0:
         raise ValueError("y_true must not be constant: the goodness of fit is undefined")
     return float(100.0 * (1.0 - np.sum((y_true - y_pred) ** 2) / spread))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
 
+from gpmultirate._validation import as_real_array
 from gpmultirate.operator import DownsampledConvolution
 
 __all__ = ["ObservedKernel"]
@@ -87,14 +88,23 @@ class ObservedKernel(GenericKernelMixin, Kernel):
             return False
         return self.kernel == other.kernel and self.operator == other.operator
 
+    def _check_parts(self) -> None:
+        if not isinstance(self.operator, DownsampledConvolution):
+            raise ValueError(
+                f"operator must be a DownsampledConvolution; got {type(self.operator).__name__}"
+            )
+        if not isinstance(self.kernel, Kernel):
+            raise ValueError(f"kernel must be a scikit-learn Kernel; got {type(self.kernel).__name__}")
+
     def _indices(self, X, name: str) -> np.ndarray:
+        self._check_parts()
         message = (
             f"{name} must hold slow-sample indices in 0..{self.operator.n_outputs - 1} "
             "with shape (n, 1)"
         )
         try:
-            X = np.asarray(X, dtype=float)
-        except (TypeError, ValueError) as exc:
+            X = as_real_array(X, name)
+        except ValueError as exc:
             raise ValueError(message) from exc
         if X.ndim == 2 and X.shape[1] == 1:
             X = X[:, 0]

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpmultirate._validation import check_int, check_signal
+from gpmultirate._validation import check_array, check_int, check_signal
 
 __all__ = ["DownsampledConvolution", "convolution_matrix"]
 
@@ -104,16 +104,12 @@ class DownsampledConvolution:
 
         ``coef`` has shape ``(P,)`` or ``(P, k)``.
         """
-        coef = np.asarray(coef, dtype=float)
-        if coef.shape[0] != self.order:
-            raise ValueError(f"coef must have {self.order} rows; got shape {coef.shape}")
+        coef = check_array(coef, "coef", rows=self.order)
         return self.matrix @ coef
 
     def rmatvec(self, y) -> np.ndarray:
         """Return ``Phi.T @ y`` for ``y`` of shape ``(M,)`` or ``(M, k)``."""
-        y = np.asarray(y, dtype=float)
-        if y.shape[0] != self.n_outputs:
-            raise ValueError(f"y must have {self.n_outputs} rows; got shape {y.shape}")
+        y = check_array(y, "y", rows=self.n_outputs)
         return self.matrix.T @ y
 
     def kernel_matrix(self, kernel, eval_gradient: bool = False):

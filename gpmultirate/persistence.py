@@ -39,6 +39,7 @@ any change to the file is detected.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import types
@@ -218,9 +219,11 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
     encoded = json.dumps(header, sort_keys=True, allow_nan=False).encode("utf-8")
     members = {"header": np.frombuffer(encoded, dtype=np.uint8), **arrays}
     if hasattr(path, "write"):
+        if isinstance(path, io.TextIOBase):
+            raise TypeError("path must be a file name or a binary file object; got a text file")
         np.savez(path, **members)
     else:
-        with open(path, "wb") as file:
+        with open(_check_path(path), "wb") as file:
             np.savez(file, **members)
 
 
@@ -324,6 +327,18 @@ def kernel_from_description(tree: dict) -> Kernel:
 
 
 # ---------------------------------------------------------------- loading
+def _check_path(path):
+    """A file name: str or path-like (an int file descriptor is refused on purpose)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(
+            f"path must be a file name (str or path-like) or a binary file object; "
+            f"got {type(path).__name__}"
+        )
+    if "\x00" in os.fspath(path) if isinstance(os.fspath(path), str) else b"\x00" in os.fspath(path):
+        raise ValueError("path must not contain a NUL character")
+    return path
+
+
 def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
     """Load a model written by :func:`save_model`.
 
@@ -373,7 +388,7 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
     if hasattr(path, "read"):
         members = _read_archive(path)
     else:
-        with open(path, "rb") as file:
+        with open(_check_path(path), "rb") as file:
             members = _read_archive(file)
     header = _parse_header(members.pop("header", None))
     _check_versions(header)

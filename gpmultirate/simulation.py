@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from gpmultirate._validation import as_real_array, check_int, check_positive, check_signal
+
 __all__ = [
     "DiscreteSystem", "two_mass_spring_damper", "PAPER_PARAMETERS", "perturb_parameters",
     "paper_system", "WAFER_STAGE_MODES", "wafer_stage_surrogate", "multisine",
@@ -37,7 +39,11 @@ WAFER_STAGE_MODES = (
 
 def _check_random_state(random_state: RandomStateLike) -> np.random.Generator:
     """Return a numpy Generator from an int, None, Generator or legacy RandomState."""
-    if random_state is None or isinstance(random_state, (numbers.Integral, np.random.Generator)):
+    if isinstance(random_state, numbers.Integral) and not isinstance(random_state, bool):
+        if random_state < 0:
+            raise ValueError(f"random_state must be a non-negative seed; got {random_state}")
+        return np.random.default_rng(random_state)
+    if random_state is None or isinstance(random_state, np.random.Generator):
         return np.random.default_rng(random_state)
     if isinstance(random_state, np.random.RandomState):
         # Draw a seed so that the caller's RandomState advances, as in scikit-learn.
@@ -48,22 +54,15 @@ def _check_random_state(random_state: RandomStateLike) -> np.random.Generator:
 
 def _check_signal(x, name: str) -> np.ndarray:
     """Return a float copy of a finite, non-empty 1-D signal."""
-    x = np.array(x, dtype=float)
-    if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
-        raise ValueError(f"{name} must be a non-empty, finite 1-D array, got shape {x.shape}")
-    return x
+    return check_signal(x, name)
 
 
 def _check_positive_int(value, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)
+    return check_int(value, name, low=1)
 
 
 def _check_positive(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 < value < np.inf:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return float(value)
+    return check_positive(value, name)
 
 
 class DiscreteSystem:
@@ -94,14 +93,14 @@ class DiscreteSystem:
     """
 
     def __init__(self, A, B, C, D, sample_time: float):
-        A = np.array(A, dtype=float)
+        A = as_real_array(A, "A")
         if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
             raise ValueError(f"A must be a non-empty square matrix, got shape {A.shape}")
         n = A.shape[0]
         shapes = {"B": ((n,), (n, 1)), "C": ((n,), (1, n)), "D": ((), (1,), (1, 1))}
         arrays = {"A": A}
         for name, value in zip("BCD", (B, C, D)):
-            array = np.array(value, dtype=float)
+            array = as_real_array(value, name)
             if array.shape not in shapes[name]:
                 raise ValueError(f"{name} must have shape in {shapes[name]}, got {array.shape}")
             arrays[name] = array
@@ -209,7 +208,7 @@ class DiscreteSystem:
         >>> round(float(abs(system.frequency_response(0.0))), 4)  # static gain 1 / k1
         0.0667
         """
-        freqs = np.asarray(freqs, dtype=float)
+        freqs = as_real_array(freqs, "freqs")
         if not np.all(np.isfinite(freqs)):
             raise ValueError("freqs must be finite")
         z = np.exp(2j * np.pi * freqs.ravel() * self.sample_time)
@@ -267,6 +266,11 @@ def perturb_parameters(nominal: dict, perturbation: float,
     """
     if not isinstance(perturbation, numbers.Real) or not 0 <= perturbation < 1:
         raise ValueError(f"perturbation must lie in [0, 1), got {perturbation!r}")
+    if not isinstance(nominal, dict) or not all(
+        isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v) and v > 0
+        for v in nominal.values()
+    ):
+        raise ValueError("nominal must be a dict of finite positive parameter values")
     rng = _check_random_state(random_state)
     factors = 1.0 + perturbation * rng.uniform(-1.0, 1.0, size=len(nominal))
     return {name: float(value) * f for (name, value), f in zip(nominal.items(), factors)}
@@ -352,7 +356,7 @@ def multisine(n_samples: int, sample_time: float = 1.0, band=None, rms: float = 
     rms = _check_positive(rms, "rms")
     bins = np.arange(1, (n_samples + 1) // 2)
     if band is not None:
-        band = np.asarray(band, dtype=float)
+        band = as_real_array(band, "band")
         if band.shape != (2,) or not np.all(np.isfinite(band)) or not 0 <= band[0] <= band[1]:
             raise ValueError(f"band must be (f_low, f_high) with 0 <= f_low <= f_high, got {band}")
         freqs = bins / (n_samples * sample_time)
@@ -489,6 +493,8 @@ def simulate_experiment(system: DiscreteSystem, u, factor: int, snr_db: float | 
     ((600,), (600,), (200,))
     """
     u = _check_signal(u, "u")
+    if not isinstance(system, DiscreteSystem):
+        raise ValueError(f"system must be a DiscreteSystem; got {type(system).__name__}")
     y_fast = system.simulate(u)
     if snr_db is None:
         y_fast_noisy, noise_std = y_fast.copy(), 0.0
