@@ -992,3 +992,157 @@ def plot_nonidentifiable_example(
         ax.grid(True, alpha=0.3)
     axes[0, 1].legend(fontsize="small", loc="upper right")
     return axes
+
+
+# ------------------------------------------------------- Monte Carlo study
+# Colours and markers of the paper's Fig. 5: LS red circles, DC blue squares, PK green triangles.
+_STUDY_STYLES = {
+    "LS": {"color": "tab:red", "marker": "o"},
+    "DC": {"color": "tab:blue", "marker": "s"},
+    "PK": {"color": "tab:green", "marker": "^"},
+}
+_SLOW_SAMPLES_GID = "gpmultirate-slow-samples"
+
+
+@dataclass
+class StudyPlot:
+    """Axes and artists drawn by :func:`plot_study`.
+
+    Attributes
+    ----------
+    ax : Axes
+    plots : dict of str to GoFPlot
+        Mean line and band of each method, in the order drawn.
+    slow_samples_line : Line2D or None
+        Vertical marker at ``P = M``, the number of slow samples, above which
+        least squares is not identifiable; ``None`` when ``M`` is outside the
+        orders of the study or the marker was already drawn.
+    errorbars : dict of str to ErrorbarContainer
+        ``+- n_std`` error bars at orders whose neighbours have no value,
+        where the band has no width to show (for instance a study of two
+        orders); methods without such orders are left out.
+    """
+
+    ax: Axes
+    plots: dict
+    slow_samples_line: Line2D | None
+    errorbars: dict
+
+
+def plot_study(result, *, ax: Axes | None = None, methods=None, n_std: float = 2) -> StudyPlot:
+    """Goodness of fit against model order for every method of a study (Fig. 5).
+
+    For each method, :func:`plot_gof_vs_order` draws the mean over the runs
+    and a band of ``+- n_std`` sample standard deviations, leaving out the
+    orders where the model is not identifiable; a vertical line marks
+    ``P = M``.  Orders whose neighbours have no value get error bars,
+    since a band needs two orders to have a width.  The lower y-limit keeps
+    the means in view without letting a very wide band squash them.
+
+    Parameters
+    ----------
+    result : StudyResult
+        From :func:`gpmultirate.experiments.run_paper_study` (any object with
+        ``orders``, ``methods``, ``gof``, ``identifiable`` and
+        ``n_slow_samples``).
+    ax : Axes, optional
+        Axes to draw on; by default a new figure.
+    methods : sequence of str, optional
+        Methods to draw, a subset of ``result.methods``; default all.
+    n_std : float, default=2
+        Half-width of the bands in sample standard deviations (the paper's 2).
+
+    Returns
+    -------
+    StudyPlot
+
+    Examples
+    --------
+    >>> import matplotlib
+    >>> matplotlib.use("Agg")
+    >>> from gpmultirate.experiments import run_paper_study
+    >>> from gpmultirate.plotting import plot_study
+    >>> result = run_paper_study(n_runs=2, orders=(5, 10, 20), methods=("LS",),
+    ...                          n_samples=60, progress=False)
+    >>> drawn = plot_study(result)
+    >>> sorted(drawn.plots), float(drawn.slow_samples_line.get_xdata()[0])
+    (['LS'], 20.0)
+    >>> import matplotlib.pyplot as plt
+    >>> plt.close("all")
+    """
+    for name in ("orders", "methods", "gof", "identifiable"):
+        if not hasattr(result, name):
+            raise ValueError(
+                f"result must be a StudyResult (no attribute {name!r}); "
+                f"got {type(result).__name__}"
+            )
+    if methods is None:
+        methods = tuple(result.methods)
+    elif isinstance(methods, str):
+        methods = (methods,)
+    methods = tuple(methods)
+    unknown = [m for m in methods if m not in result.methods]
+    if not methods or unknown:
+        raise ValueError(
+            f"methods must be a non-empty subset of {tuple(result.methods)}; got {methods!r}"
+        )
+    n_std = check_positive(n_std, "n_std")
+    ax = _axes_or_new(ax)
+    previous_ylim = ax.get_ylim() if ax.has_data() else None  # overlaying: only widen
+    orders = np.asarray(result.orders)
+    plots, errorbars = {}, {}
+    for method in methods:
+        style = _STUDY_STYLES.get(method, {})
+        drawn = plot_gof_vs_order(
+            orders, result.gof[method], ax=ax, label=method,
+            identifiable=np.asarray(result.identifiable[method], dtype=bool), n_std=n_std,
+            **style)
+        plots[method] = drawn
+        mean = np.asarray(drawn.line.get_ydata(), dtype=float)
+        shown = np.isfinite(mean)
+        neighbours = np.zeros_like(shown)
+        neighbours[1:] |= shown[:-1]
+        neighbours[:-1] |= shown[1:]
+        isolated = shown & ~neighbours
+        if np.any(isolated) and drawn.band is not None:
+            gof = np.where(np.asarray(result.identifiable[method], dtype=bool),
+                           np.asarray(result.gof[method], dtype=float), np.nan)[:, isolated]
+            std = np.array([np.std(c[np.isfinite(c)], ddof=1) if np.isfinite(c).sum() > 1
+                            else 0.0 for c in gof.T])
+            errorbars[method] = ax.errorbar(
+                orders[isolated], mean[isolated], yerr=n_std * std, fmt="none",
+                ecolor=drawn.line.get_color(), elinewidth=1.0, capsize=4, label="_nolegend_")
+
+    slow_line = None
+    n_slow = getattr(result, "n_slow_samples", None)
+    already = any(ln.get_gid() == _SLOW_SAMPLES_GID for ln in ax.get_lines())
+    if n_slow is not None and not already and orders.min() <= n_slow <= orders.max():
+        slow_line = ax.axvline(n_slow, color="0.4", linestyle="-.", linewidth=0.8,
+                               gid=_SLOW_SAMPLES_GID, label="_nolegend_")
+        _nyquist_label(ax, n_slow, f"P = M = {n_slow}", _SLOW_SAMPLES_GID, inside=True)
+
+    means = np.concatenate([p.line.get_ydata() for p in plots.values()]).astype(float)
+    means = means[np.isfinite(means)]
+    if means.size:
+        # GoF <= 100 %; below, show the bands, but not more than half again the
+        # spread of the means (a band reaching -1000 % would flatten everything)
+        lowest_mean = float(means.min())
+        lows = [lowest_mean]
+        for method, plot in plots.items():
+            if plot.band is not None:
+                lows.extend(v[:, 1].min() for v in
+                            (path.vertices for path in plot.band.get_paths()) if v.size)
+            if method in errorbars:
+                bars = errorbars[method].lines[2][0].get_segments()
+                lows.extend(segment[:, 1].min() for segment in bars)
+        top = max(100.0, float(means.max()))
+        bottom = max(min(lows), lowest_mean - 0.5 * max(top - lowest_mean, 1.0))
+        span = max(top - bottom, 1e-9)
+        bottom, top = bottom - 0.03 * span, top + 0.03 * span
+        if previous_ylim is not None:
+            bottom, top = min(bottom, previous_ylim[0]), max(top, previous_ylim[1])
+        ax.set_ylim(bottom, top)
+    return StudyPlot(ax=ax, plots=plots, slow_samples_line=slow_line, errorbars=errorbars)
+
+
+__all__ += ["StudyPlot", "plot_study"]
