@@ -116,7 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "(M = N / 3); least squares (LS), DC-kernel (DC) and prior-knowledge-"
                     "kernel (PK) FIR models of each order are scored by their goodness of fit "
                     "on noise-free validation data.  Prints the table and writes study.csv "
-                    "(summary), study_runs.csv (every fit), study.md, study.json and the "
+                    "(summary), study_runs.csv (every fit), study.md, study.rst, study.json and the "
                     "figures gof_vs_order.png, bode.png, impulse_response.png and "
                     "intersample.png (one run's models at order --example-order).  "
                     "The paper's full study is --runs 100 --orders 50 100 150 200 250 300 350 "
@@ -329,7 +329,8 @@ def _demo(parser, args) -> int:
     table = result.to_markdown()
     (out / "study.md").write_text(f"# gpmultirate demo\n\n{header}\n\n{table}",
                                   encoding="utf-8")
-    for name in ("study.csv", "study_runs.csv", "study.json", "study.md"):
+    (out / "study.rst").write_text(f"{header}\n\n{result.to_rst()}", encoding="utf-8")
+    for name in ("study.csv", "study_runs.csv", "study.json", "study.md", "study.rst"):
         _say(args, f"wrote {out / name}")
     print(header)
     print()

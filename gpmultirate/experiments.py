@@ -578,13 +578,39 @@ class StudyResult:
         -------
         str
         """
+        header, rows = self._table(digits)
+        lines = ["| " + " | ".join(header) + " |", "|---:|" + "---:|" * len(self.methods)]
+        lines += ["| " + " | ".join(row) + " |" for row in rows]
+        return "\n".join(lines) + "\n"
+
+    def to_rst(self, digits: int | None = None) -> str:
+        """The table of :meth:`to_markdown` as a reStructuredText list table.
+
+        Parameters
+        ----------
+        digits : int, optional
+            As in :meth:`to_markdown`.
+
+        Returns
+        -------
+        str
+        """
+        header, rows = self._table(digits)
+        lines = [".. list-table::", "   :header-rows: 1", ""]
+        for row in [header, *rows]:
+            lines.append("   * - " + row[0])
+            lines += [f"     - {cell}" for cell in row[1:]]
+        return "\n".join(lines) + "\n"
+
+    def _table(self, digits):
+        """Header and rows (lists of strings) of the GoF table."""
         if digits is not None:
             digits = check_int(digits, "digits", low=0)
         by_key = {(r["method"], r["order"]): r for r in self.summary()}
-        lines = ["| P | " + " | ".join(f"{m} GoF [%]" for m in self.methods) + " |",
-                 "|---:|" + "---:|" * len(self.methods)]
+        header = ["P"] + [f"{m} GoF [%]" for m in self.methods]
+        rows = []
         for j, order in enumerate(self.orders):
-            cells = []
+            cells = [str(int(order))]
             for method in self.methods:
                 row = by_key[(method, int(order))]
                 if row["n_ok"] == 0:
@@ -592,8 +618,8 @@ class StudyResult:
                     cells.append("not identifiable" if none else "n/a")
                     continue
                 cells.append(_format_cell(row, digits))
-            lines.append(f"| {int(order)} | " + " | ".join(cells) + " |")
-        return "\n".join(lines) + "\n"
+            rows.append(cells)
+        return header, rows
 
     def to_csv(self, path, *, runs: bool = False) -> None:
         """Write :meth:`summary` (or, with ``runs=True``, every run) as CSV.

@@ -19,7 +19,7 @@ from gpmultirate.experiments import StudyResult  # noqa: E402
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = ["--runs", "1", "--n-samples", "60", "--orders", "10", "20", "--n-jobs", "1"]
 FIGURES = ("gof_vs_order.png", "bode.png", "impulse_response.png", "intersample.png")
-TABLES = ("study.csv", "study_runs.csv", "study.md", "study.json")
+TABLES = ("study.csv", "study_runs.csv", "study.md", "study.rst", "study.json")
 DEMO_OPTIONS = ("--runs", "--orders", "--methods", "--n-jobs", "--seed", "--output",
                 "--no-figures", "--quiet", "--n-samples", "--factor", "--snr", "--example-order")
 

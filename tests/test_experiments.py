@@ -362,3 +362,18 @@ def test_paper_example_arguments():
         paper_example(0, N + 1, methods="LS", n_samples=N)
     with pytest.raises(ValueError, match="methods"):
         paper_example(0, 20, methods=("XX",), n_samples=N)
+
+
+def test_rst_table_has_the_markdown_cells():
+    from gpmultirate.experiments import run_paper_study
+
+    result = run_paper_study(n_runs=2, orders=(10, 20), n_samples=60, progress=False)
+    markdown_cells = [
+        cell.strip()
+        for line in result.to_markdown().splitlines()[2:]
+        for cell in line.strip("|").split("|")
+    ]
+    rst_cells = [
+        line.split("- ", 1)[1] for line in result.to_rst().splitlines()[3:] if "- " in line
+    ][len(result.methods) + 1:]
+    assert rst_cells == markdown_cells
