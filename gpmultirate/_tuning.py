@@ -163,7 +163,7 @@ def _warn_if_scale_out_of_bounds(kernel, log_scale: float) -> None:
         "poor. Widen those bounds to the units of u and y, or use kernel=None, whose "
         "bounds follow the data.",
         ConvergenceWarning,
-        stacklevel=4,
+        stacklevel=5,
     )
 
 
@@ -307,5 +307,5 @@ def warn_if_not_converged(result) -> None:
             f"({message}, {result.nit} iterations); the hyperparameters may not be "
             "optimal. Try n_restarts_optimizer > 0 or other initial values.",
             ConvergenceWarning,
-            stacklevel=3,
+            stacklevel=4,
         )

@@ -1,0 +1,126 @@
+"""Measured input/output records shipped with the package.
+
+The records are sampled at a single (fast) rate, so the fast-rate output is
+known: keep every ``factor``-th output sample to make a slow-rate
+measurement, identify from it, and validate against the samples that were
+left out.  The files live in ``gpmultirate/data`` and are read with
+:mod:`importlib.resources`, so they are found in any installation.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+__all__ = ["Dataset", "load_robot_arm"]
+
+_DAISY_CITATION = (
+    'De Moor B.L.R. (ed.), "DaISy: Database for the Identification of Systems", '
+    "Department of Electrical Engineering, ESAT/STADIUS, KU Leuven, Belgium, "
+    "https://homes.esat.kuleuven.be/~smc/daisy/. "
+)
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A measured single-input single-output record.
+
+    Attributes
+    ----------
+    u : ndarray of shape (N,)
+        Input, read-only.
+    y : ndarray of shape (N,)
+        Output at the same rate as ``u``, read-only.
+    description : str
+        What was measured, in the source's words.
+    citation : str
+        How to cite the source of the data.
+    sample_time : float or None, default=None
+        Sample time in seconds; ``None`` when the source does not give it
+        (frequencies are then in cycles per sample).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate.datasets import Dataset
+    >>> data = Dataset(u=np.zeros(3), y=np.ones(3), description="test", citation="none")
+    >>> data.sample_time is None
+    True
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    description: str
+    citation: str
+    sample_time: float | None = None
+
+
+def _read_columns(filename: str, n_columns: int) -> np.ndarray:
+    """Read a whitespace-separated text file of ``gpmultirate/data``."""
+    text = resources.files("gpmultirate").joinpath("data", filename).read_text(encoding="ascii")
+    table = np.loadtxt(io.StringIO(text), ndmin=2)
+    if table.shape[1] != n_columns or not np.all(np.isfinite(table)):
+        raise ValueError(
+            f"{filename} must hold {n_columns} finite columns; got shape {table.shape}"
+        )
+    return table
+
+
+def _read_only(x: np.ndarray) -> np.ndarray:
+    x = np.ascontiguousarray(x, dtype=float).copy()
+    x.setflags(write=False)
+    return x
+
+
+def load_robot_arm() -> Dataset:
+    """Flexible robot arm (DaISy data set 96-009), 1024 samples.
+
+    The arm is installed on an electrical motor; the input ``u`` is the
+    measured reaction torque of the structure on the ground and the output
+    ``y`` the acceleration of the flexible arm.  The excitation is a periodic
+    sine sweep that covers about the lowest 40 % of the frequency band.  The
+    source does not give the sample time, so ``sample_time`` is ``None``.
+
+    The record starts in the middle of the experiment: the arm is not at rest
+    at the first sample, and outputs early in the record depend on inputs
+    that were not recorded.  When an FIR model of order ``P`` is validated on
+    this record, compare only outputs at index ``P - 1`` and later, which see
+    recorded inputs only.
+
+    Returns
+    -------
+    Dataset
+        ``u`` and ``y`` of shape ``(1024,)``, read-only; every call returns
+        new arrays.
+
+    Examples
+    --------
+    >>> from gpmultirate.datasets import load_robot_arm
+    >>> data = load_robot_arm()
+    >>> data.u.shape, data.y.shape, data.sample_time
+    ((1024,), (1024,), None)
+    >>> data.u.flags.writeable
+    False
+
+    Make a slow-rate measurement by keeping every third output sample:
+
+    >>> y_slow = data.y[::3]
+    >>> y_slow.shape
+    (342,)
+    """
+    table = _read_columns("robot_arm.dat", 2)
+    return Dataset(
+        u=_read_only(table[:, 0]),
+        y=_read_only(table[:, 1]),
+        description=(
+            "Flexible robot arm installed on an electrical motor. Input u: reaction torque "
+            "of the structure on the ground; output y: acceleration of the flexible arm. "
+            "Periodic sine-sweep excitation, 1024 samples, sample time not given by the "
+            "source. The record starts mid-experiment (the arm is not at rest)."
+        ),
+        citation=_DAISY_CITATION + 'Data set 96-009, "Data of a flexible robot arm".',
+        sample_time=None,
+    )
