@@ -18,7 +18,7 @@ OUTPUTS = {
     "intersample_prediction.py": ["intersample_prediction.png"],
     "sklearn_gpr_observed_kernel.py": ["sklearn_gpr_observed_kernel.png"],
     "robot_arm_real_data.py": ["robot_arm_real_data.png"],
-    "paper_simulation.py": ["paper_study_gof.png", "paper_example_bode.png",
+    "paper_simulation.py": ["paper_study_gof.png", "paper_example_bode.png", "paper_systems_frf.png",
                             "paper_study.json"],
 }
 # a line each script prints when it got to its key result
