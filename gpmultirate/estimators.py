@@ -322,10 +322,19 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
     def _noise_is_free(self) -> bool:
         return not isinstance(self._noise_bounds, str)
 
-    def _split(self, theta, fixed_noise: float):
-        """Kernel and noise level of a ``theta``; ``fixed_noise`` when the noise is not tuned."""
+    def _split(self, theta, fixed_noise: float, into=None):
+        """Kernel and noise level of a ``theta``; ``fixed_noise`` when the noise is not tuned.
+
+        With ``into`` (a kernel of the same structure), its theta is set in
+        place instead of cloning: the optimizer evaluates hundreds of points
+        and a deep copy per point is a large part of a small problem's cost.
+        """
         n_kernel = self.kernel_.theta.shape[0]
-        kernel = self.kernel_.clone_with_theta(theta[:n_kernel])
+        if into is None:
+            kernel = self.kernel_.clone_with_theta(theta[:n_kernel])
+        else:
+            into.theta = theta[:n_kernel]
+            kernel = into
         noise = float(np.exp(theta[n_kernel])) if self._noise_is_free else fixed_noise
         return kernel, noise
 
@@ -344,8 +353,10 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             if theta0.shape[0] == 0:
                 return noise
 
+            work_kernel = clone(self.kernel_)
+
             def objective(theta, eval_gradient=True):
-                kernel, noise_level = self._split(theta, noise)
+                kernel, noise_level = self._split(theta, noise, into=work_kernel)
                 try:
                     result = log_marginal_likelihood(
                         operator, kernel, noise_level, y, eval_gradient, self._noise_is_free
