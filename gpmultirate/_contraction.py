@@ -58,14 +58,21 @@ def kernel_with_contractor(kernel, lags: np.ndarray):
     return K, lambda A: A.reshape(-1) @ dK.reshape(-1, n)
 
 
+def split_constant(kernel: Product):
+    """``(constant, other, constant_first)`` of ``ConstantKernel * k`` or ``k * ConstantKernel``, else None."""
+    if isinstance(kernel.k1, ConstantKernel):
+        return kernel.k1, kernel.k2, True
+    if isinstance(kernel.k2, ConstantKernel):
+        return kernel.k2, kernel.k1, False
+    return None
+
+
 def _constant_times(kernel: Product, lags):
     """``ConstantKernel * k`` (either order) with the constant kept a scalar."""
-    if isinstance(kernel.k1, ConstantKernel):
-        constant, other, constant_first = kernel.k1, kernel.k2, True
-    elif isinstance(kernel.k2, ConstantKernel):
-        constant, other, constant_first = kernel.k2, kernel.k1, False
-    else:
+    split = split_constant(kernel)
+    if split is None:
         return None
+    constant, other, constant_first = split
     value = float(constant.constant_value)
     K_other, c_other = kernel_with_contractor(other, lags)
     K = value * K_other

@@ -81,12 +81,22 @@ class GaussianCoefficients:
             BA = self.B @ A.T
             cov = A @ self.K @ A.T - BA.T @ BA
             return mean, 0.5 * (cov + cov.T)
-        return mean, np.maximum(self.cross_variance(A, A), 0.0)
+        return mean, self.pair_variances(A, None)[0]
 
-    def cross_variance(self, A1: np.ndarray, A2: np.ndarray) -> np.ndarray:
-        """Row-wise covariances ``Cov(A1[k] g, A2[k] g)``, i.e. ``diag(A1 Sigma A2^T)``."""
-        prior = np.einsum("ij,ij->i", A1 @ self.K, A2)
-        return prior - np.einsum("ij,ij->j", self.B @ A1.T, self.B @ A2.T)
+    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
+        """``Var(A1 g)``, ``Var(A2 g)`` and ``Cov(A1 g, A2 g)`` row by row.
+
+        Each projection is formed once; with ``A2=None`` only the first
+        variance is computed (the others are None).
+        """
+        K1, B1 = A1 @ self.K, self.B @ A1.T
+        var1 = np.einsum("ij,ij->i", K1, A1) - np.einsum("ij,ij->j", B1, B1)
+        if A2 is None:
+            return np.maximum(var1, 0.0), None, None
+        K2, B2 = A2 @ self.K, self.B @ A2.T
+        var2 = np.einsum("ij,ij->i", K2, A2) - np.einsum("ij,ij->j", B2, B2)
+        cov = np.einsum("ij,ij->i", K1, A2) - np.einsum("ij,ij->j", B1, B2)
+        return np.maximum(var1, 0.0), np.maximum(var2, 0.0), cov
 
     def covariance(self) -> np.ndarray:
         """The ``P x P`` covariance ``K - B^T B``."""
@@ -180,8 +190,13 @@ class ParameterSpacePosterior(GaussianCoefficients):
         self.factor = linalg.solve_triangular(R, F.T, trans="T", check_finite=False).T
         super().__init__(F @ z, K, None)
 
-    def cross_variance(self, A1: np.ndarray, A2: np.ndarray) -> np.ndarray:
-        return np.einsum("ij,ij->i", A1 @ self.factor, A2 @ self.factor)
+    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
+        F1 = A1 @ self.factor
+        var1 = np.einsum("ij,ij->i", F1, F1)
+        if A2 is None:
+            return var1, None, None
+        F2 = A2 @ self.factor
+        return var1, np.einsum("ij,ij->i", F2, F2), np.einsum("ij,ij->i", F1, F2)
 
     def linear_map(self, A: np.ndarray, full_cov: bool = False):
         mean = A @ self.coef

@@ -24,7 +24,7 @@ import numpy as np
 from scipy import signal
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
-from gpmultirate._contraction import _select, kernel_with_contractor
+from gpmultirate._contraction import _select, kernel_with_contractor, split_constant
 from gpmultirate.kernels import DC, PK
 
 
@@ -41,9 +41,7 @@ def observed_with_contractor(kernel, operator, need_gradient: bool = True):
         S2, c2 = observed_with_contractor(kernel.k2, operator, need_gradient)
         contract = (lambda W: np.concatenate([c1(W), c2(W)])) if need_gradient else None
         return S1 + S2, contract
-    if isinstance(kernel, Product) and (
-        isinstance(kernel.k1, ConstantKernel) or isinstance(kernel.k2, ConstantKernel)
-    ):
+    if isinstance(kernel, Product) and split_constant(kernel) is not None:
         return _constant_product(kernel, operator, need_gradient)
     if isinstance(kernel, ConstantKernel):
         ones = Phi.sum(axis=1)
@@ -60,8 +58,7 @@ def observed_with_contractor(kernel, operator, need_gradient: bool = True):
 
 
 def _constant_product(kernel, operator, need_gradient):
-    first = isinstance(kernel.k1, ConstantKernel)
-    constant, other = (kernel.k1, kernel.k2) if first else (kernel.k2, kernel.k1)
+    constant, other, first = split_constant(kernel)
     value = float(constant.constant_value)
     S_other, c_other = observed_with_contractor(other, operator, need_gradient)
     S = value * S_other

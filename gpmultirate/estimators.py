@@ -132,13 +132,13 @@ class _FIRModelMixin:
         freqs, sample_time = check_frequencies(freqs, sample_time)
         E = dft_matrix(freqs, sample_time, self.coef_.shape[0])
         re, im = np.ascontiguousarray(E.real), np.ascontiguousarray(E.imag)
-        dist = self._distribution
+        var_re, var_im, cov = self._distribution.pair_variances(re, im)
         return FrequencyResponse.from_gaussian(
             freqs,
             E @ self.coef_,
-            dist.cross_variance(re, re),
-            dist.cross_variance(im, im),
-            dist.cross_variance(re, im),
+            var_re,
+            var_im,
+            cov,
             level=level,
             sample_time=sample_time,
             factor=self.operator_.factor,
@@ -310,7 +310,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             # scale reference: output power per unit input power
             reference = (np.mean(y**2) or 1.0) / (np.mean(u**2) or 1.0)
             return ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC()
-        return check_kernel(clone(check_kernel(self.kernel)))
+        return clone(check_kernel(self.kernel))
 
     def _resolve_noise_bounds(self, y):
         if isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto":
