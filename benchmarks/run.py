@@ -52,7 +52,7 @@ def paper_kernel(name, T=0.1):
     from gpmultirate.kernels import DC, PK
 
     a, b = np.exp(-0.5 * T), np.exp(-0.1 * T)
-    kernel = C(1.0) * DC(alpha=a, beta=b)
+    kernel = C(1.0, (1e-12, 1e5)) * DC(alpha=a, beta=b)
     if name == "PK":
         kernel = kernel + PK.from_hz(0.4, T, alpha=a) + PK.from_hz(2.0, T, alpha=a)
     return kernel

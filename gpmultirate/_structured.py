@@ -115,11 +115,12 @@ def _dc(kernel: DC, Phi, lags, need_gradient):
 
     def contract(W):
         WG = W @ G
-        # d/dlog(alpha): K * (t_i + t_j)/2  ->  tr(W (G t) T G^T) = sum((G t) * (W H))
-        d_alpha = np.sum((G * lags) * (W @ H))
+        # d/dlog(alpha): K * (t_i + t_j)/2, i.e. E K + K E with E = diag(t/2), so
+        # tr(W Phi dK Phi^T) = 2 tr(H^T W G E) = sum over m, i of t_i H[m, i] (W G)[m, i]
+        d_alpha = np.einsum("mi,mi,i->", H, WG, lags)
         # d/dlog(beta): K * |i - j| -> filter with taps k beta^k (zero at k = 0)
         GD = _two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
-        d_beta = np.sum(GD * WG)
+        d_beta = np.einsum("mi,mi->", GD, WG)
         return _select(kernel, ["alpha", "beta"], [d_alpha, d_beta])
 
     return S, contract
@@ -152,3 +153,115 @@ def _pk(kernel: PK, Phi, lags):
 
 def _sym(A):
     return 0.5 * (A + A.T)
+
+
+# ---------------------------------------------------------------------------
+# Derivative matrices, for the Fisher information of the evidence.
+#
+# ``observed_with_derivatives`` returns ``S`` and one item per free
+# hyperparameter (``kernel.theta`` order) describing ``dS_j = Phi dK_j Phi^T``
+# either as a dense symmetric ``(M, M)`` array or, for low-rank terms, as a
+# factor pair ``(U, D)`` with ``dS_j = U D U^T`` (``U`` of shape ``(M, r)``).
+
+
+def observed_with_derivatives(kernel, operator):
+    """Return ``S = Phi K Phi^T`` and the list of derivative items ``dS_j``."""
+    Phi = operator.matrix
+    lags = operator.lags[:, 0]
+    return _derivatives(kernel, Phi, lags)
+
+
+def _derivatives(kernel, Phi, lags):
+    if isinstance(kernel, Sum):
+        S1, d1 = _derivatives(kernel.k1, Phi, lags)
+        S2, d2 = _derivatives(kernel.k2, Phi, lags)
+        return S1 + S2, d1 + d2
+    if isinstance(kernel, Product) and split_constant(kernel) is not None:
+        constant, other, first = split_constant(kernel)
+        value = float(constant.constant_value)
+        S_other, d_other = _derivatives(other, Phi, lags)
+        S = value * S_other
+        rest = [_scaled(item, value) for item in d_other]
+        own = [] if constant.hyperparameter_constant_value.fixed else [S]
+        return S, (own + rest if first else rest + own)
+    if isinstance(kernel, ConstantKernel):
+        ones = Phi.sum(axis=1)[:, None]
+        value = float(kernel.constant_value)
+        S = value * (ones @ ones.T)
+        if kernel.hyperparameter_constant_value.fixed:
+            return S, []
+        return S, [(ones, np.array([[value]]))]
+    if type(kernel) is DC:
+        return _dc_derivatives(kernel, Phi, lags)
+    if type(kernel) is PK:
+        return _pk_derivatives(kernel, Phi, lags)
+    K, dK = kernel(lags[:, None], eval_gradient=True)
+    S = _sym(Phi @ K @ Phi.T)
+    return S, [_sym(Phi @ dK[:, :, j] @ Phi.T) for j in range(dK.shape[2])]
+
+
+def _scaled(item, value):
+    if isinstance(item, tuple):
+        return item[0], value * item[1]
+    return value * item
+
+
+def _dc_derivatives(kernel: DC, Phi, lags):
+    values = kernel._check_hyperparameters()
+    alpha, beta = values["alpha"], values["beta"]
+    G = Phi * alpha ** (lags / 2.0)
+    H = _two_sided(G, [1.0], [1.0, -beta], include_center=True)
+    S = _sym(H @ G.T)
+    items = []
+    if not kernel.hyperparameter_alpha.fixed:
+        # E K + K E with E = diag(t / 2): Phi (E K + K E) Phi^T = (G E) H^T + H (G E)^T
+        half = (G * (lags / 2.0)) @ H.T
+        items.append(half + half.T)
+    if not kernel.hyperparameter_beta.fixed:
+        GD = _two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
+        items.append(_sym(GD @ G.T))
+    return S, items
+
+
+def _pk_derivatives(kernel: PK, Phi, lags):
+    values = kernel._check_hyperparameters()
+    alpha, omega = values["alpha"], values["omega"]
+    var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
+    c, s = kernel._parts(lags, alpha, omega)
+    # basis [Phi c, Phi s, Phi (t c), Phi (t s)]
+    U = Phi @ np.column_stack([c, s, lags * c, lags * s])
+    S = var1 * np.outer(U[:, 0], U[:, 0]) + var2 * np.outer(U[:, 1], U[:, 1])
+
+    def pair(i, j, weight):
+        D = np.zeros((4, 4))
+        D[i, j] += weight
+        D[j, i] += weight
+        return D
+
+    # d/dlog(alpha): c -> (t / 2) c, s -> (t / 2) s
+    d_alpha = pair(0, 2, 0.5 * var1) + pair(1, 3, 0.5 * var2)
+    # d/dlog(omega): c -> -omega t s, s -> omega t c
+    d_omega = pair(0, 3, -omega * var1) + pair(1, 2, omega * var2)
+    d_sigma1 = np.zeros((4, 4))
+    d_sigma1[0, 0] = 2.0 * var1
+    d_sigma2 = np.zeros((4, 4))
+    d_sigma2[1, 1] = 2.0 * var2
+    candidates = {"alpha": d_alpha, "omega": d_omega, "sigma1": d_sigma1, "sigma2": d_sigma2}
+    fixed = {h.name: h.fixed for h in kernel.hyperparameters}
+    items = [(U, D) for name, D in candidates.items() if not fixed[name]]
+    return S, items
+
+
+def observed_without(kernel, term, operator):
+    """``Phi K Phi^T`` of ``kernel`` with the summand ``term`` left out.
+
+    Returns None when ``term`` is not reached through sums alone.
+    """
+    if kernel is term:
+        return np.zeros((operator.n_outputs, operator.n_outputs))
+    if isinstance(kernel, Sum):
+        for inside, other in ((kernel.k1, kernel.k2), (kernel.k2, kernel.k1)):
+            rest = observed_without(inside, term, operator)
+            if rest is not None:
+                return rest + observed_with_contractor(other, operator, False)[0]
+    return None

@@ -20,7 +20,13 @@ from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
 from gpmultirate import _tuning
-from gpmultirate._inference import GaussianCoefficients, log_marginal_likelihood, posterior
+from gpmultirate._inference import (
+    GaussianCoefficients,
+    log_marginal_likelihood,
+    log_marginal_likelihood_fisher,
+    posterior,
+    resonance_grid_log_marginal_likelihood,
+)
 from gpmultirate._validation import (
     check_bounds,
     check_int,
@@ -148,6 +154,10 @@ class _FIRModelMixin:
 # Below this size the matrices of a fit are too small for threaded BLAS to pay
 # off, and on a busy machine its threads spin against each other: one thread.
 _SINGLE_THREAD_SIZE = 1500
+# Up to this many slow samples the hyperparameters are tuned by Fisher scoring
+# (each iteration forms the M x M derivative of the data covariance per
+# hyperparameter); above it by L-BFGS-B, whose iterations need only traces.
+FISHER_MAX_OUTPUTS = 1000
 
 
 def _blas_threads_for(operator):
@@ -369,16 +379,46 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
 
             resonances = _tuning.free_resonance_indices(self.kernel_)
             if resonances:
+
+                def along(theta, index, candidates):
+                    kernel, noise_level = self._split(theta, noise, into=work_kernel)
+                    term = _tuning.resonance_owner(kernel, index)
+                    try:
+                        values = resonance_grid_log_marginal_likelihood(
+                            operator, kernel, term, noise_level, y, np.exp(candidates)
+                        )
+                    except ValueError:
+                        return None
+                    return None if values is None else -values
+
                 theta0 = _tuning.grid_search_resonances(
-                    lambda th: objective(th, eval_gradient=False), theta0, bounds, resonances
+                    lambda th: objective(th, eval_gradient=False), theta0, bounds, resonances,
+                    along,
                 )
                 bounds = _tuning.resonance_window(theta0, bounds, resonances)
             transform = _tuning.DecayRateTransform(self.kernel_, theta0.shape[0])
-            runs = [_tuning.minimize_lbfgs(objective, theta0, bounds, transform)]
+            if operator.n_outputs <= FISHER_MAX_OUTPUTS:
+
+                def value_grad_fisher(theta):
+                    kernel, noise_level = self._split(theta, noise, into=work_kernel)
+                    try:
+                        return log_marginal_likelihood_fisher(
+                            operator, kernel, noise_level, y, self._noise_is_free
+                        )
+                    except ValueError:
+                        return -np.inf, None, None
+
+                def run(start):
+                    return _tuning.fisher_scoring(value_grad_fisher, start, bounds, transform)
+            else:
+
+                def run(start):
+                    return _tuning.minimize_lbfgs(objective, start, bounds, transform)
+
+            runs = [run(theta0)]
             rng = check_rng(self.random_state)
             for _ in range(n_restarts):
-                start = rng.uniform(bounds[:, 0], bounds[:, 1])
-                runs.append(_tuning.minimize_lbfgs(objective, start, bounds, transform))
+                runs.append(run(rng.uniform(bounds[:, 0], bounds[:, 1])))
         finite = [r for r in runs if np.isfinite(r.fun)]
         if not finite:
             raise ValueError(

@@ -116,7 +116,9 @@ def paper_kernels(sample_time: float = 0.1) -> dict[str, tuple[Kernel, float]]:
         )
     alpha = math.exp(-0.5 * sample_time)
     beta = math.exp(-0.1 * sample_time)
-    dc = ConstantKernel(1.0) * DC(alpha=alpha, beta=beta)
+    # the amplitude may vanish: when the resonances explain the data, the DC
+    # term of the PK kernel switches off instead of pressing on a bound
+    dc = ConstantKernel(1.0, (1e-12, 1e5)) * DC(alpha=alpha, beta=beta)
     pk = dc
     for frequency in _PK_FREQUENCIES:  # eq. (21): k_DC + sum_n k_pk,n
         pk = pk + PK.from_hz(frequency, sample_time, alpha=alpha, sigma1=1.0, sigma2=1.0)

@@ -233,10 +233,13 @@ def test_non_convergence_warns(problem, monkeypatch):
     from gpmultirate import _tuning
 
     monkeypatch.setitem(_tuning.LBFGS_OPTIONS, "maxiter", 1)
-    with pytest.warns(ConvergenceWarning, match="did not converge"):
-        gm.FIRGaussianProcess(
-            C(1.0) * DC(), factor=FACTOR, order=ORDER, offset=OFFSET
-        ).fit(problem["u"], problem["y"])
+    monkeypatch.setitem(_tuning.FISHER_OPTIONS, "maxiter", 1)
+    for fisher_max_outputs in (10**6, 0):  # Fisher scoring, then L-BFGS-B
+        monkeypatch.setattr(gm.estimators, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
+        with pytest.warns(ConvergenceWarning, match="did not converge"):
+            gm.FIRGaussianProcess(
+                C(1.0) * DC(), factor=FACTOR, order=ORDER, offset=OFFSET
+            ).fit(problem["u"], problem["y"])
 
 
 def test_tiny_noise_gives_finite_nonnegative_posterior(problem):

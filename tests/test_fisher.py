@@ -1,0 +1,182 @@
+"""Fisher-scoring tuning against dense computations and the L-BFGS-B path.
+
+* ``observed_with_derivatives`` gives every ``dS_j = Phi dK_j Phi^T`` of the
+  dense route (scikit-learn's ``kernel(X, eval_gradient=True)``);
+* ``log_marginal_likelihood_fisher`` gives the evidence and gradient of the
+  L-BFGS-B path and the Fisher information
+  ``1/2 tr(Ky^{-1} dKy_j Ky^{-1} dKy_k)`` computed densely, which is also the
+  covariance of the score under data drawn from the model (Monte Carlo);
+* the fast resonance grid equals one evidence evaluation per candidate;
+* Fisher scoring reaches the optimum L-BFGS-B reaches (or a better one).
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.gaussian_process.kernels import RBF
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+import gpmultirate as gm
+from gpmultirate import _tuning, experiments, simulation
+from gpmultirate._inference import (
+    log_marginal_likelihood,
+    log_marginal_likelihood_fisher,
+    resonance_grid_log_marginal_likelihood,
+)
+from gpmultirate._structured import observed_with_derivatives, observed_without
+from gpmultirate.kernels import DC, PK, SS, TC
+
+KERNELS = {
+    "C*DC": C(2.0) * DC(alpha=0.8, beta=0.9),
+    "DC+PK": DC(alpha=0.8, beta=0.7) + PK(alpha=0.9, omega=0.7, sigma1=0.5, sigma2=1.2),
+    "C*TC+C": C(0.5) * TC(alpha=0.7) + C(1.3),
+    "SS*Cfixed+RBF": SS(alpha=0.8) * C(0.3, "fixed") + RBF(3.0),
+    "PK-alpha-fixed": PK(alpha=0.9, omega=0.7, sigma1=0.5, sigma2=1.2, alpha_bounds="fixed"),
+    "DC-beta-fixed+PK": DC(alpha=0.85, beta=0.6, beta_bounds="fixed")
+    + PK(alpha=0.95, omega=1.3, sigma1=0.7, sigma2=0.4, omega_bounds="fixed"),
+}
+kernel_params = [pytest.param(k, id=name) for name, k in KERNELS.items()]
+
+
+def make_problem(seed=0, n=60, factor=3, order=25, offset=1):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    op = gm.DownsampledConvolution(u, factor, order, offset)
+    return op, rng.standard_normal(op.n_outputs)
+
+
+def dense_derivatives(kernel, op, noise, noise_free):
+    S, dS = op.covariance(kernel, eval_gradient=True)
+    Ky = S + noise * np.eye(op.n_outputs)
+    if noise_free:
+        dS = np.concatenate([dS, noise * np.eye(op.n_outputs)[:, :, None]], axis=2)
+    return Ky, dS
+
+
+@pytest.mark.parametrize("kernel", kernel_params)
+def test_derivative_items_equal_dense(kernel):
+    op, _ = make_problem()
+    S, items = observed_with_derivatives(kernel, op)
+    S_dense, dS = op.covariance(kernel, eval_gradient=True)
+    np.testing.assert_allclose(S, S_dense, rtol=1e-10, atol=1e-12 * np.abs(S_dense).max())
+    assert len(items) == kernel.theta.shape[0]
+    for j, item in enumerate(items):
+        full = item[0] @ item[1] @ item[0].T if isinstance(item, tuple) else item
+        scale = np.abs(dS[:, :, j]).max()
+        np.testing.assert_allclose(full, dS[:, :, j], rtol=1e-9, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("noise_free", [True, False])
+@pytest.mark.parametrize("kernel", kernel_params)
+def test_fisher_information_equals_dense(kernel, noise_free):
+    op, y = make_problem(seed=1)
+    noise = 0.3
+    value, grad, fisher = log_marginal_likelihood_fisher(op, kernel, noise, y, noise_free)
+    value_ref, grad_ref = log_marginal_likelihood(op, kernel, noise, y, True, noise_free)
+    Ky, dS = dense_derivatives(kernel, op, noise, noise_free)
+    inverse = np.linalg.inv(Ky)
+    expected = 0.5 * np.einsum("ab,bcj,cd,dak->jk", inverse, dS, inverse, dS)
+    assert value == pytest.approx(value_ref, rel=1e-12, abs=1e-10)
+    np.testing.assert_allclose(grad, grad_ref, rtol=1e-9, atol=1e-12 * np.abs(grad_ref).max())
+    np.testing.assert_allclose(fisher, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+    np.testing.assert_allclose(fisher, fisher.T, rtol=0, atol=0)
+
+
+def test_fisher_information_is_the_covariance_of_the_score():
+    # data drawn from the model: Cov(gradient) = Fisher information
+    kernel = KERNELS["DC+PK"]
+    op, _ = make_problem(seed=2)
+    noise = 0.2
+    Ky, _ = dense_derivatives(kernel, op, noise, True)
+    root = np.linalg.cholesky(Ky)
+    rng = np.random.default_rng(5)
+    scores = []
+    for _ in range(3000):
+        y = root @ rng.standard_normal(op.n_outputs)
+        scores.append(log_marginal_likelihood(op, kernel, noise, y, True, True)[1])
+    scores = np.array(scores)
+    fisher = log_marginal_likelihood_fisher(op, kernel, noise, y, True)[2]
+    sd = np.sqrt(np.diag(fisher))
+    empirical = np.cov(scores.T) / np.outer(sd, sd)
+    # standard error of a covariance estimate from 3000 draws is about 0.02-0.04
+    np.testing.assert_allclose(empirical, fisher / np.outer(sd, sd), atol=0.12)
+    np.testing.assert_allclose(scores.mean(axis=0) / sd, 0.0, atol=0.08)
+
+
+def test_resonance_grid_equals_one_evaluation_per_candidate():
+    kernel = C(1.5) * DC(alpha=0.85, beta=0.7) + PK(alpha=0.9, omega=0.6) + PK(
+        alpha=0.85, omega=1.8, sigma1=0.4, sigma2=0.9
+    )
+    op, y = make_problem(seed=3, n=90, order=40)
+    for index in _tuning.free_resonance_indices(kernel):
+        term = _tuning.resonance_owner(kernel, index)
+        assert isinstance(term, PK)
+        omegas = np.exp(kernel.theta[index]) * np.geomspace(0.7, 1.4, 7)
+        fast = resonance_grid_log_marginal_likelihood(op, kernel, term, 0.05, y, omegas)
+        slow = []
+        for omega in omegas:
+            theta = kernel.theta.copy()
+            theta[index] = np.log(omega)
+            slow.append(
+                log_marginal_likelihood(op, kernel.clone_with_theta(theta), 0.05, y, False, False)
+            )
+        np.testing.assert_allclose(fast, slow, rtol=1e-10, atol=1e-9)
+    assert _tuning.resonance_owner(kernel, 0) is None  # the constant is no resonance
+
+
+def test_observed_without_is_none_inside_a_product():
+    op, _ = make_problem()
+    pk = PK(alpha=0.9, omega=0.7)
+    assert observed_without(C(2.0) * pk, pk, op) is None
+    rest = observed_without(DC() + pk + TC(), pk, op)
+    np.testing.assert_allclose(rest, op.covariance(DC() + TC()), rtol=1e-10)
+
+
+def paper_like_problem(seed):
+    sim = simulation
+    rng = np.random.default_rng(seed)
+    system = sim.paper_system(0.1, perturbation=0.1, random_state=rng)
+    u = sim.multisine(240, random_state=rng)
+    data = sim.simulate_experiment(system, u, 3, snr_db=40.0, random_state=rng)
+    return data.u, data.y_slow
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("name", ["DC", "PK"])
+def test_fisher_scoring_reaches_the_lbfgs_optimum(name, seed, monkeypatch):
+    u, y = paper_like_problem(seed)
+    kernel = experiments.paper_kernels(0.1)[name][0]
+
+    def fit(fisher_max_outputs):
+        monkeypatch.setattr(gm.estimators, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            return gm.FIRGaussianProcess(kernel, factor=3, order=240, noise_level=1e-5).fit(u, y)
+
+    fisher, lbfgs = fit(10**6), fit(0)
+    assert fisher.optimizer_result_.success
+    assert fisher.log_marginal_likelihood_value_ >= lbfgs.log_marginal_likelihood_value_ - 1e-3
+    # the optimum is stationary: the gain a Newton step on the interior
+    # coordinates predicts, 1/2 g^T F^{-1} g, is negligible (in nats)
+    _, grad, fisher_information = log_marginal_likelihood_fisher(
+        fisher.operator_, fisher.kernel_, fisher.noise_level_, y, True
+    )
+    theta = np.append(fisher.kernel_.theta, np.log(fisher.noise_level_))
+    bounds = np.vstack([fisher.kernel_.bounds, np.log(fisher._noise_bounds)])
+    interior = (theta > bounds[:, 0] + 1e-6) & (theta < bounds[:, 1] - 1e-6)
+    g, F = grad[interior], fisher_information[np.ix_(interior, interior)]
+    assert 0.5 * g @ np.linalg.lstsq(F, g, rcond=1e-12)[0] < 1e-3
+
+
+def test_fisher_scoring_holds_coordinates_at_bounds():
+    # bounds far from the data scale pin the amplitude at one of them
+    u, y = paper_like_problem(0)
+    kernel = C(1.0, (1e-3, 1e-2)) * DC(alpha=0.95, beta=0.99)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        model = gm.FIRGaussianProcess(kernel, factor=3, order=240).fit(u * 1e-6, y)
+    assert model.kernel_.k1.constant_value in (pytest.approx(1e-3), pytest.approx(1e-2))
+    assert model.optimizer_result_.nit < 100
+    assert np.all(np.isfinite(model.coef_))
