@@ -21,6 +21,7 @@ import warnings
 import numpy as np
 from scipy import linalg
 
+from gpmultirate._reduced import ReducedObservation
 from gpmultirate._structured import (
     observed_with_contractor,
     observed_with_derivatives,
@@ -229,10 +230,28 @@ class ParameterSpacePosterior(GaussianCoefficients):
 
 
 def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
-    """The posterior in whichever space is smaller: data (``M <= P``) or parameters."""
-    if operator.n_outputs > operator.order:
-        return ParameterSpacePosterior(operator, kernel, noise_level, y)
+    """The posterior in whichever space is smaller: data (``M <= P``) or parameters.
+
+    For ``M > P`` the data are first reduced to the ``P x P`` factor of
+    :class:`~gpmultirate._reduced.ReducedObservation` (never holding ``Phi``),
+    whose least-squares form gives the same posterior; ``operator`` may be
+    such a reduction already (``y`` is then ignored).
+    """
+    if isinstance(operator, ReducedObservation) or operator.n_outputs > operator.order:
+        reduced = operator if isinstance(operator, ReducedObservation) else (
+            ReducedObservation(operator, y)
+        )
+        result = ParameterSpacePosterior(reduced, kernel, noise_level, reduced.z)
+        result.log_marginal_likelihood += reduced.discarded_log_likelihood(noise_level)[0]
+        return result
     return DataSpacePosterior(operator, kernel, noise_level, y)
+
+
+def _discarded(operator, noise_level):
+    """The evidence of the samples a reduced observation left out (zeros otherwise)."""
+    if isinstance(operator, ReducedObservation):
+        return operator.discarded_log_likelihood(noise_level)
+    return 0.0, 0.0, 0.0
 
 
 def log_marginal_likelihood(
@@ -248,13 +267,16 @@ def log_marginal_likelihood(
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     alpha = linalg.cho_solve((L, True), y, check_finite=False)
-    value = float(-0.5 * y @ alpha - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI)
+    rest_value, rest_grad, _ = _discarded(operator, noise_level)
+    value = float(
+        -0.5 * y @ alpha - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI + rest_value
+    )
     if not eval_gradient:
         return value
     W = np.outer(alpha, alpha) - _inverse_from_cholesky(L)
     grad = 0.5 * contract(W)
     if noise_free:
-        grad = np.append(grad, 0.5 * np.trace(W) * noise_level)
+        grad = np.append(grad, 0.5 * np.trace(W) * noise_level + rest_grad)
     return value, grad
 
 
@@ -318,6 +340,11 @@ def log_marginal_likelihood_fisher(
             grad[j] = 0.5 * (w @ Xj @ w - np.trace(Xj))
         for k in range(j + 1):
             fisher[j, k] = fisher[k, j] = 0.5 * _trace_of_product(Xj, whitened[k])
+    rest_value, rest_grad, rest_fisher = _discarded(operator, noise_level)
+    value += rest_value
+    if noise_free:
+        grad[-1] += rest_grad
+        fisher[-1, -1] += rest_fisher
     return value, grad, fisher
 
 
@@ -353,7 +380,10 @@ def resonance_grid_log_marginal_likelihood(
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
-    base = float(-0.5 * w @ w - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI)
+    base = float(
+        -0.5 * w @ w - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI
+        + _discarded(operator, noise_level)[0]
+    )
     values = term._check_hyperparameters()
     roots = np.array([values["sigma1"], values["sigma2"]])
     lags = operator.lags[:, 0]

@@ -105,18 +105,22 @@ def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
     z2 = (Q.T @ y) ** 2
     power = float(np.mean(y**2)) or 1.0
 
+    # samples a reduced observation left out: independent N(0, g), sum of squares rho^2
+    n_rest = getattr(operator, "n_discarded", 0)
+    rho2 = getattr(operator, "residual", 0.0)
+
     def objective(x):
         log_c = x[0] if fit_scale else 0.0
         log_g = x[-1] if fit_noise else np.log(noise_level)
         c, g = np.exp(log_c), np.exp(log_g)
         d = c * s + g
-        value = 0.5 * np.sum(z2 / d + np.log(d))
+        value = 0.5 * np.sum(z2 / d + np.log(d)) + 0.5 * (n_rest * log_g + rho2 / g)
         common = 0.5 * (1.0 / d - z2 / d**2)
         grad = []
         if fit_scale:
             grad.append(np.sum(common * c * s))
         if fit_noise:
-            grad.append(np.sum(common * g))
+            grad.append(np.sum(common * g) + 0.5 * (n_rest - rho2 / g))
         return value, np.array(grad)
 
     mean_s = float(np.mean(s)) or 1.0

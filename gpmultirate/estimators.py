@@ -20,6 +20,7 @@ from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
 from gpmultirate import _tuning
+from gpmultirate._reduced import tuning_data
 from gpmultirate._inference import (
     GaussianCoefficients,
     log_marginal_likelihood,
@@ -309,7 +310,8 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
                 if not isinstance(self._noise_bounds, str):
                     noise = float(np.clip(noise, *self._noise_bounds))
                 noise = self._optimize(noise, n_restarts)
-            self._distribution = posterior(self.operator_, self.kernel_, noise, y)
+            data_operator, data_y = self._evidence_data()
+            self._distribution = posterior(data_operator, self.kernel_, noise, data_y)
         self.noise_level_ = noise
         self.coef_ = self._distribution.coef
         self.log_marginal_likelihood_value_ = self._distribution.log_marginal_likelihood
@@ -349,7 +351,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         return kernel, noise
 
     def _optimize(self, noise: float, n_restarts: int) -> float:
-        y, operator = self._y, self.operator_
+        operator, y = self._evidence_data()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NumericalWarning)
             noise = _tuning.prefit_scale_and_noise(
@@ -458,9 +460,18 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         if theta.shape[0] != n_expected:
             raise ValueError(f"theta must have {n_expected} entries; got {theta.shape[0]}")
         kernel, noise = self._split(theta, self.noise_level_)
+        operator, y = self._evidence_data()
         return log_marginal_likelihood(
-            self.operator_, kernel, noise, self._y, eval_gradient, self._noise_is_free
+            operator, kernel, noise, y, eval_gradient, self._noise_is_free
         )
+
+    def _evidence_data(self):
+        """The data the evidence is computed from: ``(Phi, y)``, or ``(R, z)`` when ``M > P``."""
+        cached = getattr(self, "_reduced", None)
+        if cached is None or cached[0] is not self.operator_:
+            cached = (self.operator_, *tuning_data(self.operator_, self._y))
+            self._reduced = cached
+        return cached[1], cached[2]
 
     # ----------------------------------------------------------- posterior
     def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
