@@ -90,7 +90,8 @@ def test_posterior_equals_the_dense_closed_form():
 
 
 def test_estimator_evidence_is_that_of_the_full_data():
-    op, y = make(seed=3, n=600, order=40)
+    op, noise = make(seed=3, n=600, order=40)
+    y = op.matvec(0.8 ** np.arange(40) * np.cos(0.5 * np.arange(40))) + 0.1 * noise
     model = gm.FIRGaussianProcess(C(1.0) * DC(0.9, 0.9), factor=3, order=40, offset=2).fit(op.u, y)
     theta = np.append(model.kernel_.theta, np.log(model.noise_level_))
     S = op.covariance(model.kernel_) + model.noise_level_ * np.eye(op.n_outputs)
