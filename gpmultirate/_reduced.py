@@ -63,6 +63,7 @@ class ReducedObservation:
         self.z = top[:P, P].copy()
         self.residual = float(top[P, P] ** 2)
         self.n_discarded = M - P
+        self.upper_triangular = True  # lets products with the regressor use BLAS trmm
         self.order = P
         self.n_outputs = P
         self.lags = operator.lags

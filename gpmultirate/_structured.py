@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import signal
+from scipy.linalg import blas
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
 from gpmultirate._contraction import _select, kernel_with_contractor, split_constant
@@ -51,7 +52,7 @@ def observed_with_contractor(kernel, operator, need_gradient: bool = True):
             return S, (lambda W: np.empty(0))
         return S, (lambda W: np.array([value * ones @ W @ ones]))
     if type(kernel) is DC:
-        return _dc(kernel, Phi, lags, need_gradient)
+        return _dc(kernel, Phi, lags, need_gradient, getattr(operator, "upper_triangular", False))
     if type(kernel) is PK:
         return _pk(kernel, Phi, lags)
     return _dense(kernel, Phi, lags, need_gradient)
@@ -103,18 +104,25 @@ def _two_sided(X, causal_b, causal_a, include_center: bool):
     return total
 
 
-def _dc(kernel: DC, Phi, lags, need_gradient):
+def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
     values = kernel._check_hyperparameters()
     alpha, beta = values["alpha"], values["beta"]
     G = Phi * alpha ** (lags / 2.0)
     # H = G T with T[i, j] = beta^|i - j|: causal + anticausal AR(1), centre once
     H = _two_sided(G, [1.0], [1.0, -beta], include_center=True)
-    S = _sym(H @ G.T)
+    if upper_triangular:  # a reduced observation: products with G cost half
+        G = np.asfortranarray(G)
+        S = _sym(blas.dtrmm(1.0, G, np.asfortranarray(H), side=1, lower=0, trans_a=1))
+    else:
+        S = _sym(H @ G.T)
     if not need_gradient:
         return S, None
 
     def contract(W):
-        WG = W @ G
+        if upper_triangular:
+            WG = blas.dtrmm(1.0, G, np.asfortranarray(W), side=1, lower=0, trans_a=0)
+        else:
+            WG = W @ G
         # d/dlog(alpha): K * (t_i + t_j)/2, i.e. E K + K E with E = diag(t/2), so
         # tr(W Phi dK Phi^T) = 2 tr(H^T W G E) = sum over m, i of t_i H[m, i] (W G)[m, i]
         d_alpha = np.einsum("mi,mi,i->", H, WG, lags)
