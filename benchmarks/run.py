@@ -130,26 +130,43 @@ def paper_case(kernel_name, implementation, n_samples=600):
 
 
 def study_case(n_runs=100):
-    from gpmultirate.experiments import run_paper_study
+    """The paper's study: LS over the orders 50..600, DC and PK at P = N = 600."""
+    from gpmultirate.experiments import PAPER_ORDERS, run_paper_study
 
     start = time.perf_counter()
-    result = run_paper_study(
-        n_runs=n_runs, orders=(50, 100, 150, 600), n_jobs=2, random_state=0, progress=False
-    )
+    common = dict(n_runs=n_runs, n_jobs=2, random_state=0, progress=False)
+    ls = run_paper_study(orders=PAPER_ORDERS, methods=("LS",), **common)
+    kernels = run_paper_study(orders=(600,), methods=("DC", "PK"), **common)
     seconds = time.perf_counter() - start
-    gof = {m: float(np.nanmean(result.gof[m][:, -1])) for m in ("DC", "PK")}
-    return {"seconds": seconds, "gof": gof}
+    gof = {m: float(np.nanmean(kernels.gof[m][:, -1])) for m in ("DC", "PK")}
+    gof["LS best"] = float(np.nanmean(np.nanmax(ls.gof["LS"], axis=1)))
+    warnings_count = int(sum(kernels.n_warnings[m].sum() for m in ("DC", "PK")))
+    return {"seconds": seconds, "gof": gof, "warnings": warnings_count}
+
+
+def long_record_case(implementation, n_samples=50_000, order=2000):
+    """A long record with fixed order: N = 50,000, F = 3, P = 2000 (M = 16,667)."""
+    if implementation != "ours":
+        raise ValueError("the dense reference would need the M x M data covariance")
+    from gpmultirate import goodness_of_fit
+
+    u, y, u_val, y_val = paper_problem(n_samples)
+    start = time.perf_counter()
+    predict = fit_ours(paper_kernel("DC"), u, y, 3, order)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "gof": goodness_of_fit(y_val, predict(u_val))}
 
 
 CASES = {
     "paper_dc": ("paper size N = P = 600, F = 3, DC", ["ours", "reference", "sklearn"]),
     "paper_pk": ("paper size, DC + 2 PK", ["ours", "reference"]),
-    "p_equals_n_6000": ("P = N = 6000 (M = 2000), DC", ["ours"]),
     "study_100": ("100-run Monte Carlo study", ["ours"]),
+    "long_record": ("long record N = 50,000, P = 2,000, DC", ["ours"]),
+    "p_equals_n_6000": ("P = N = 6000 (M = 2000), DC", ["ours"]),
 }
 
 
-def run_case(name, implementation, n_samples=None):
+def run_case(name, implementation, n_samples=None, order=None):
     if name == "paper_dc":
         return paper_case("DC", implementation, n_samples or 600)
     if name == "paper_pk":
@@ -158,13 +175,17 @@ def run_case(name, implementation, n_samples=None):
         return paper_case("DC", implementation, n_samples or 6000)
     if name == "study_100":
         return study_case()
+    if name == "long_record":
+        return long_record_case(implementation, n_samples or 50_000, order or 2000)
     raise ValueError(f"unknown case {name!r}")
 
 
-def in_subprocess(name, implementation, n_samples=None, timeout=1800):
+def in_subprocess(name, implementation, n_samples=None, order=None, timeout=1800):
     command = [sys.executable, __file__, "--child", name, implementation]
     if n_samples:
         command += ["--n-samples", str(n_samples)]
+    if order:
+        command += ["--order", str(order)]
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -180,10 +201,11 @@ def main(argv=None):
     parser.add_argument("--scaling", action="store_true", help="also time against N")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--n-samples", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--order", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
         warnings.simplefilter("ignore")
-        result = run_case(*args.child, args.n_samples)
+        result = run_case(*args.child, args.n_samples, args.order)
         result["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         print(json.dumps(result))
         return 0
@@ -202,6 +224,8 @@ def main(argv=None):
                 print(f"{title:42s} {implementation:10s} {r['error']}")
                 continue
             ratio = r["seconds"] / ours if ours else float("nan")
+            if isinstance(r["gof"], dict):
+                print(f"{'':42s} {'':10s} GoF {r['gof']}")
             gof = r["gof"] if isinstance(r["gof"], float) else np.mean(list(r["gof"].values()))
             print(
                 f"{title:42s} {implementation:10s} {r['seconds']:9.2f} {r['peak_mb']:8.0f} "
@@ -213,8 +237,8 @@ def main(argv=None):
     return 0
 
 
-def scaling(sizes=(300, 600, 1200, 2400)):
-    """Time of the DC fit against N in the regime P = N (and the dense reference)."""
+def scaling(sizes=(300, 600, 1200, 2400, 6000), long_sizes=(6000, 12_000, 25_000, 50_000)):
+    """Fit time against N in both regimes: P = N, and a long record with P = 2000."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -224,14 +248,23 @@ def scaling(sizes=(300, 600, 1200, 2400)):
     for n in sizes:
         ours = in_subprocess("paper_dc", "ours", n)
         reference = in_subprocess("paper_dc", "reference", n) if n <= 1200 else {}
-        rows.append({"n": n, "ours": ours.get("seconds"), "reference": reference.get("seconds")})
+        rows.append({"regime": "P = N", "n": n, "ours": ours.get("seconds"),
+                     "reference": reference.get("seconds"), "peak_mb": ours.get("peak_mb")})
         print(f"P = N = {n:6d}: ours {ours.get('seconds')}, reference {reference.get('seconds')}")
-    fig, ax = plt.subplots(figsize=(5, 3.5))
-    for key in ("ours", "reference"):
-        points = [(r["n"], r[key]) for r in rows if r[key]]
-        ax.loglog(*zip(*points), "o-", label=key)
-    ax.set_xlabel("N = P")
-    ax.set_ylabel("fit time (s)")
+    for n in long_sizes:
+        ours = in_subprocess("long_record", "ours", n, 2000)
+        rows.append({"regime": "P = 2000", "n": n, "ours": ours.get("seconds"),
+                     "reference": None, "peak_mb": ours.get("peak_mb")})
+        print(f"P = 2000, N = {n:6d}: ours {ours.get('seconds')}")
+    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    for regime, key, style in (("P = N", "ours", "o-"), ("P = N", "reference", "s--"),
+                               ("P = 2000", "ours", "^-")):
+        points = [(r["n"], r[key]) for r in rows if r["regime"] == regime and r[key]]
+        if points:
+            ax.loglog(*zip(*points), style, label=f"{key}, {regime}")
+    ax.set_xlabel("N (fast samples)")
+    ax.set_ylabel("fit time incl. tuning (s)")
+    ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
     fig.savefig(OUTPUT / "scaling.png", dpi=120)

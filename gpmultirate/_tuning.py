@@ -25,6 +25,7 @@ from scipy import linalg, optimize
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
+from gpmultirate._structured import observed_with_contractor
 from gpmultirate.kernels import DC, PK, SS, TC
 
 # L-BFGS-B settings: tighter than scipy's defaults, which stop early on the
@@ -99,7 +100,7 @@ def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
     fit_noise = not isinstance(noise_bounds, str)
     if not (fit_scale or fit_noise):
         return noise_level
-    S = operator.covariance(kernel)
+    S = observed_with_contractor(kernel, operator, need_gradient=False)[0]
     s, Q = linalg.eigh(S, check_finite=False)
     s = np.maximum(s, 0.0)
     z2 = (Q.T @ y) ** 2
