@@ -26,6 +26,7 @@ from gpmultirate._structured import (
     observed_with_contractor,
     observed_with_derivatives,
     observed_without,
+    regressor_times_kernel,
 )
 from gpmultirate.exceptions import NumericalWarning
 
@@ -124,7 +125,7 @@ class DataSpacePosterior(GaussianCoefficients):
     def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
         Phi = operator.matrix
         K = operator.kernel_matrix(kernel)
-        PhiK = Phi @ K
+        PhiK = regressor_times_kernel(kernel, operator, K)
         Ky = PhiK @ Phi.T
         Ky = 0.5 * (Ky + Ky.T)
         Ky[np.diag_indices_from(Ky)] += noise_level

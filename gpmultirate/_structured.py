@@ -273,3 +273,38 @@ def observed_without(kernel, term, operator):
             if rest is not None:
                 return rest + observed_with_contractor(other, operator, False)[0]
     return None
+
+
+def regressor_times_kernel(kernel, operator, K=None):
+    """``Phi K`` of shape ``(M, P)`` without the ``O(M P^2)`` product where possible.
+
+    DC terms are filters of the rows of ``Phi`` (``Phi D T D``), PK terms
+    rank two, constants rank one; other kernels use ``K`` (computed when not
+    given).
+    """
+    Phi = operator.matrix
+    lags = operator.lags[:, 0]
+    if isinstance(kernel, Sum):
+        return regressor_times_kernel(kernel.k1, operator) + regressor_times_kernel(
+            kernel.k2, operator
+        )
+    if isinstance(kernel, Product) and split_constant(kernel) is not None:
+        constant, other, _ = split_constant(kernel)
+        return float(constant.constant_value) * regressor_times_kernel(other, operator)
+    if isinstance(kernel, ConstantKernel):
+        ones = Phi.sum(axis=1)
+        return float(kernel.constant_value) * np.repeat(ones[:, None], lags.shape[0], axis=1)
+    if type(kernel) is DC:
+        values = kernel._check_hyperparameters()
+        decay = values["alpha"] ** (lags / 2.0)
+        H = _two_sided(Phi * decay, [1.0], [1.0, -values["beta"]], include_center=True)
+        return H * decay
+    if type(kernel) is PK:
+        values = kernel._check_hyperparameters()
+        c, s = kernel._parts(lags, values["alpha"], values["omega"])
+        return values["sigma1"] ** 2 * np.outer(Phi @ c, c) + values["sigma2"] ** 2 * np.outer(
+            Phi @ s, s
+        )
+    if K is None:
+        K = kernel(lags[:, None])
+    return Phi @ K

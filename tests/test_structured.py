@@ -264,3 +264,17 @@ def test_fallback_kernel_with_all_hyperparameters_fixed():
     op, Phi = make_operator("N60-F1-P20-o0")
     _, contract = observed_with_contractor(kernel, op)
     assert contract(random_symmetric(op.n_outputs, 10)).shape == (0,)
+
+
+@pytest.mark.parametrize("op_key", operator_keys)
+@pytest.mark.parametrize("kernel", kernel_params)
+def test_regressor_times_kernel_equals_dense(kernel, op_key):
+    from gpmultirate._structured import regressor_times_kernel
+
+    op, Phi = make_operator(op_key)
+    K = kernel(np.arange(op.order, dtype=float)[:, None])
+    expected = Phi @ K
+    scale = (np.abs(Phi) @ np.abs(K)).max()
+    np.testing.assert_allclose(
+        regressor_times_kernel(kernel, op), expected, rtol=1e-9, atol=1e-12 * scale
+    )
