@@ -264,7 +264,8 @@ def perturb_parameters(nominal: dict, perturbation: float,
     >>> all(abs(params[k] / v - 1) <= 0.1 for k, v in PAPER_PARAMETERS.items())
     True
     """
-    if not isinstance(perturbation, numbers.Real) or not 0 <= perturbation < 1:
+    if (isinstance(perturbation, bool) or not isinstance(perturbation, numbers.Real)
+            or not 0 <= perturbation < 1):
         raise ValueError(f"perturbation must lie in [0, 1), got {perturbation!r}")
     if not isinstance(nominal, dict) or not all(
         isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v) and v > 0

@@ -368,3 +368,9 @@ def test_simulate_experiment_paper_setting():
     np.testing.assert_array_equal(clean.y_slow, clean.y_fast[::3])
     with pytest.raises(ValueError, match="offset"):
         simulate_experiment(system, u, factor=3, offset=3)
+
+
+def test_perturbation_must_not_be_a_bool():
+    # found by the hostile-input search: False passed as 0
+    with pytest.raises(ValueError, match="perturbation"):
+        paper_system(perturbation=False)
