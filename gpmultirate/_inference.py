@@ -312,22 +312,26 @@ def log_marginal_likelihood_fisher(
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     M = y.shape[0]
-    w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
+    # with the explicit inverse factor, the whitening X_j = L^{-1} dKy_j L^{-T}
+    # is two matrix products (faster than two triangular solves)
+    Linv, info = linalg.lapack.dtrtri(L, lower=1)
+    if info != 0:
+        Linv = linalg.solve_triangular(L, np.eye(M), lower=True, check_finite=False)
+    Linv = np.tril(Linv)
+    w = Linv @ y
     value = float(-0.5 * w @ w - np.log(np.diag(L)).sum() - 0.5 * M * LOG_2PI)
     whitened = []
-    solved = {}  # factors shared by the items of one PK term are solved once
+    solved = {}  # factors shared by the items of one PK term are whitened once
     for item in items:
         if isinstance(item, tuple):
             U, D = item
             if id(U) not in solved:
-                solved[id(U)] = linalg.solve_triangular(L, U, lower=True, check_finite=False)
+                solved[id(U)] = Linv @ U
             whitened.append((solved[id(U)], D))
         else:
-            half = linalg.solve_triangular(L, item, lower=True, check_finite=False)
-            X = linalg.solve_triangular(L, half.T, lower=True, check_finite=False)
+            X = (Linv @ item) @ Linv.T
             whitened.append(0.5 * (X + X.T))
     if noise_free:
-        Linv = linalg.solve_triangular(L, np.eye(M), lower=True, check_finite=False)
         whitened.append(noise_level * (Linv @ Linv.T))
     n = len(whitened)
     grad = np.empty(n)

@@ -13,6 +13,8 @@ evaluation; the structure of the kernels avoids it:
 * PK: rank two, so ``S`` and every contraction come from four products
   ``Phi v``.
 * ConstantKernel: rank one, or a scalar factor of a product.
+* TC, DC and SS on long inputs: the diagonal recursion of
+  :mod:`gpmultirate._recursive`, ``O(M N)``, where its cost model says so.
 * anything else: the dense path of :mod:`gpmultirate._contraction`.
 
 The operator's lags are always the integer grid ``0..P-1``.
@@ -21,12 +23,20 @@ The operator's lags are always the integer grid ``0..P-1``.
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 from scipy.linalg import blas
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
 from gpmultirate._contraction import _select, kernel_with_contractor, split_constant
+from gpmultirate._recursive import (
+    _two_sided,
+    cross_covariance_shift_scaled,
+    is_shift_scaled,
+    observed_shift_scaled,
+    observed_shift_scaled_derivatives,
+    prefer_recursion,
+)
 from gpmultirate.kernels import DC, PK
+from gpmultirate.operator import DownsampledConvolution
 
 
 def observed_with_contractor(kernel, operator, need_gradient: bool = True):
@@ -35,7 +45,6 @@ def observed_with_contractor(kernel, operator, need_gradient: bool = True):
     ``W`` must be symmetric.  The entries follow ``kernel.theta``.  With
     ``need_gradient=False`` the contractor is None.
     """
-    Phi = operator.matrix
     lags = operator.lags[:, 0]
     if isinstance(kernel, Sum):
         S1, c1 = observed_with_contractor(kernel.k1, operator, need_gradient)
@@ -44,6 +53,9 @@ def observed_with_contractor(kernel, operator, need_gradient: bool = True):
         return S1 + S2, contract
     if isinstance(kernel, Product) and split_constant(kernel) is not None:
         return _constant_product(kernel, operator, need_gradient)
+    if _use_recursion(kernel, operator, need_gradient):
+        return observed_shift_scaled(kernel, operator, need_gradient)
+    Phi = operator.matrix
     if isinstance(kernel, ConstantKernel):
         ones = Phi.sum(axis=1)
         value = float(kernel.constant_value)
@@ -56,6 +68,22 @@ def observed_with_contractor(kernel, operator, need_gradient: bool = True):
     if type(kernel) is PK:
         return _pk(kernel, Phi, lags)
     return _dense(kernel, Phi, lags, need_gradient)
+
+
+def _use_recursion(kernel, operator, need_gradient: bool) -> bool:
+    """Whether ``S`` of a TC, DC or SS leaf comes from the diagonal recursion.
+
+    Only a real downsampled convolution has the shift structure (a reduced
+    observation does not), and the recursion is taken where its cost model
+    says it is faster than the filter-and-BLAS route.
+    """
+    return (
+        is_shift_scaled(kernel)
+        and isinstance(operator, DownsampledConvolution)
+        and prefer_recursion(
+            operator.n_outputs, operator.n_samples, operator.order, need_gradient=need_gradient
+        )
+    )
 
 
 def _constant_product(kernel, operator, need_gradient):
@@ -87,21 +115,6 @@ def _dense(kernel, Phi, lags, need_gradient):
         return contract_p(_sym(A))
 
     return S, contract
-
-
-def _two_sided(X, causal_b, causal_a, include_center: bool):
-    """Filter every row of ``X`` with a symmetric two-sided recursive filter.
-
-    The causal part has transfer function ``b(z)/a(z)``; the anticausal part
-    is its mirror image.  With ``include_center`` the zero-lag tap (present in
-    both halves) is counted once.
-    """
-    causal = signal.lfilter(causal_b, causal_a, X, axis=1)
-    anticausal = signal.lfilter(causal_b, causal_a, X[:, ::-1], axis=1)[:, ::-1]
-    total = causal + anticausal
-    if include_center:
-        total -= causal_b[0] * X
-    return total
 
 
 def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
@@ -174,24 +187,26 @@ def _sym(A):
 
 def observed_with_derivatives(kernel, operator):
     """Return ``S = Phi K Phi^T`` and the list of derivative items ``dS_j``."""
-    Phi = operator.matrix
+    return _derivatives(kernel, operator)
+
+
+def _derivatives(kernel, operator):
     lags = operator.lags[:, 0]
-    return _derivatives(kernel, Phi, lags)
-
-
-def _derivatives(kernel, Phi, lags):
     if isinstance(kernel, Sum):
-        S1, d1 = _derivatives(kernel.k1, Phi, lags)
-        S2, d2 = _derivatives(kernel.k2, Phi, lags)
+        S1, d1 = _derivatives(kernel.k1, operator)
+        S2, d2 = _derivatives(kernel.k2, operator)
         return S1 + S2, d1 + d2
     if isinstance(kernel, Product) and split_constant(kernel) is not None:
         constant, other, first = split_constant(kernel)
         value = float(constant.constant_value)
-        S_other, d_other = _derivatives(other, Phi, lags)
+        S_other, d_other = _derivatives(other, operator)
         S = value * S_other
         rest = [_scaled(item, value) for item in d_other]
         own = [] if constant.hyperparameter_constant_value.fixed else [S]
         return S, (own + rest if first else rest + own)
+    if _use_recursion(kernel, operator, True):
+        return observed_shift_scaled_derivatives(kernel, operator)
+    Phi = operator.matrix
     if isinstance(kernel, ConstantKernel):
         ones = Phi.sum(axis=1)[:, None]
         value = float(kernel.constant_value)
@@ -282,7 +297,6 @@ def regressor_times_kernel(kernel, operator, K=None):
     rank two, constants rank one; other kernels use ``K`` (computed when not
     given).
     """
-    Phi = operator.matrix
     lags = operator.lags[:, 0]
     if isinstance(kernel, Sum):
         return regressor_times_kernel(kernel.k1, operator) + regressor_times_kernel(
@@ -291,6 +305,9 @@ def regressor_times_kernel(kernel, operator, K=None):
     if isinstance(kernel, Product) and split_constant(kernel) is not None:
         constant, other, _ = split_constant(kernel)
         return float(constant.constant_value) * regressor_times_kernel(other, operator)
+    if is_shift_scaled(kernel) and isinstance(operator, DownsampledConvolution):
+        return cross_covariance_shift_scaled(kernel, operator)
+    Phi = operator.matrix
     if isinstance(kernel, ConstantKernel):
         ones = Phi.sum(axis=1)
         return float(kernel.constant_value) * np.repeat(ones[:, None], lags.shape[0], axis=1)

@@ -1,0 +1,585 @@
+r"""Slow-rate covariance of shift-scaled kernels by a recursion along diagonals.
+
+The lag kernels TC, DC and SS are *shift-scaled* on the integer lag grid:
+
+.. math:: K(i + 1, j + 1) = a\, K(i, j),
+
+with ``a = alpha`` for TC and DC and ``a = alpha**3`` for SS.  Let
+
+.. math:: S_f(n, n') = \sum_{i,j=0}^{P-1} u(n - i)\, u(n' - j)\, K(i, j)
+
+be the covariance of the noise-free fast-rate output (``u(k) = 0`` for
+``k < 0``), so that the slow covariance is ``S[m, m'] = S_f(n_m, n_{m'})``
+with ``n_m = offset + m F``.  Splitting off the terms with ``i = 0`` or
+``j = 0`` and shifting the others by one lag gives, with
+
+.. math::
+
+    r(n) = \sum_{j} K(0, j)\, u(n - j), \qquad
+    s(n) = \sum_{j} K(P-1, j)\, u(n - j),
+
+the exact first-order recursion along each diagonal ``n' = n + d``:
+
+.. math::
+
+    S_f(n+1, n'+1) &= a \bigl(S_f(n, n') - u(n-P+1)\, s(n')
+                      - s(n)\, u(n'-P+1) + K_{P-1,P-1}\, u(n-P+1)\, u(n'-P+1)\bigr) \\
+                   &\quad + u(n+1)\, r(n'+1) + r(n+1)\, u(n'+1) - K_{0,0}\, u(n+1)\, u(n'+1),
+
+started from ``S_f(-1, d - 1) = 0``.  The bracket is the sum over lags
+``0..P-2`` (the lag ``P - 1`` drops out of the window), the second line the
+terms entering at lag 0; when ``P = N`` the bracket terms vanish on the
+record.  Every step multiplies the previous value by ``0 < a <= 1`` and
+adds a forcing term, so rounding errors are never amplified.
+
+Only the diagonals ``d = k F`` are needed, and only at ``n = n_m``.
+Writing the recursion as ``x(n) = a x(n-1) + f(n)`` and unrolling one slow
+period,
+
+.. math:: x(n_m) = a^F x(n_{m-1}) + \sum_{l=0}^{F-1} a^l f(n_m - l).
+
+Each forcing term is a product ``p(n) q(n + d)`` of two sequences, so on
+the slow grid (``m' = m + k``) the period sum is
+
+.. math:: Y[m, m'] = \sum_{p, q} \sum_{l=0}^{F-1} c_{pl}\, p(n_m - l)\, q(n_{m'} - l),
+
+the product of two ``(4F, M)`` matrices (``2F`` rows when ``P = N``), and
+
+.. math:: S[m, m'] = a^F S[m-1, m'-1] + Y[m, m'],  \qquad S[-1, \cdot] = 0,
+
+is evaluated row by row on the upper triangle.  That is ``O(M^2 F) =
+O(M N)`` operations, mostly one matrix product, against ``O(M^2 P)`` for
+``Phi K Phi^T``.
+
+Derivatives with respect to ``theta = log(hyperparameters)`` follow by
+differentiating this form (forward mode):
+
+.. math::
+
+    S'[m, m'] = a^F S'[m-1, m'-1] + F \rho\, a^F S[m-1, m'-1] + Y'[m, m'],
+
+with ``rho = d log(a) / d theta`` (1 for ``log alpha`` of TC and DC, 3 for
+SS, 0 for ``log beta``) and ``Y'`` the product rule applied to the two
+factors; the factors depend on ``theta`` through ``a`` and through ``r``
+and ``s``, i.e. only through the first and last kernel rows.
+
+Products with ``K`` itself cost ``O(P)`` per vector: the entries of TC and
+SS are sums of terms ``b^{max(i,j)} c^{min(i,j)}``, whose products with a
+vector are prefix and suffix sums, and DC is ``D T D`` with
+``D = diag(alpha^{t/2})`` and the Toeplitz matrix ``T = beta^{|i-j|}``, a
+causal plus an anticausal first-order filter.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy import signal
+
+from gpmultirate.kernels import DC, SS, TC
+
+__all__ = [
+    "SHIFT_SCALED_KERNELS",
+    "is_shift_scaled",
+    "observed_shift_scaled",
+    "cross_covariance_shift_scaled",
+    "kernel_matvec",
+    "prefer_recursion",
+]
+
+#: Kernel types (exact types, not subclasses) handled by this module.
+SHIFT_SCALED_KERNELS = (TC, DC, SS)
+
+
+def is_shift_scaled(kernel) -> bool:
+    """Return True if ``kernel`` is exactly a TC, DC or SS kernel."""
+    return type(kernel) in SHIFT_SCALED_KERNELS
+
+
+def _two_sided(X, causal_b, causal_a, include_center: bool):
+    """Filter every row of ``X`` with a symmetric two-sided recursive filter.
+
+    The causal part has transfer function ``b(z)/a(z)``; the anticausal part
+    is its mirror image.  With ``include_center`` the zero-lag tap (present in
+    both halves) is counted once.
+    """
+    causal = signal.lfilter(causal_b, causal_a, X, axis=1)
+    anticausal = signal.lfilter(causal_b, causal_a, X[:, ::-1], axis=1)[:, ::-1]
+    total = causal + anticausal
+    if include_center:
+        total -= causal_b[0] * X
+    return total
+
+
+
+# ----------------------------------------------------------------------------
+# the first and last kernel rows and their derivatives
+# ----------------------------------------------------------------------------
+
+
+class _Rows:
+    """First and last rows of ``K`` on lags ``0..P-1``, the scale ``a`` and derivatives.
+
+    ``d_first[name]`` and ``d_last[name]`` are the derivatives of the rows
+    with respect to ``log(name)``, ``rho[name]`` that of ``log(a)``.
+    """
+
+    def __init__(self, kernel, order: int):
+        if not is_shift_scaled(kernel):
+            raise TypeError(
+                "expected a TC, DC or SS kernel (exact type); "
+                f"got {type(kernel).__name__}"
+            )
+        values = kernel._check_hyperparameters()
+        alpha = values["alpha"]
+        j = np.arange(order, dtype=float)
+        last = float(order - 1)
+        if type(kernel) is TC:
+            # k(t, s) = alpha^max(t, s)
+            self.names = ["alpha"]
+            self.scale = alpha
+            self.first = alpha**j
+            self.last = np.full(order, alpha**last)
+            self.d_first = {"alpha": j * self.first}
+            self.d_last = {"alpha": last * self.last}
+            self.rho = {"alpha": 1.0}
+        elif type(kernel) is DC:
+            # k(t, s) = alpha^((t + s)/2) beta^|t - s|
+            beta = values["beta"]
+            self.names = ["alpha", "beta"]
+            self.scale = alpha
+            self.first = alpha ** (j / 2.0) * beta**j
+            self.last = alpha ** ((last + j) / 2.0) * beta ** (last - j)
+            self.d_first = {"alpha": j / 2.0 * self.first, "beta": j * self.first}
+            self.d_last = {
+                "alpha": (last + j) / 2.0 * self.last,
+                "beta": (last - j) * self.last,
+            }
+            self.rho = {"alpha": 1.0, "beta": 0.0}
+        else:
+            # k(t, s) = alpha^(t + s + max(t, s))/2 - alpha^(3 max(t, s))/6
+            self.names = ["alpha"]
+            self.scale = alpha**3
+            first_a, first_b = alpha ** (2.0 * j) / 2.0, alpha ** (3.0 * j) / 6.0
+            last_a, last_b = alpha ** (2.0 * last + j) / 2.0, alpha ** (3.0 * last) / 6.0
+            self.first = first_a - first_b
+            self.last = last_a - last_b
+            self.d_first = {"alpha": 2.0 * j * first_a - 3.0 * j * first_b}
+            self.d_last = {"alpha": (2.0 * last + j) * last_a - 3.0 * last * last_b}
+            self.rho = {"alpha": 3.0}
+        # free hyperparameters in the order of kernel.theta
+        self.free = [
+            h.name for h in kernel.hyperparameters if not h.fixed and h.name in self.names
+        ]
+
+
+# ----------------------------------------------------------------------------
+# S = Phi K Phi^T and its gradient contraction
+# ----------------------------------------------------------------------------
+
+
+def _convolve(u: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """``sum_j row[j] u(n - j)`` for ``n = 0..N-1``."""
+    return signal.convolve(u, row, mode="full")[: u.shape[0]]
+
+
+def _phases(sequence: np.ndarray, factor: int, offset: int, n_out: int) -> np.ndarray:
+    """``out[l, m] = sequence(n_m - l)`` for ``l = 0..F-1`` (zero at negative indices)."""
+    padded = np.concatenate([np.zeros(factor), sequence])
+    index = (
+        factor
+        + offset
+        + factor * np.arange(n_out)[None, :]
+        - np.arange(factor)[:, None]
+    )
+    return padded[index]
+
+
+class _Forcing:
+    """Low-rank factors of the forcing summed over one slow period.
+
+    Along the diagonal ``d`` the recursion is ``x(n) = a x(n-1) + f(n)``
+    with ``f = a g + h``,
+
+    * ``h(n) = u(n) Q(n + d) + r(n) u(n + d)``, ``Q = r - K00 u``,
+    * ``g(n) = -(ul(n) T(n + d) + sl(n) ul(n + d))``, ``ul(n) = u(n - P)``,
+      ``sl(n) = s(n - 1)``, ``T = sl - K_LL ul`` (zero when ``P = N``).
+
+    Unrolled over one slow period, ``x(n_m) = a^F x(n_{m-1}) + Y``
+    with ``Y = sum_{l<F} a^l f(n_m - l)``.  On the slow grid (``m' = m + k``,
+    ``d = k F``) this is ``Y[m, m'] = sum_rows left[:, m] right[:, m']``,
+    a product of ``(4F, M)`` factors built from the phases of the sequences.
+    """
+
+    def __init__(self, u, order, first, last, factor, offset, n_out):
+        n = u.shape[0]
+        self.boundary = order < n
+
+        def phase(sequence):
+            return _phases(sequence, factor, offset, n_out)
+
+        r = _convolve(u, first)
+        self.u = phase(u)
+        self.r = phase(r)
+        self.Q = phase(r - first[0] * u)
+        if self.boundary:
+            ul = np.concatenate([np.zeros(order), u[: n - order]])
+            sl = np.concatenate([[0.0], _convolve(u, last)[:-1]])
+            self.ul = phase(ul)
+            self.sl = phase(sl)
+            self.T = phase(sl - last[-1] * ul)
+
+
+def _mirror_upper(S: np.ndarray, block: int = 64) -> None:
+    """Copy the upper triangle of ``S`` to its lower triangle, in place."""
+    size = S.shape[0]
+    for i in range(0, size, block):
+        j = min(i + block, size)
+        S[j:, i:j] = S[i:j, j:].T
+        diagonal_block = S[i:j, i:j]
+        diagonal_block[...] = np.triu(diagonal_block) + np.triu(diagonal_block, 1).T
+
+
+def _recurse_upper(left, right, scale, out, source=None, coupling=0.0):
+    """Upper triangle of ``X[m, m'] = scale X[m-1, m'-1] + c X0[m-1, m'-1] + (left^T right)[m, m']``.
+
+    ``X0`` is ``source`` (already computed) and ``c`` is ``coupling``; rows
+    start from ``X[-1, :] = 0``.  The lower triangle of ``out`` is left
+    undefined.  The product is one matrix multiplication (few, large BLAS
+    calls behave best when BLAS threads compete for cores).
+    """
+    size = out.shape[0]
+    np.matmul(left.T, right, out=out)
+    for m in range(1, size):
+        row = out[m, m:]
+        row += scale * out[m - 1, m - 1 : size - 1]
+        if coupling != 0.0:
+            row += coupling * source[m - 1, m - 1 : size - 1]
+
+
+def _observed(u, factor, offset, order, rows: _Rows, need_gradient):
+    """``S`` and the list of ``dS_j`` (free hyperparameters) on the slow grid."""
+    n_out = len(range(offset, u.shape[0], factor))
+    a = rows.scale
+    period = a**factor
+    phase_weight = a ** np.arange(factor, dtype=float)[:, None]  # a^l
+    lags_in_period = np.arange(factor, dtype=float)[:, None]
+    base = _Forcing(u, order, rows.first, rows.last, factor, offset, n_out)
+    # h pairs carry a^l, g pairs -a^(l+1)
+    h_weight, g_weight = phase_weight, -a * phase_weight
+    left = [h_weight * base.u, h_weight * base.r]
+    right = [base.Q, base.u]
+    if base.boundary:
+        left += [g_weight * base.ul, g_weight * base.sl]
+        right += [base.T, base.ul]
+    left, right = np.concatenate(left), np.concatenate(right)
+    S = np.empty((n_out, n_out))
+    _recurse_upper(left, right, period, S)
+    gradients = []
+    for name in rows.free if need_gradient else []:
+        rho = rows.rho[name]  # d log(a) / d theta
+        d = _Forcing(u, order, rows.d_first[name], rows.d_last[name], factor, offset, n_out)
+        # derivative of the weights a^l and -a^(l+1) with respect to theta
+        dh_weight = rho * lags_in_period * h_weight
+        dg_weight = rho * (lags_in_period + 1.0) * g_weight
+        # d(left^T right) = d(left)^T right + left^T d(right).  u and ul do not
+        # depend on theta, so their rows of d(left) vanish when a does not either.
+        d_left = [dh_weight * base.r + h_weight * d.r]
+        d_right = [base.u]
+        if rho != 0.0:
+            d_left.append(dh_weight * base.u)
+            d_right.append(base.Q)
+        left_for_d_right = [h_weight * base.u]
+        d_of_right = [d.Q]
+        if base.boundary:
+            d_left.append(dg_weight * base.sl + g_weight * d.sl)
+            d_right.append(base.ul)
+            if rho != 0.0:
+                d_left.append(dg_weight * base.ul)
+                d_right.append(base.T)
+            left_for_d_right.append(g_weight * base.ul)
+            d_of_right.append(d.T)
+        dS = np.empty((n_out, n_out))
+        _recurse_upper(
+            np.concatenate(d_left + left_for_d_right),
+            np.concatenate(d_right + d_of_right),
+            period,
+            dS,
+            source=S,
+            coupling=factor * rho * period,
+        )
+        gradients.append(dS)
+    _mirror_upper(S)
+    for dS in gradients:
+        _mirror_upper(dS)
+    return S, gradients
+
+
+def observed_shift_scaled(
+    kernel, operator, need_gradient: bool = True
+) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray] | None]:
+    """Return ``S = Phi K Phi^T`` and its gradient contractor for TC, DC or SS.
+
+    Neither ``K`` (``P x P``) nor ``Phi`` (``M x P``) is formed: ``S`` comes
+    from the diagonal recursion of the module docstring in ``O(M N)``
+    operations, and with ``need_gradient`` every ``dS_j`` comes from its
+    forward-mode derivative at construction, so that ``contract`` costs one
+    ``O(M^2)`` inner product per hyperparameter.
+
+    Parameters
+    ----------
+    kernel : TC, DC or SS
+        A leaf kernel of exactly one of these types (no sums or products).
+    operator : DownsampledConvolution
+        The observation operator (input, factor, order, offset).
+    need_gradient : bool, default=True
+        Whether to compute the gradient contractor.
+
+    Returns
+    -------
+    S : ndarray of shape (M, M)
+        The covariance of the noise-free slow output, exactly symmetric.
+    contract : callable or None
+        ``contract(W)`` returns ``[tr(W Phi dK_j Phi^T)]_j`` for a symmetric
+        ``W`` of shape ``(M, M)``, one entry per free hyperparameter in
+        ``kernel.theta`` order (derivatives with respect to the log values).
+        None when ``need_gradient`` is False.
+
+    Raises
+    ------
+    TypeError
+        If ``kernel`` is not exactly TC, DC or SS.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC
+    >>> op = DownsampledConvolution(np.arange(1.0, 9.0), factor=2, order=5, offset=1)
+    >>> kernel = DC(alpha=0.8, beta=0.6)
+    >>> S, contract = observed_shift_scaled(kernel, op)
+    >>> Phi, K = op.matrix, kernel(op.lags)
+    >>> bool(np.allclose(S, Phi @ K @ Phi.T, rtol=1e-12, atol=0))
+    True
+    >>> contract(np.eye(op.n_outputs)).shape
+    (2,)
+    """
+    rows = _Rows(kernel, operator.order)
+    S, dS = _observed(
+        np.asarray(operator.u, dtype=float),
+        operator.factor,
+        operator.offset,
+        operator.order,
+        rows,
+        need_gradient,
+    )
+    if not need_gradient:
+        return S, None
+
+    def contract(W: np.ndarray) -> np.ndarray:
+        W = np.asarray(W, dtype=float)
+        if W.shape != S.shape:
+            raise ValueError(f"W must have shape {S.shape}; got {W.shape}")
+        return np.array([np.vdot(W, d) for d in dS], dtype=float).reshape(-1)
+
+    return S, contract
+
+
+# ----------------------------------------------------------------------------
+# products with K: X @ K in O(rows * P)
+# ----------------------------------------------------------------------------
+
+
+def _suffix_after(X: np.ndarray) -> np.ndarray:
+    """``out[:, j] = sum_{i > j} X[:, i]`` (summed from the far end)."""
+    out = np.zeros_like(X)
+    out[:, :-1] = np.cumsum(X[:, :0:-1], axis=1)[:, ::-1]
+    return out
+
+
+def _right_multiply(kernel, X: np.ndarray) -> np.ndarray:
+    """Return ``X @ K`` for ``X`` of shape ``(r, P)`` and ``K = kernel(0..P-1)``."""
+    if not is_shift_scaled(kernel):
+        raise TypeError(
+            f"expected a TC, DC or SS kernel (exact type); got {type(kernel).__name__}"
+        )
+    values = kernel._check_hyperparameters()
+    alpha = values["alpha"]
+    j = np.arange(X.shape[1], dtype=float)
+    if type(kernel) is TC:
+        # sum_i X_i alpha^max(i, j) = alpha^j sum_{i<=j} X_i + sum_{i>j} alpha^i X_i
+        w = alpha**j
+        out = np.cumsum(X, axis=1)
+        out *= w
+        out += _suffix_after(X * w)
+        return out
+    if type(kernel) is DC:
+        # K = D T D, D = diag(alpha^(j/2)), T = beta^|i - j|
+        half = alpha ** (j / 2.0)
+        out = _two_sided(X * half, [1.0], [1.0, -values["beta"]], include_center=True)
+        out *= half
+        return out
+    # SS: i <= j -> alpha^(2j) alpha^i / 2 - alpha^(3j) / 6,
+    #     i > j  -> alpha^j alpha^(2i) / 2 - alpha^(3i) / 6
+    w1, w2, w3 = alpha**j, alpha ** (2.0 * j), alpha ** (3.0 * j)
+    out = np.cumsum(X * w1, axis=1)
+    out *= w2 / 2.0
+    out += (w1 / 2.0) * _suffix_after(X * w2)
+    out -= (w3 / 6.0) * np.cumsum(X, axis=1)
+    out -= _suffix_after(X * (w3 / 6.0))
+    return out
+
+
+def _regressor_view(operator) -> np.ndarray:
+    """Read-only strided view equal to ``operator.matrix`` (no copy)."""
+    u = np.asarray(operator.u, dtype=float)
+    n, order = u.shape[0], operator.order
+    reversed_padded = np.concatenate([u[::-1], np.zeros(order - 1)])
+    # row q of the window view is u(N-1-q), u(N-2-q), ...; slow sample m is q = N-1-n_m
+    windows = sliding_window_view(reversed_padded, order)
+    return windows[n - 1 - operator.offset :: -operator.factor]
+
+
+def cross_covariance_shift_scaled(kernel, operator) -> np.ndarray:
+    """Return ``Phi K`` of shape ``(M, P)`` for a TC, DC or SS kernel.
+
+    Row ``m`` is the covariance of slow sample ``m`` with the coefficients
+    ``g_0..g_{P-1}`` (its transpose is ``operator.cross_covariance`` at lags
+    ``0..P-1``).  ``Phi`` enters only as a strided view of the input and
+    ``K`` only through prefix/suffix sums (TC, SS) or a two-sided
+    first-order filter (DC): ``O(M P)`` operations and memory.
+
+    Parameters
+    ----------
+    kernel : TC, DC or SS
+        A leaf kernel of exactly one of these types.
+    operator : DownsampledConvolution
+        The observation operator.
+
+    Returns
+    -------
+    ndarray of shape (M, P)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import SS
+    >>> op = DownsampledConvolution(np.arange(1.0, 8.0), factor=3, order=4)
+    >>> kernel = SS(alpha=0.7)
+    >>> bool(np.allclose(cross_covariance_shift_scaled(kernel, op),
+    ...                  op.matrix @ kernel(op.lags), rtol=1e-12, atol=0))
+    True
+    """
+    return _right_multiply(kernel, _regressor_view(operator))
+
+
+def kernel_matvec(kernel, order: int, v) -> np.ndarray:
+    """Return ``K @ v`` with ``K = kernel(0..order-1)`` in ``O(order k)``.
+
+    Parameters
+    ----------
+    kernel : TC, DC or SS
+        A leaf kernel of exactly one of these types.
+    order : int
+        ``P``, the number of lags ``0..P-1``.
+    v : array-like of shape (P,) or (P, k)
+
+    Returns
+    -------
+    ndarray of the shape of ``v``
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate.kernels import TC
+    >>> kernel_matvec(TC(alpha=0.5), 3, np.array([1.0, 0.0, 2.0]))
+    array([1.5 , 1.  , 0.75])
+    """
+    v = np.asarray(v, dtype=float)
+    if v.ndim not in (1, 2) or v.shape[0] != order:
+        raise ValueError(f"v must have shape ({order},) or ({order}, k); got {v.shape}")
+    if v.ndim == 1:
+        return _right_multiply(kernel, v[None, :])[0]
+    return _right_multiply(kernel, np.ascontiguousarray(v.T)).T
+
+
+def observed_shift_scaled_derivatives(kernel, operator) -> tuple[np.ndarray, list]:
+    """Return ``S`` and the list of ``dS_j`` (free hyperparameters, ``theta`` order).
+
+    The same recursion as :func:`observed_shift_scaled`, for callers that
+    need the derivative matrices themselves (the Fisher information).
+    """
+    rows = _Rows(kernel, operator.order)
+    return _observed(
+        np.asarray(operator.u, dtype=float), operator.factor, operator.offset,
+        operator.order, rows, True,
+    )
+
+
+# ----------------------------------------------------------------------------
+# cost model
+# ----------------------------------------------------------------------------
+
+
+def prefer_recursion(M: int, N: int, P: int, *, need_gradient: bool = True) -> bool:
+    """Return True when the recursion is expected to beat the BLAS route of ``_structured``.
+
+    Both costs are modelled in seconds and compared.  With ``F = N / M``,
+
+    * BLAS route (DC: ``Phi`` cached, ``H G^T`` and, for the gradient,
+      ``W G`` and ``W H``): ``c0 + c1 M P + c2 M^2 P + c3 M^2 log2(M)``;
+    * recursion: ``d0 + d1 M + d2 M^2 F + d3 N log2(N) + d4 M^2 log2(M)``
+      (one product of ``(M, 4F)`` factors per matrix, a loop over the ``M``
+      rows, FFT convolutions for ``r`` and ``s``).
+
+    The ``M^2 log2(M)`` terms stand for the memory traffic of ``M x M``
+    arrays, which grows faster than ``M^2`` once they leave the cache.  The
+    constants were fitted to timings of a DC kernel (two free
+    hyperparameters) with one BLAS thread on a two-core x86-64 machine, for
+    ``M`` in 100..2000, ``F`` in 1..100 and ``P`` in 5..N; on those the rule
+    loses at most about 40% against the better route (a millisecond or
+    two), and it picks the recursion for every case where that is more
+    than twice as fast.  The recursion needs neither ``Phi`` (``M x P``)
+    nor ``K`` (``P x P``), which matters for memory when ``P`` is large.
+
+    Parameters
+    ----------
+    M : int
+        Number of slow samples.
+    N : int
+        Number of fast samples (input length).
+    P : int
+        FIR order.
+    need_gradient : bool, default=True
+        Whether the gradient contraction is needed as well as ``S``.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> prefer_recursion(2000, 6000, 6000)
+    True
+    >>> prefer_recursion(500, 50_000, 10)
+    False
+    """
+    M, N, P = float(M), float(N), float(P)
+    F = N / M
+    memory = M * M * np.log2(max(M, 2.0))
+    if need_gradient:
+        blas = 1.35e-4 + 3.86e-8 * M * P + 6.96e-11 * M * M * P + 6.56e-10 * memory
+        recursion = (
+            1.13e-3 + 7.61e-6 * M + 4.31e-10 * M * M * F
+            + 2.40e-8 * N * np.log2(N) + 1.32e-9 * memory
+        )
+    else:
+        blas = 5.2e-5 + 1.85e-8 * M * P + 3.67e-11 * M * M * P + 4.35e-10 * memory
+        recursion = (
+            3.0e-4 + 3.19e-6 * M + 1.0e-10 * M * M * F
+            + 7.05e-9 * N * np.log2(N) + 1.16e-10 * memory
+        )
+    return bool(recursion < blas)
