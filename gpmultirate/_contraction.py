@@ -58,6 +58,17 @@ def kernel_with_contractor(kernel, lags: np.ndarray):
     return K, lambda A: A.reshape(-1) @ dK.reshape(-1, n)
 
 
+def kernel_matrix(kernel, lags: np.ndarray) -> np.ndarray:
+    """``kernel(lags)`` with constant factors kept scalars (no ``P x P`` array of constants)."""
+    if isinstance(kernel, Sum):
+        return kernel_matrix(kernel.k1, lags) + kernel_matrix(kernel.k2, lags)
+    if isinstance(kernel, Product):
+        split = split_constant(kernel)
+        if split is not None:
+            return float(split[0].constant_value) * kernel_matrix(split[1], lags)
+    return kernel(lags[:, None])
+
+
 def split_constant(kernel: Product):
     """``(constant, other, constant_first)`` of ``ConstantKernel * k`` or ``k * ConstantKernel``, else None."""
     if isinstance(kernel.k1, ConstantKernel):

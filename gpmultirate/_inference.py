@@ -274,7 +274,9 @@ def log_marginal_likelihood(
     )
     if not eval_gradient:
         return value
-    W = np.outer(alpha, alpha) - _inverse_from_cholesky(L)
+    W = _inverse_from_cholesky(L)
+    W *= -1.0
+    W = linalg.blas.dger(1.0, alpha, alpha, a=W, overwrite_a=True)  # + alpha alpha^T
     grad = 0.5 * contract(W)
     if noise_free:
         grad = np.append(grad, 0.5 * np.trace(W) * noise_level + rest_grad)
@@ -286,8 +288,11 @@ def _inverse_from_cholesky(L: np.ndarray) -> np.ndarray:
     inverse, info = linalg.lapack.dpotri(L, lower=1)
     if info != 0:
         return linalg.cho_solve((L, True), np.eye(L.shape[0]), check_finite=False)
-    lower = np.tril(inverse)
-    return lower + np.tril(inverse, -1).T
+    # potri fills the lower triangle; the upper one is that of L, zero
+    diagonal = np.diag(inverse).copy()
+    inverse += inverse.T
+    inverse[np.diag_indices_from(inverse)] = diagonal
+    return inverse
 
 
 def log_marginal_likelihood_fisher(
@@ -295,56 +300,55 @@ def log_marginal_likelihood_fisher(
 ):
     """Log evidence, its gradient and its Fisher information in log hyperparameters.
 
-    With ``Ky = L L^T`` and ``X_j = L^{-1} dKy_j L^{-T}`` (``dKy_j`` the
+    With ``a = Ky^{-1} y`` and ``V_j = Ky^{-1} dKy_j`` (``dKy_j`` the
     derivative of the data covariance with respect to ``theta_j``):
 
-    * gradient ``g_j = 1/2 (w^T X_j w - tr X_j)`` with ``w = L^{-1} y``;
-    * Fisher information ``F_jk = 1/2 tr(X_j X_k)``, the expected negative
+    * gradient ``g_j = 1/2 (a^T dKy_j a - tr V_j)``;
+    * Fisher information ``F_jk = 1/2 tr(V_j V_k)``, the expected negative
       Hessian of the log evidence.
 
-    Low-rank derivatives (PK terms, constants) stay factored, ``X_j = A D A^T``
-    with ``A = L^{-1} U``, so their products cost ``O(M r^2)``.  The entries
+    A dense derivative costs one matrix product ``Ky^{-1} dKy_j``; low-rank
+    derivatives (PK terms, constants) stay factored, ``dKy_j = U D U^T``
+    with ``B = Ky^{-1} U``, so their traces cost ``O(M^2 r)``.  The entries
     follow the kernel's ``theta`` and, when ``noise_free``, ``log(noise_level)``
     last.
     """
     S, items = observed_with_derivatives(kernel, operator)
-    Ky = S.copy()
+    Ky = S.copy()  # S may itself be an item (the derivative of an amplitude)
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     M = y.shape[0]
-    # with the explicit inverse factor, the whitening X_j = L^{-1} dKy_j L^{-T}
-    # is two matrix products (faster than two triangular solves)
-    Linv, info = linalg.lapack.dtrtri(L, lower=1)
-    if info != 0:
-        Linv = linalg.solve_triangular(L, np.eye(M), lower=True, check_finite=False)
-    Linv = np.tril(Linv)
-    w = Linv @ y
-    value = float(-0.5 * w @ w - np.log(np.diag(L)).sum() - 0.5 * M * LOG_2PI)
-    whitened = []
-    solved = {}  # factors shared by the items of one PK term are whitened once
+    inverse = _inverse_from_cholesky(L)
+    a = inverse @ y
+    value = float(-0.5 * y @ a - np.log(np.diag(L)).sum() - 0.5 * M * LOG_2PI)
+    terms = []  # ("dense", dS, V, V^T) or ("factor", U, B, D)
+    solved = {}  # factors shared by the items of one PK term are solved once
     for item in items:
         if isinstance(item, tuple):
             U, D = item
             if id(U) not in solved:
-                solved[id(U)] = Linv @ U
-            whitened.append((solved[id(U)], D))
+                solved[id(U)] = inverse @ U
+            terms.append(("factor", U, solved[id(U)], D))
         else:
-            X = (Linv @ item) @ Linv.T
-            whitened.append(0.5 * (X + X.T))
+            product = inverse @ item
+            # tr(V_j V_k) = sum(V_j * V_k^T): keep the transpose contiguous
+            terms.append(("dense", item, product, np.ascontiguousarray(product.T)))
     if noise_free:
-        whitened.append(noise_level * (Linv @ Linv.T))
-    n = len(whitened)
+        terms.append(("dense", None, noise_level * inverse, noise_level * inverse))
+    n = len(terms)
     grad = np.empty(n)
     fisher = np.empty((n, n))
-    for j, Xj in enumerate(whitened):
-        if isinstance(Xj, tuple):
-            A, D = Xj
-            Aw = A.T @ w
-            grad[j] = 0.5 * (Aw @ D @ Aw - np.sum((A @ D) * A))
+    for j, term in enumerate(terms):
+        if term[0] == "factor":
+            _, U, B, D = term
+            Ua = U.T @ a
+            grad[j] = 0.5 * (Ua @ D @ Ua - np.sum(D * (B.T @ U)))
         else:
-            grad[j] = 0.5 * (w @ Xj @ w - np.trace(Xj))
+            _, dS, V, _ = term
+            quad = noise_level * (a @ a) if dS is None else a @ dS @ a
+            grad[j] = 0.5 * (quad - np.trace(V))
         for k in range(j + 1):
-            fisher[j, k] = fisher[k, j] = 0.5 * _trace_of_product(Xj, whitened[k])
+            fisher[j, k] = fisher[k, j] = 0.5 * _trace_of_product(term, terms[k])
     rest_value, rest_grad, rest_fisher = _discarded(operator, noise_level)
     value += rest_value
     if noise_free:
@@ -353,18 +357,21 @@ def log_marginal_likelihood_fisher(
     return value, grad, fisher
 
 
-def _trace_of_product(X1, X2) -> float:
-    """``tr(X1 X2)`` for symmetric dense arrays or factor pairs ``(A, D)`` (``A D A^T``)."""
-    if isinstance(X1, tuple) and isinstance(X2, tuple):
-        (A1, D1), (A2, D2) = X1, X2
-        C = A1.T @ A2
+def _trace_of_product(term1, term2) -> float:
+    """``tr(V1 V2)`` for ``V = Ky^{-1} dKy`` given as dense products or factors."""
+    if term1[0] == "factor" and term2[0] == "factor":
+        _, U1, _, D1 = term1
+        _, _, B2, D2 = term2
+        C = U1.T @ B2  # U1^T Ky^{-1} U2
         return float(np.sum((D1 @ C) * (C @ D2)))
-    if isinstance(X1, tuple):
-        X1, X2 = X2, X1
-    if isinstance(X2, tuple):
-        A, D = X2
-        return float(np.sum((X1 @ A) * (A @ D)))
-    return float(np.einsum("ij,ij->", X1, X2))
+    if term1[0] == "factor":
+        term1, term2 = term2, term1
+    V = term1[2]
+    if term2[0] == "factor":
+        _, U, B, D = term2
+        # tr(V B D U^T) = sum((U^T V B) * D^T)
+        return float(np.sum(((U.T @ V) @ B) * D.T))
+    return float(np.vdot(V, term2[3]))
 
 
 def resonance_grid_log_marginal_likelihood(

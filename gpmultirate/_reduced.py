@@ -24,9 +24,10 @@ Each evaluation of the evidence then costs ``O(P^3)`` instead of ``O(M^3)``.
 from __future__ import annotations
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from scipy import linalg
 
-from gpmultirate.operator import convolution_matrix
+from gpmultirate._contraction import kernel_matrix
 
 
 class ReducedObservation:
@@ -48,12 +49,14 @@ class ReducedObservation:
     def __init__(self, operator, y: np.ndarray, block_rows: int | None = None):
         P = operator.order
         M = operator.n_outputs
-        block = block_rows or max(4 * P, 1024)
+        block = block_rows or max(2 * P, 1024)
         top = np.zeros((0, P + 1))
         for start in range(0, M, block):
             rows = operator.sample_indices[start : start + block]
-            fresh = np.column_stack([convolution_matrix(operator.u, P, rows), y[start : start + block]])
-            stacked = np.vstack([top, fresh])
+            stacked = np.empty((top.shape[0] + rows.shape[0], P + 1), order="F")
+            stacked[: top.shape[0]] = top
+            stacked[top.shape[0] :, :P] = _regressor_rows(operator.u, P, rows)
+            stacked[top.shape[0] :, P] = y[start : start + block]
             top = linalg.qr(stacked, mode="r", overwrite_a=True, check_finite=False)[0]
             top = top[: P + 1]
         if top.shape[0] < P + 1:  # fewer rows than columns so far
@@ -70,6 +73,8 @@ class ReducedObservation:
 
     def kernel_matrix(self, kernel, eval_gradient: bool = False):
         """The prior covariance ``K`` at lags ``0..P-1``."""
+        if not eval_gradient:
+            return kernel_matrix(kernel, self.lags[:, 0])
         return kernel(self.lags, eval_gradient=eval_gradient)
 
     def covariance(self, kernel) -> np.ndarray:
@@ -87,6 +92,13 @@ class ReducedObservation:
         value = -0.5 * n * (np.log(2.0 * np.pi * noise_level)) - 0.5 * self.residual / noise_level
         grad = -0.5 * n + 0.5 * self.residual / noise_level
         return float(value), float(grad), 0.5 * n
+
+
+def _regressor_rows(u: np.ndarray, order: int, rows: np.ndarray) -> np.ndarray:
+    """Rows ``Phi[r, i] = u[rows[r] - i]`` (zero before the record), as a strided view."""
+    padded = np.concatenate([np.zeros(order - 1), np.asarray(u, dtype=float)])
+    windows = sliding_window_view(padded, order)[:, ::-1]  # window n ends at u[n]
+    return windows[rows]
 
 
 def tuning_data(operator, y: np.ndarray):

@@ -388,7 +388,7 @@ def fisher_scoring(value_grad_fisher, theta0, bounds, transform):
             success, message = True, "every coordinate held at a bound"
             break
         gf, Ff = gz[free], Fz[np.ix_(free, free)]
-        scale = np.maximum(np.diag(Ff), 1e-12 * max(np.trace(Ff), 1e-300))
+        scale = _diagonal_scale(Ff)
         Bf = Ff + correction[np.ix_(free, free)]
         if not _positive_definite(Bf, scale):
             correction[:] = 0.0
@@ -423,6 +423,19 @@ def fisher_scoring(value_grad_fisher, theta0, bounds, transform):
         x=np.clip(theta, bounds[:, 0], bounds[:, 1]), fun=-f, jac=-gz, nit=iteration,
         nfev=nfev, njev=nfev, success=success, message=message,
     )
+
+
+def _diagonal_scale(F):
+    """Positive scaling of the coordinates: the diagonal of ``F``, floored.
+
+    Coordinates the data carry (almost) no information on get the floor
+    ``1e-12`` of the largest diagonal entry (``1`` when all vanish), so that
+    scaling never overflows.
+    """
+    diagonal = np.diag(F)
+    largest = float(diagonal.max()) if diagonal.size else 0.0
+    floor = 1e-12 * largest if np.isfinite(largest) and largest > 0.0 else 1.0
+    return np.maximum(diagonal, floor)
 
 
 def _positive_definite(B, scale) -> bool:

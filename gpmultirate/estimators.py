@@ -158,7 +158,7 @@ _SINGLE_THREAD_SIZE = 1500
 # Up to this many slow samples the hyperparameters are tuned by Fisher scoring
 # (each iteration forms the M x M derivative of the data covariance per
 # hyperparameter); above it by L-BFGS-B, whose iterations need only traces.
-FISHER_MAX_OUTPUTS = 1000
+FISHER_MAX_OUTPUTS = 2500
 
 
 def _blas_threads_for(operator):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
 from gpmultirate._validation import as_real_array, check_bounds, check_positive
@@ -123,9 +124,7 @@ def _envelope_outer(t, s, alpha):
 def _power_of_distance(t, s, beta):
     """``beta**|t_i - s_j|``; a Toeplitz matrix on the integer grid."""
     if t is s and _is_grid(t):
-        column = beta ** t
-        index = np.abs(np.subtract.outer(np.arange(t.shape[0]), np.arange(t.shape[0])))
-        return column[index]
+        return linalg.toeplitz(beta**t)
     return beta ** np.abs(np.subtract.outer(t, s))
 
 

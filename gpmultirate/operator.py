@@ -114,6 +114,10 @@ class DownsampledConvolution:
 
     def kernel_matrix(self, kernel, eval_gradient: bool = False):
         """Return the prior covariance ``K`` of the coefficients at lags ``0..P-1``."""
+        if not eval_gradient:
+            from gpmultirate._contraction import kernel_matrix
+
+            return kernel_matrix(kernel, self.lags[:, 0])
         return kernel(self.lags, eval_gradient=eval_gradient)
 
     def covariance(self, kernel, eval_gradient: bool = False):
