@@ -124,8 +124,9 @@ def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
     # H = G T with T[i, j] = beta^|i - j|: causal + anticausal AR(1), centre once
     H = _two_sided(G, [1.0], [1.0, -beta], include_center=True)
     if upper_triangular:  # a reduced observation: products with G cost half
-        G = np.asfortranarray(G)
-        S = _sym(blas.dtrmm(1.0, G, np.asfortranarray(H), side=1, lower=0, trans_a=1))
+        # G^T is a Fortran-ordered lower-triangular view of G: no copies.
+        # S^T = G H^T = op(G^T) H^T with op = transpose
+        S = _sym(blas.dtrmm(1.0, G.T, H.T, side=0, lower=1, trans_a=1))
     else:
         S = _sym(H @ G.T)
     if not need_gradient:
@@ -133,7 +134,8 @@ def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
 
     def contract(W):
         if upper_triangular:
-            WG = blas.dtrmm(1.0, G, np.asfortranarray(W), side=1, lower=0, trans_a=0)
+            # W is symmetric, so its transpose is a Fortran-ordered view of W
+            WG = blas.dtrmm(1.0, G.T, W.T, side=1, lower=1, trans_a=1)
         else:
             WG = W @ G
         # d/dlog(alpha): K * (t_i + t_j)/2, i.e. E K + K E with E = diag(t/2), so

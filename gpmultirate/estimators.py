@@ -80,10 +80,17 @@ class _FIRModelMixin:
         """
         check_is_fitted(self, "coef_")
         u = check_signal(u, "u")
-        T = convolution_matrix(u, self.coef_.shape[0])
         if not return_std:
-            return T @ self.coef_
-        mean, var = self._distribution.linear_map(T)
+            return np.convolve(u, self.coef_)[: u.shape[0]]
+        # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
+        order = self.coef_.shape[0]
+        block = max(1, _PREDICT_BLOCK_ENTRIES // order)
+        mean, var = np.empty(u.shape[0]), np.empty(u.shape[0])
+        for start in range(0, u.shape[0], block):
+            rows = np.arange(start, min(start + block, u.shape[0]))
+            mean[rows], var[rows] = self._distribution.linear_map(
+                convolution_matrix(u, order, rows)
+            )
         return mean, np.sqrt(var)
 
     def score(self, u, y_fast) -> float:
@@ -155,10 +162,12 @@ class _FIRModelMixin:
 # Below this size the matrices of a fit are too small for threaded BLAS to pay
 # off, and on a busy machine its threads spin against each other: one thread.
 _SINGLE_THREAD_SIZE = 1500
-# Up to this many slow samples the hyperparameters are tuned by Fisher scoring
+# entries of the convolution matrix formed at once by predict(..., return_std=True)
+_PREDICT_BLOCK_ENTRIES = 2**22
+# Up to this many (reduced) slow samples the hyperparameters are tuned by Fisher scoring
 # (each iteration forms the M x M derivative of the data covariance per
 # hyperparameter); above it by L-BFGS-B, whose iterations need only traces.
-FISHER_MAX_OUTPUTS = 2500
+FISHER_MAX_OUTPUTS = 1000
 
 
 def _blas_threads_for(operator):

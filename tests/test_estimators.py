@@ -108,16 +108,18 @@ def test_log_marginal_likelihood_gradient_matches_finite_differences(problem):
     np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6)
 
 
-def test_predict_mean_and_std_are_dense_convolution(problem):
+@pytest.mark.parametrize("block_entries", [2**22, 7 * ORDER])  # one block; blocks of 7 rows
+def test_predict_mean_and_std_are_dense_convolution(problem, block_entries, monkeypatch):
+    monkeypatch.setattr(gm.estimators, "_PREDICT_BLOCK_ENTRIES", block_entries)
     model, Phi = problem["model"], problem["Phi"]
     rng = np.random.default_rng(7)
     u_new = rng.standard_normal(70)
     T = dense_regressor(u_new, 1, ORDER, 0)
     Sigma = coef_covariance(problem["kernel"], Phi, NOISE)
     mean, std = model.predict(u_new, return_std=True)
-    np.testing.assert_allclose(mean, np.convolve(u_new, model.coef_)[:70], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(mean, T @ model.coef_, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(std, np.sqrt(np.diag(T @ Sigma @ T.T)), rtol=1e-6, atol=1e-10)
-    np.testing.assert_allclose(model.predict(u_new), mean)
+    np.testing.assert_allclose(model.predict(u_new), mean, rtol=1e-12, atol=1e-14)
 
 
 def test_predict_shorter_than_order(problem):
