@@ -1,6 +1,9 @@
 """Benchmarks of marginal-likelihood tuning, against plain reference implementations.
 
 Run ``python benchmarks/run.py`` (all cases) or ``--cases paper_dc paper_pk``.
+The cases: the paper's size (N = P = 600, factor 3) with the DC and the
+DC + 2 PK kernels, the paper's 100-run study (LS over the orders 50..600, DC
+and PK at P = N), a long record (N = 50,000, P = 2,000) and P = N = 6,000.
 Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own.
 Printed: wall time, peak memory, validation goodness of fit, and the time ratio
 against
@@ -14,7 +17,8 @@ against
   ``ObservedKernel(kernel, operator) + WhiteKernel`` on slow-sample indices.
 
 Results go to ``benchmarks/output/results.json`` and a plot of time against
-``N`` (``--scaling``) to ``benchmarks/output/scaling.png``.
+``N`` in both regimes, ``P = N`` and ``P = 2000`` (``--scaling``), to
+``benchmarks/output/scaling.png``.
 """
 
 from __future__ import annotations
