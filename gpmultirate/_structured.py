@@ -149,11 +149,15 @@ def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
     return S, contract
 
 
-def _pk(kernel: PK, Phi, lags):
+def _pk_parts(kernel: PK, lags):
+    """``omega``, the two variances and the cosine and sine parts at ``lags``."""
     values = kernel._check_hyperparameters()
-    alpha, omega = values["alpha"], values["omega"]
-    var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
-    c, s = kernel._parts(lags, alpha, omega)
+    c, s = kernel._parts(lags, values["alpha"], values["omega"])
+    return values["omega"], values["sigma1"] ** 2, values["sigma2"] ** 2, c, s
+
+
+def _pk(kernel: PK, Phi, lags):
+    omega, var1, var2, c, s = _pk_parts(kernel, lags)
     pc, ps = Phi @ c, Phi @ s
     S = var1 * np.outer(pc, pc) + var2 * np.outer(ps, ps)
 
@@ -249,10 +253,7 @@ def _dc_derivatives(kernel: DC, Phi, lags):
 
 
 def _pk_derivatives(kernel: PK, Phi, lags):
-    values = kernel._check_hyperparameters()
-    alpha, omega = values["alpha"], values["omega"]
-    var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
-    c, s = kernel._parts(lags, alpha, omega)
+    omega, var1, var2, c, s = _pk_parts(kernel, lags)
     # basis [Phi c, Phi s, Phi (t c), Phi (t s)]
     U = Phi @ np.column_stack([c, s, lags * c, lags * s])
     S = var1 * np.outer(U[:, 0], U[:, 0]) + var2 * np.outer(U[:, 1], U[:, 1])
