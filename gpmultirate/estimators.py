@@ -216,9 +216,11 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         ``(1e-12, 10) * mean(y_slow**2)``.
     optimizer : "marginal_likelihood" or None, default="marginal_likelihood"
         Tune the free hyperparameters and the noise level by maximising the
-        log marginal likelihood; ``None`` uses them exactly as given.
+        log marginal likelihood (Fisher scoring up to 1000 slow samples after
+        the reduction of long records, L-BFGS-B above; see the theory
+        page); ``None`` uses them exactly as given.
     n_restarts_optimizer : int, default=0
-        Extra L-BFGS-B runs from random points drawn uniformly in the log
+        Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
     random_state : int, RandomState or None, default=None
         Seed of the restarts.
@@ -237,8 +239,8 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
     operator_ : DownsampledConvolution
         The observation operator of the training input.
     optimizer_result_ : scipy.optimize.OptimizeResult or None
-        The best L-BFGS-B run (``x`` in ``theta`` coordinates), or None when
-        nothing was tuned.
+        The best optimizer run (``x`` in ``theta`` coordinates, ``fun`` the
+        negative log evidence), or None when nothing was tuned.
 
     Examples
     --------
