@@ -329,7 +329,7 @@ def warn_if_not_converged(result) -> None:
 
 
 # Fisher scoring settings: stop when the predicted gain of a full step is below
-# FISHER_TOL nats (the evidence's own units, so independent of the data's units).
+# "tol" nats (the evidence's own units, so independent of the data's units).
 FISHER_OPTIONS = {"maxiter": 500, "tol": 1e-6}
 
 

@@ -20,7 +20,6 @@ from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
 from gpmultirate import _tuning
-from gpmultirate._reduced import tuning_data
 from gpmultirate._inference import (
     GaussianCoefficients,
     log_marginal_likelihood,
@@ -28,6 +27,7 @@ from gpmultirate._inference import (
     posterior,
     resonance_grid_log_marginal_likelihood,
 )
+from gpmultirate._reduced import tuning_data
 from gpmultirate._validation import (
     check_bounds,
     check_int,
