@@ -123,11 +123,10 @@ class DataSpacePosterior(GaussianCoefficients):
     """
 
     def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
-        Phi = operator.matrix
         K = operator.kernel_matrix(kernel)
         PhiK = regressor_times_kernel(kernel, operator, K)
-        Ky = PhiK @ Phi.T
-        Ky = 0.5 * (Ky + Ky.T)
+        # the structured S (filters, recursion) rather than the O(M^2 P) PhiK Phi^T
+        Ky = observed_with_contractor(kernel, operator, need_gradient=False)[0].copy()
         Ky[np.diag_indices_from(Ky)] += noise_level
         self.L, self.jitter = robust_cholesky(Ky)
         self.alpha = linalg.cho_solve((self.L, True), y, check_finite=False)
@@ -334,7 +333,8 @@ def log_marginal_likelihood_fisher(
             # tr(V_j V_k) = sum(V_j * V_k^T): keep the transpose contiguous
             terms.append(("dense", item, product, np.ascontiguousarray(product.T)))
     if noise_free:
-        terms.append(("dense", None, noise_level * inverse, noise_level * inverse))
+        scaled = noise_level * inverse  # symmetric: its own transpose
+        terms.append(("dense", None, scaled, scaled))
     n = len(terms)
     grad = np.empty(n)
     fisher = np.empty((n, n))

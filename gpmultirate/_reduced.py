@@ -77,11 +77,6 @@ class ReducedObservation:
             return kernel_matrix(kernel, self.lags[:, 0])
         return kernel(self.lags, eval_gradient=eval_gradient)
 
-    def covariance(self, kernel) -> np.ndarray:
-        """``R K R^T``, the covariance of ``z`` without noise."""
-        S = self.matrix @ self.kernel_matrix(kernel) @ self.matrix.T
-        return 0.5 * (S + S.T)
-
     def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
         """Value, derivative and Fisher information in ``log(noise_level)`` of the rest.
 

@@ -117,12 +117,26 @@ def _dense(kernel, Phi, lags, need_gradient):
     return S, contract
 
 
-def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
+def _dc_filtered(kernel: DC, Phi, lags):
+    """``beta``, the envelope ``d = alpha^(t/2)``, ``G = Phi D`` and ``H = G T``.
+
+    ``K = D T D`` with ``T[i, j] = beta^|i - j|``; a product with ``T`` is a
+    causal plus an anticausal AR(1) filter, the centre counted once.
+    """
     values = kernel._check_hyperparameters()
-    alpha, beta = values["alpha"], values["beta"]
-    G = Phi * alpha ** (lags / 2.0)
-    # H = G T with T[i, j] = beta^|i - j|: causal + anticausal AR(1), centre once
-    H = _two_sided(G, [1.0], [1.0, -beta], include_center=True)
+    beta = values["beta"]
+    decay = values["alpha"] ** (lags / 2.0)
+    G = Phi * decay
+    return beta, decay, G, _two_sided(G, [1.0], [1.0, -beta], include_center=True)
+
+
+def _dc_distance_filtered(G, beta):
+    """``G T'`` with ``T'[i, j] = |i - j| beta^|i - j|`` (derivative in ``log beta``)."""
+    return _two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
+
+
+def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
+    beta, _, G, H = _dc_filtered(kernel, Phi, lags)
     if upper_triangular:  # a reduced observation: products with G cost half
         # G^T is a Fortran-ordered lower-triangular view of G: no copies.
         # S^T = G H^T = op(G^T) H^T with op = transpose
@@ -142,8 +156,7 @@ def _dc(kernel: DC, Phi, lags, need_gradient, upper_triangular=False):
         # tr(W Phi dK Phi^T) = 2 tr(H^T W G E) = sum over m, i of t_i H[m, i] (W G)[m, i]
         d_alpha = np.einsum("mi,mi,i->", H, WG, lags)
         # d/dlog(beta): K * |i - j| -> filter with taps k beta^k (zero at k = 0)
-        GD = _two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
-        d_beta = np.einsum("mi,mi->", GD, WG)
+        d_beta = np.einsum("mi,mi->", _dc_distance_filtered(G, beta), WG)
         return _select(kernel, ["alpha", "beta"], [d_alpha, d_beta])
 
     return S, contract
@@ -236,10 +249,7 @@ def _scaled(item, value):
 
 
 def _dc_derivatives(kernel: DC, Phi, lags):
-    values = kernel._check_hyperparameters()
-    alpha, beta = values["alpha"], values["beta"]
-    G = Phi * alpha ** (lags / 2.0)
-    H = _two_sided(G, [1.0], [1.0, -beta], include_center=True)
+    beta, _, G, H = _dc_filtered(kernel, Phi, lags)
     S = _sym(H @ G.T)
     items = []
     if not kernel.hyperparameter_alpha.fixed:
@@ -247,8 +257,7 @@ def _dc_derivatives(kernel: DC, Phi, lags):
         half = (G * (lags / 2.0)) @ H.T
         items.append(half + half.T)
     if not kernel.hyperparameter_beta.fixed:
-        GD = _two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
-        items.append(_sym(GD @ G.T))
+        items.append(_sym(_dc_distance_filtered(G, beta) @ G.T))
     return S, items
 
 
@@ -315,16 +324,11 @@ def regressor_times_kernel(kernel, operator, K=None):
         ones = Phi.sum(axis=1)
         return float(kernel.constant_value) * np.repeat(ones[:, None], lags.shape[0], axis=1)
     if type(kernel) is DC:
-        values = kernel._check_hyperparameters()
-        decay = values["alpha"] ** (lags / 2.0)
-        H = _two_sided(Phi * decay, [1.0], [1.0, -values["beta"]], include_center=True)
+        _, decay, _, H = _dc_filtered(kernel, Phi, lags)
         return H * decay
     if type(kernel) is PK:
-        values = kernel._check_hyperparameters()
-        c, s = kernel._parts(lags, values["alpha"], values["omega"])
-        return values["sigma1"] ** 2 * np.outer(Phi @ c, c) + values["sigma2"] ** 2 * np.outer(
-            Phi @ s, s
-        )
+        _, var1, var2, c, s = _pk_parts(kernel, lags)
+        return var1 * np.outer(Phi @ c, c) + var2 * np.outer(Phi @ s, s)
     if K is None:
         K = kernel(lags[:, None])
     return Phi @ K
