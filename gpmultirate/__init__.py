@@ -6,8 +6,9 @@ through a downsampled convolution with the known fast-rate input.  See
 for the prior covariances.
 """
 
-from gpmultirate import datasets, kernels, simulation
-from gpmultirate._version import __version__
+__version__ = "0.1.0"
+
+from gpmultirate import datasets, kernels, simulation  # noqa: E402
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
 from gpmultirate.frequency import FrequencyResponse

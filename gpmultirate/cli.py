@@ -20,7 +20,7 @@ from pathlib import Path
 import joblib
 import numpy as np
 
-from gpmultirate._version import __version__
+from gpmultirate import __version__
 from gpmultirate.experiments import METHODS, paper_example, run_paper_study
 
 __all__ = ["build_parser", "main"]

@@ -28,7 +28,7 @@ from gpmultirate._inference import (
     resonance_grid_log_marginal_likelihood,
 )
 from gpmultirate._reduced import tuning_data
-from gpmultirate._validation import (
+from gpmultirate.validation import (
     check_bounds,
     check_int,
     check_kernel,

@@ -42,7 +42,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from threadpoolctl import threadpool_limits
 
-from gpmultirate._validation import check_int, check_positive
+from gpmultirate.validation import check_int, check_positive
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
 from gpmultirate.kernels import DC, PK

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gpmultirate._validation import check_level, check_positive, check_signal
+from gpmultirate.validation import check_level, check_positive, check_signal
 
 __all__ = ["FrequencyResponse", "dft_matrix", "default_frequencies"]
 

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
-from gpmultirate._validation import as_real_array, check_bounds, check_positive
+from gpmultirate.validation import as_real_array, check_bounds, check_positive
 
 __all__ = ["TC", "DC", "SS", "PK", "check_lags"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpmultirate._validation import check_signal
+from gpmultirate.validation import check_signal
 
 __all__ = ["goodness_of_fit"]
 

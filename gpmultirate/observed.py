@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
 
-from gpmultirate._validation import as_real_array
+from gpmultirate.validation import as_real_array
 from gpmultirate.operator import DownsampledConvolution
 
 __all__ = ["ObservedKernel"]

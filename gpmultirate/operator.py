@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpmultirate._validation import check_array, check_int, check_signal
+from gpmultirate.validation import check_array, check_int, check_signal
 
 __all__ = ["DownsampledConvolution", "convolution_matrix"]
 

@@ -65,7 +65,7 @@ from sklearn.gaussian_process.kernels import (
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate._inference import GaussianCoefficients
-from gpmultirate._version import __version__
+from gpmultirate import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC
 from gpmultirate.operator import DownsampledConvolution

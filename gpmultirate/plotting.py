@@ -33,7 +33,7 @@ from matplotlib.lines import Line2D
 from matplotlib.text import Text
 from sklearn.utils import check_random_state
 
-from gpmultirate._validation import check_int, check_level, check_positive, check_signal
+from gpmultirate.validation import check_int, check_level, check_positive, check_signal
 from gpmultirate.frequency import FrequencyResponse
 from gpmultirate.operator import DownsampledConvolution
 

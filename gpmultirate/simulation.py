@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from gpmultirate._validation import as_real_array, check_int, check_positive, check_signal
+from gpmultirate.validation import as_real_array, check_int, check_positive, check_signal
 
 __all__ = [
     "DiscreteSystem", "two_mass_spring_damper", "PAPER_PARAMETERS", "perturb_parameters",
