@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 import contextlib
-import warnings
 
 import numpy as np
 from scipy import linalg
@@ -19,15 +18,8 @@ from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
-from gpmultirate import _tuning
-from gpmultirate._inference import (
-    GaussianCoefficients,
-    log_marginal_likelihood,
-    log_marginal_likelihood_fisher,
-    posterior,
-    resonance_grid_log_marginal_likelihood,
-)
-from gpmultirate._reduced import tuning_data
+from gpmultirate import tuning
+from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
 from gpmultirate.validation import (
     check_bounds,
     check_int,
@@ -37,7 +29,7 @@ from gpmultirate.validation import (
     check_positive,
     check_signal,
 )
-from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
+from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.frequency import (
     FrequencyResponse,
     check_frequencies,
@@ -46,7 +38,7 @@ from gpmultirate.frequency import (
 )
 from gpmultirate.kernels import DC, check_lags
 from gpmultirate.metrics import goodness_of_fit
-from gpmultirate.operator import DownsampledConvolution, convolution_matrix
+from gpmultirate.observations import DownsampledConvolution, convolution_matrix
 
 __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 
@@ -54,9 +46,13 @@ __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 class _FIRModelMixin:
     """Prediction, scoring and frequency response shared by the FIR estimators.
 
-    Subclasses set ``coef_`` and ``_distribution`` (a
-    :class:`~gpmultirate._inference.GaussianCoefficients`).
+    Subclasses set ``coef_``, ``operator_`` and ``posterior_`` (a
+    :class:`~gpmultirate.inference.GaussianCoefficients`) and implement
+    ``impulse_response``.
     """
+
+    #: whether the impulse response is defined between the integer lags
+    continuous_lags = False
 
     def predict(self, u, return_std: bool = False):
         """Fast-rate output of the model for input ``u``, starting at rest.
@@ -88,7 +84,7 @@ class _FIRModelMixin:
         mean, var = np.empty(u.shape[0]), np.empty(u.shape[0])
         for start in range(0, u.shape[0], block):
             rows = np.arange(start, min(start + block, u.shape[0]))
-            mean[rows], var[rows] = self._distribution.linear_map(
+            mean[rows], var[rows] = self.posterior_.linear_map(
                 convolution_matrix(u, order, rows)
             )
         return mean, np.sqrt(var)
@@ -146,7 +142,7 @@ class _FIRModelMixin:
         freqs, sample_time = check_frequencies(freqs, sample_time)
         E = dft_matrix(freqs, sample_time, self.coef_.shape[0])
         re, im = np.ascontiguousarray(E.real), np.ascontiguousarray(E.imag)
-        var_re, var_im, cov = self._distribution.pair_variances(re, im)
+        var_re, var_im, cov = self.posterior_.pair_variances(re, im)
         return FrequencyResponse.from_gaussian(
             freqs,
             E @ self.coef_,
@@ -158,16 +154,30 @@ class _FIRModelMixin:
             factor=self.operator_.factor,
         )
 
+    def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
+        """Draw impulse responses from the posterior (or, for least squares, the estimate's distribution).
+
+        Parameters
+        ----------
+        lags : array-like of shape (n,), optional
+            Lags in fast samples; default ``0..P-1``.
+        n_samples : int, default=1
+        random_state : int, RandomState or None
+
+        Returns
+        -------
+        ndarray of shape (n, n_samples)
+        """
+        n_samples = check_int(n_samples, "n_samples", low=1)
+        mean, cov = self.impulse_response(lags, return_cov=True)
+        return gaussian_samples(mean, cov, n_samples, check_rng(random_state))
+
 
 # Below this size the matrices of a fit are too small for threaded BLAS to pay
 # off, and on a busy machine its threads spin against each other: one thread.
 _SINGLE_THREAD_SIZE = 1500
 # entries of the convolution matrix formed at once by predict(..., return_std=True)
 _PREDICT_BLOCK_ENTRIES = 2**22
-# Up to this many (reduced) slow samples the hyperparameters are tuned by Fisher scoring
-# (each iteration forms the M x M derivative of the data covariance per
-# hyperparameter); above it by L-BFGS-B, whose iterations need only traces.
-FISHER_MAX_OUTPUTS = 1000
 
 
 def _blas_threads_for(operator):
@@ -218,7 +228,8 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         Tune the free hyperparameters and the noise level by maximising the
         log marginal likelihood (Fisher scoring up to 1000 slow samples after
         the reduction of long records, L-BFGS-B above; see the theory
-        page); ``None`` uses them exactly as given.
+        page and :mod:`gpmultirate.tuning`); ``None`` uses them exactly as
+        given.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -238,6 +249,12 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         (scikit-learn's sign and constants: higher is better).
     operator_ : DownsampledConvolution
         The observation operator of the training input.
+    y_slow_ : ndarray of shape (M,)
+        The slow output the model was fitted to.
+    noise_level_bounds_ : pair of floats or "fixed"
+        The bounds of ``noise_level`` used for tuning (``"auto"`` resolved).
+    posterior_ : GaussianCoefficients
+        The posterior of the coefficients at lags ``0..P-1``.
     optimizer_result_ : scipy.optimize.OptimizeResult or None
         The best optimizer run (``x`` in ``theta`` coordinates, ``fun`` the
         negative log evidence), or None when nothing was tuned.
@@ -259,6 +276,8 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
     >>> bool(np.all(std > 0))
     True
     """
+
+    continuous_lags = True
 
     def __init__(
         self,
@@ -311,21 +330,28 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
         check_rng(self.random_state)
         noise = check_positive(self.noise_level, "noise_level")
+        kernel = self._initial_kernel(u, y)
+        noise_bounds = self._resolve_noise_bounds(y)
+        if self.optimizer is not None and not isinstance(noise_bounds, str):
+            noise = float(np.clip(noise, *noise_bounds))
         self.operator_ = operator
-        self._y = y
+        self.y_slow_ = y
+        self.noise_level_bounds_ = noise_bounds
         self.optimizer_result_ = None
-        self.kernel_ = self._initial_kernel(u, y)
-        self._noise_bounds = self._resolve_noise_bounds(y)
         with _blas_threads_for(operator):
+            evidence = LogEvidence(operator, y, kernel, noise, noise_bounds)
             if self.optimizer is not None:
-                if not isinstance(self._noise_bounds, str):
-                    noise = float(np.clip(noise, *self._noise_bounds))
-                noise = self._optimize(noise, n_restarts)
-            data_operator, data_y = self._evidence_data()
-            self._distribution = posterior(data_operator, self.kernel_, noise, data_y)
+                result = tuning.maximize(evidence, n_restarts, self.random_state)
+                if result is not None:
+                    self.optimizer_result_ = result
+                    kernel, noise = evidence.split(result.x)
+            self.posterior_ = evidence.posterior(kernel, noise)
+        # kept for log_marginal_likelihood(theta) and the posterior at real lags
+        self._evidence = evidence.moved_to(kernel, noise)
+        self.kernel_ = kernel
         self.noise_level_ = noise
-        self.coef_ = self._distribution.coef
-        self.log_marginal_likelihood_value_ = self._distribution.log_marginal_likelihood
+        self.coef_ = self.posterior_.coef
+        self.log_marginal_likelihood_value_ = self.posterior_.log_marginal_likelihood
         return self
 
     def _initial_kernel(self, u, y):
@@ -340,109 +366,6 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             power = float(np.mean(y**2)) or 1.0
             return (1e-12 * power, 10.0 * power)
         return check_bounds(self.noise_level_bounds, "noise_level_bounds")
-
-    @property
-    def _noise_is_free(self) -> bool:
-        return not isinstance(self._noise_bounds, str)
-
-    def _split(self, theta, fixed_noise: float, into=None):
-        """Kernel and noise level of a ``theta``; ``fixed_noise`` when the noise is not tuned.
-
-        With ``into`` (a kernel of the same structure), its theta is set in
-        place instead of cloning: the optimizer evaluates hundreds of points
-        and a deep copy per point is a large part of a small problem's cost.
-        """
-        n_kernel = self.kernel_.theta.shape[0]
-        if into is None:
-            kernel = self.kernel_.clone_with_theta(theta[:n_kernel])
-        else:
-            into.theta = theta[:n_kernel]
-            kernel = into
-        noise = float(np.exp(theta[n_kernel])) if self._noise_is_free else fixed_noise
-        return kernel, noise
-
-    def _optimize(self, noise: float, n_restarts: int) -> float:
-        operator, y = self._evidence_data()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NumericalWarning)
-            noise = _tuning.prefit_scale_and_noise(
-                operator, self.kernel_, noise, self._noise_bounds, y
-            )
-            theta0 = self.kernel_.theta
-            bounds = self.kernel_.bounds.reshape(-1, 2)
-            if self._noise_is_free:
-                theta0 = np.append(theta0, np.log(noise))
-                bounds = np.vstack([bounds, np.log(self._noise_bounds)])
-            if theta0.shape[0] == 0:
-                return noise
-
-            work_kernel = clone(self.kernel_)
-
-            def objective(theta, eval_gradient=True):
-                kernel, noise_level = self._split(theta, noise, into=work_kernel)
-                try:
-                    result = log_marginal_likelihood(
-                        operator, kernel, noise_level, y, eval_gradient, self._noise_is_free
-                    )
-                except ValueError:
-                    return (np.inf, np.zeros_like(theta)) if eval_gradient else np.inf
-                if not eval_gradient:
-                    return -result
-                return -result[0], -result[1]
-
-            resonances = _tuning.free_resonance_indices(self.kernel_)
-            if resonances:
-
-                def along(theta, index, candidates):
-                    kernel, noise_level = self._split(theta, noise, into=work_kernel)
-                    term = _tuning.resonance_owner(kernel, index)
-                    try:
-                        values = resonance_grid_log_marginal_likelihood(
-                            operator, kernel, term, noise_level, y, np.exp(candidates)
-                        )
-                    except ValueError:
-                        return None
-                    return None if values is None else -values
-
-                theta0 = _tuning.grid_search_resonances(
-                    lambda th: objective(th, eval_gradient=False), theta0, bounds, resonances,
-                    along,
-                )
-                bounds = _tuning.resonance_window(theta0, bounds, resonances)
-            transform = _tuning.DecayRateTransform(self.kernel_, theta0.shape[0])
-            if operator.n_outputs <= FISHER_MAX_OUTPUTS:
-
-                def value_grad_fisher(theta):
-                    kernel, noise_level = self._split(theta, noise, into=work_kernel)
-                    try:
-                        return log_marginal_likelihood_fisher(
-                            operator, kernel, noise_level, y, self._noise_is_free
-                        )
-                    except ValueError:
-                        return -np.inf, None, None
-
-                def run(start):
-                    return _tuning.fisher_scoring(value_grad_fisher, start, bounds, transform)
-            else:
-
-                def run(start):
-                    return _tuning.minimize_lbfgs(objective, start, bounds, transform)
-
-            runs = [run(theta0)]
-            rng = check_rng(self.random_state)
-            for _ in range(n_restarts):
-                runs.append(run(rng.uniform(bounds[:, 0], bounds[:, 1])))
-        finite = [r for r in runs if np.isfinite(r.fun)]
-        if not finite:
-            raise ValueError(
-                "the marginal likelihood could not be evaluated at any optimizer point; "
-                "check the kernel, its bounds and noise_level_bounds"
-            )
-        best = min(finite, key=lambda r: r.fun)
-        _tuning.warn_if_not_converged(best)
-        self.optimizer_result_ = best
-        self.kernel_, noise = self._split(best.x, noise)
-        return noise
 
     # ------------------------------------------------------------ evidence
     def log_marginal_likelihood(self, theta=None, eval_gradient: bool = False):
@@ -467,22 +390,11 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
                 raise ValueError("eval_gradient requires theta")
             return self.log_marginal_likelihood_value_
         theta = check_signal(theta, "theta", min_length=0)
-        n_expected = self.kernel_.theta.shape[0] + int(self._noise_is_free)
+        evidence = self._evidence
+        n_expected = evidence.theta.shape[0]
         if theta.shape[0] != n_expected:
             raise ValueError(f"theta must have {n_expected} entries; got {theta.shape[0]}")
-        kernel, noise = self._split(theta, self.noise_level_)
-        operator, y = self._evidence_data()
-        return log_marginal_likelihood(
-            operator, kernel, noise, y, eval_gradient, self._noise_is_free
-        )
-
-    def _evidence_data(self):
-        """The data the evidence is computed from: ``(Phi, y)``, or ``(R, z)`` when ``M > P``."""
-        cached = getattr(self, "_reduced", None)
-        if cached is None or cached[0] is not self.operator_:
-            cached = (self.operator_, *tuning_data(self.operator_, self._y))
-            self._reduced = cached
-        return cached[1], cached[2]
+        return evidence(theta, eval_gradient=eval_gradient)
 
     # ----------------------------------------------------------- posterior
     def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
@@ -511,9 +423,9 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             raise ValueError("return_std and return_cov cannot both be True")
         lags = self._lags(lags)
         if not (return_std or return_cov):
-            return self._distribution.mean_at_lags(self.operator_, self.kernel_, lags)
-        mean, second = self._distribution.at_lags(
-            self.operator_, self.kernel_, lags, full_cov=return_cov
+            return self.posterior_.mean_at_lags(self._evidence.data, self.kernel_, lags)
+        mean, second = self.posterior_.at_lags(
+            self._evidence.data, self.kernel_, lags, full_cov=return_cov
         )
         return (mean, second) if return_cov else (mean, np.sqrt(second))
 
@@ -521,27 +433,6 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         if lags is None:
             return np.arange(self.coef_.shape[0], dtype=float)
         return check_lags(lags, "lags")
-
-    def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
-        """Draw impulse responses from the posterior.
-
-        Parameters
-        ----------
-        lags : array-like of shape (n,), optional
-            Lags in fast samples; default ``0..P-1``.
-        n_samples : int, default=1
-        random_state : int, RandomState or None
-
-        Returns
-        -------
-        ndarray of shape (n, n_samples)
-        """
-        n_samples = check_int(n_samples, "n_samples", low=1)
-        mean, cov = self.impulse_response(lags, return_cov=True)
-        values, vectors = linalg.eigh(cov, check_finite=False)
-        root = vectors * np.sqrt(np.maximum(values, 0.0))
-        rng = check_rng(random_state)
-        return mean[:, None] + root @ rng.standard_normal((mean.shape[0], n_samples))
 
 
 class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
@@ -570,6 +461,8 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
         ``noise_variance_ (Phi^T Phi)^{-1}``, used for the bands of
         :meth:`predict` and :meth:`frequency_response`.
     operator_ : DownsampledConvolution
+    posterior_ : GaussianCoefficients
+        The Gaussian distribution ``N(coef_, coef_covariance_)``.
 
     Examples
     --------
@@ -640,10 +533,48 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
         self.coef_ = coef
         self.noise_variance_ = noise_variance
         self.coef_covariance_ = noise_variance * (root @ root.T)
-        self._distribution = GaussianCoefficients(
-            coef, self.coef_covariance_, np.zeros((0, P))
-        )
+        self.posterior_ = GaussianCoefficients(coef, self.coef_covariance_, np.zeros((0, P)))
         return self
+
+    def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
+        """The estimate at integer lags, with its standard deviation or covariance.
+
+        Least squares estimates the coefficients only: ``lags`` must be
+        integers in ``0..P-1``.  The covariance is :attr:`coef_covariance_`.
+
+        Parameters
+        ----------
+        lags : array-like of int, optional
+            Lags in ``0..P-1``; default all of them.
+        return_std, return_cov : bool, default=False
+            Also return the standard deviation or the covariance.
+
+        Returns
+        -------
+        mean : ndarray of shape (n,)
+        std : ndarray of shape (n,), only with ``return_std``
+        cov : ndarray of shape (n, n), only with ``return_cov``
+        """
+        check_is_fitted(self, "coef_")
+        if return_std and return_cov:
+            raise ValueError("return_std and return_cov cannot both be True")
+        order = self.coef_.shape[0]
+        if lags is None:
+            index = np.arange(order)
+        else:
+            lags = check_signal(lags, "lags")
+            index = np.round(lags).astype(int)
+            if np.any(np.abs(lags - index) > 1e-9) or np.any(index < 0) or np.any(index >= order):
+                raise ValueError(
+                    f"lags must be integers in 0..{order - 1} for a least-squares FIR model"
+                )
+        mean = self.coef_[index]
+        if not (return_std or return_cov):
+            return mean
+        cov = self.coef_covariance_[np.ix_(index, index)]
+        if return_cov:
+            return mean, cov
+        return mean, np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:

@@ -6,7 +6,7 @@ import numpy as np
 from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
 
 from gpmultirate.validation import as_real_array
-from gpmultirate.operator import DownsampledConvolution
+from gpmultirate.observations import DownsampledConvolution
 
 __all__ = ["ObservedKernel"]
 

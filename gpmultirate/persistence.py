@@ -64,11 +64,11 @@ from sklearn.gaussian_process.kernels import (
 )
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate._inference import GaussianCoefficients
+from gpmultirate.inference import GaussianCoefficients
 from gpmultirate import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC
-from gpmultirate.operator import DownsampledConvolution
+from gpmultirate.observations import DownsampledConvolution
 
 __all__ = [
     "FORMAT_NAME",
@@ -189,7 +189,7 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
     }
     arrays = {"u": operator.u, "coef": model.coef_}
     if isinstance(model, FIRGaussianProcess):
-        arrays["y_slow"] = model._y
+        arrays["y_slow"] = model.y_slow_
         result = getattr(model, "optimizer_result_", None)
         fitted.update(
             kernel_=describe_kernel(model.kernel_),
@@ -546,7 +546,7 @@ def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
     model.coef_ = coef
     model.noise_variance_ = _number(fitted, "noise_variance_")
     model.coef_covariance_ = covariance
-    model._distribution = GaussianCoefficients(coef, covariance, np.zeros((0, P)))
+    model.posterior_ = GaussianCoefficients(coef, covariance, np.zeros((0, P)))
     return model
 
 

@@ -210,7 +210,7 @@ def test_fit_improves_evidence_and_recovers_response(problem):
     assert tuned.log_marginal_likelihood_value_ > start.log_marginal_likelihood_value_
     # the reported optimum is a stationary point of the evidence
     theta = np.append(tuned.kernel_.theta, np.log(tuned.noise_level_))
-    bounds = np.vstack([tuned.kernel_.bounds, np.log(tuned._noise_bounds)])
+    bounds = np.vstack([tuned.kernel_.bounds, np.log(tuned.noise_level_bounds_)])
     _, grad = tuned.log_marginal_likelihood(theta, eval_gradient=True)
     interior = (theta > bounds[:, 0] + 1e-3) & (theta < bounds[:, 1] - 1e-3)
     assert np.all(np.abs(grad[interior]) < 1e-2)
@@ -232,12 +232,12 @@ def test_restarts_are_reproducible_and_keep_the_best(problem):
 
 
 def test_non_convergence_warns(problem, monkeypatch):
-    from gpmultirate import _tuning
+    from gpmultirate import tuning
 
-    monkeypatch.setitem(_tuning.LBFGS_OPTIONS, "maxiter", 1)
-    monkeypatch.setitem(_tuning.FISHER_OPTIONS, "maxiter", 1)
+    monkeypatch.setitem(tuning.LBFGS_OPTIONS, "maxiter", 1)
+    monkeypatch.setitem(tuning.FISHER_OPTIONS, "maxiter", 1)
     for fisher_max_outputs in (10**6, 0):  # Fisher scoring, then L-BFGS-B
-        monkeypatch.setattr(gm.estimators, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
+        monkeypatch.setattr(tuning, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
         with pytest.warns(ConvergenceWarning, match="did not converge"):
             gm.FIRGaussianProcess(
                 C(1.0) * DC(), factor=FACTOR, order=ORDER, offset=OFFSET

@@ -19,14 +19,23 @@ from sklearn.gaussian_process.kernels import RBF
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 import gpmultirate as gm
-from gpmultirate import _tuning, experiments, simulation
-from gpmultirate._inference import (
+from gpmultirate import experiments, simulation, tuning
+from gpmultirate.inference import (
     log_marginal_likelihood,
     log_marginal_likelihood_fisher,
     resonance_grid_log_marginal_likelihood,
 )
-from gpmultirate._structured import observed_with_derivatives, observed_without
-from gpmultirate.kernels import DC, PK, SS, TC
+from gpmultirate.kernels import DC, PK, SS, TC, observe
+
+
+def observed_with_derivatives(kernel, op):
+    """``S`` and every derivative item ``dS_j`` (dense or factored)."""
+    return observe(kernel, op).covariance_with_derivatives()
+
+
+def observed_without(kernel, term, op):
+    """``S`` with the summand ``term`` left out, or None."""
+    return observe(kernel, op).covariance_without(term)
 
 KERNELS = {
     "C*DC": C(2.0) * DC(alpha=0.8, beta=0.9),
@@ -110,11 +119,14 @@ def test_resonance_grid_equals_one_evaluation_per_candidate():
         alpha=0.85, omega=1.8, sigma1=0.4, sigma2=0.9
     )
     op, y = make_problem(seed=3, n=90, order=40)
-    for index in _tuning.free_resonance_indices(kernel):
-        term = _tuning.resonance_owner(kernel, index)
+    roles = observe(kernel).roles()
+    for index in [i for i, role in enumerate(roles) if role.kind == "frequency"]:
+        term = roles[index].owner
         assert isinstance(term, PK)
         omegas = np.exp(kernel.theta[index]) * np.geomspace(0.7, 1.4, 7)
-        fast = resonance_grid_log_marginal_likelihood(op, kernel, term, 0.05, y, omegas)
+        fast = resonance_grid_log_marginal_likelihood(
+            op, kernel, term, "omega", 0.05, y, omegas
+        )
         slow = []
         for omega in omegas:
             theta = kernel.theta.copy()
@@ -123,7 +135,7 @@ def test_resonance_grid_equals_one_evaluation_per_candidate():
                 log_marginal_likelihood(op, kernel.clone_with_theta(theta), 0.05, y, False, False)
             )
         np.testing.assert_allclose(fast, slow, rtol=1e-10, atol=1e-9)
-    assert _tuning.resonance_owner(kernel, 0) is None  # the constant is no resonance
+    assert roles[0].kind == "amplitude"  # the constant is no resonance
 
 
 def test_observed_without_is_none_inside_a_product():
@@ -150,7 +162,7 @@ def test_fisher_scoring_reaches_the_lbfgs_optimum(name, seed, monkeypatch):
     kernel = experiments.paper_kernels(0.1)[name][0]
 
     def fit(fisher_max_outputs):
-        monkeypatch.setattr(gm.estimators, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
+        monkeypatch.setattr(tuning, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             return gm.FIRGaussianProcess(kernel, factor=3, order=240, noise_level=1e-5).fit(u, y)
@@ -164,7 +176,7 @@ def test_fisher_scoring_reaches_the_lbfgs_optimum(name, seed, monkeypatch):
         fisher.operator_, fisher.kernel_, fisher.noise_level_, y, True
     )
     theta = np.append(fisher.kernel_.theta, np.log(fisher.noise_level_))
-    bounds = np.vstack([fisher.kernel_.bounds, np.log(fisher._noise_bounds)])
+    bounds = np.vstack([fisher.kernel_.bounds, np.log(fisher.noise_level_bounds_)])
     interior = (theta > bounds[:, 0] + 1e-6) & (theta < bounds[:, 1] - 1e-6)
     g, F = grad[interior], fisher_information[np.ix_(interior, interior)]
     assert 0.5 * g @ np.linalg.lstsq(F, g, rcond=1e-12)[0] < 1e-3

@@ -181,7 +181,7 @@ def assert_same_model(original, loaded, u):
             for x, y in pairs:
                 np.testing.assert_array_equal(x, y)
         theta = original.kernel_.theta * 1.01
-        if original._noise_is_free:
+        if not isinstance(original.noise_level_bounds_, str):
             theta = np.append(theta, np.log(original.noise_level_))
         assert loaded.log_marginal_likelihood(theta) == original.log_marginal_likelihood(theta)
 

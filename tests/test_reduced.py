@@ -13,13 +13,18 @@ from scipy.stats import multivariate_normal
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 import gpmultirate as gm
-from gpmultirate._inference import (
+from gpmultirate.inference import (
     DataSpacePosterior,
     log_marginal_likelihood,
     log_marginal_likelihood_fisher,
     posterior,
 )
-from gpmultirate._reduced import ReducedObservation, tuning_data
+from gpmultirate.observations import ReducedObservation
+
+
+def tuning_data(op, y):
+    """The data the evidence is computed from: ``(op, y)``, or the reduction ``(R, z)``."""
+    return op.reduced(y)
 from gpmultirate.kernels import DC, PK, TC
 
 

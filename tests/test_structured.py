@@ -16,10 +16,39 @@ from sklearn.gaussian_process.kernels import RBF
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from gpmultirate import DownsampledConvolution
-from gpmultirate._contraction import kernel_with_contractor
-from gpmultirate._inference import log_marginal_likelihood
-from gpmultirate._structured import observed_with_contractor
-from gpmultirate.kernels import DC, PK, SS, TC
+from gpmultirate.inference import log_marginal_likelihood
+from gpmultirate.kernels import DC, PK, SS, TC, observe
+from gpmultirate.observations import Observation
+
+
+class LagGrid(Observation):
+    """The identity observation at arbitrary lags: its data-space answers are the
+    parameter-space ones, so the contractors can be checked on real lags."""
+
+    def __init__(self, lags):
+        self._lags = np.asarray(lags, dtype=float)
+        self.order = self.n_outputs = self._lags.shape[0]
+
+    @property
+    def lags(self):
+        return self._lags[:, None]
+
+    @property
+    def matrix(self):
+        return np.eye(self.order)
+
+
+def kernel_with_contractor(kernel, lags):
+    """``K`` at ``lags`` and its parameter-space gradient contractor."""
+    return observe(kernel, LagGrid(lags)).parameter_contractor()
+
+
+def observed_with_contractor(kernel, op, need_gradient=True):
+    """``S`` and its data-space gradient contractor (None without the gradient)."""
+    term = observe(kernel, op)
+    if need_gradient:
+        return term.covariance_with_contractor()
+    return term.covariance(), None
 
 # (N, factor, order, offset)
 OPERATORS = {
@@ -269,7 +298,8 @@ def test_fallback_kernel_with_all_hyperparameters_fixed():
 @pytest.mark.parametrize("op_key", operator_keys)
 @pytest.mark.parametrize("kernel", kernel_params)
 def test_regressor_times_kernel_equals_dense(kernel, op_key):
-    from gpmultirate._structured import regressor_times_kernel
+    def regressor_times_kernel(kernel, op):
+        return observe(kernel, op).regressor_times_kernel()
 
     op, Phi = make_operator(op_key)
     K = kernel(np.arange(op.order, dtype=float)[:, None])

@@ -1,19 +1,25 @@
 """Marginal-likelihood tuning strategy (paper eq. 19, noise inside the determinant).
 
-The evidence of resonant kernels is multimodal in the resonance frequencies
-and badly scaled in the overall amplitude, so a single gradient run from the
-user's initial values is fragile.  The default strategy is:
+:func:`maximize` takes the objective, a
+:class:`~gpmultirate.inference.LogEvidence`, and returns the optimum.  The
+evidence of resonant kernels is multimodal in the resonance frequencies and
+badly scaled in the overall amplitude, so a single gradient run from the
+user's initial values is fragile.  The strategy is:
 
 1. fit the overall scale of the kernel and the noise level with the kernel's
    shape fixed: with ``Phi K Phi^T = Q diag(s) Q^T`` the evidence of
    ``(c K, gamma)`` is a cheap sum over the eigenvalues, so this 2-D problem is
    solved from several starts at negligible cost; this makes the fit
    independent of the units of ``u`` and ``y``;
-2. for each free resonance frequency of a :class:`~gpmultirate.kernels.PK`
-   term, evaluate the evidence on a grid around its initial value and keep
-   the best;
-3. run L-BFGS-B over all free hyperparameters with analytic gradients and
-   tight tolerances, from that point and from optional random restarts.
+2. for each free resonance frequency (a hyperparameter whose
+   :class:`~gpmultirate.kernels.Role` is ``"frequency"``, such as the
+   ``omega`` of a :class:`~gpmultirate.kernels.PK` term), evaluate the
+   evidence on a grid around its initial value, keep the best and restrict
+   the frequency to a window around it;
+3. maximize over all free hyperparameters, in decay-rate coordinates, by
+   Fisher scoring up to ``FISHER_MAX_OUTPUTS`` (reduced) slow samples and by
+   L-BFGS-B with analytic gradients above, from that point and from
+   optional random restarts.
 """
 
 from __future__ import annotations
@@ -23,10 +29,18 @@ import warnings
 import numpy as np
 from scipy import linalg, optimize
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
-from gpmultirate._structured import observed_with_contractor
-from gpmultirate.kernels import DC, PK, SS, TC
+from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.validation import check_rng
+
+__all__ = [
+    "DecayRateTransform",
+    "fisher_scoring",
+    "grid_search_resonances",
+    "maximize",
+    "minimize_lbfgs",
+    "prefit_scale_and_noise",
+]
 
 # L-BFGS-B settings: tighter than scipy's defaults, which stop early on the
 # flat, long valleys of the evidence.
@@ -34,81 +48,122 @@ LBFGS_OPTIONS = {"maxiter": 2000, "ftol": 1e-12, "gtol": 1e-7, "maxls": 50}
 # relative span and number of points of the resonance-frequency grid
 RESONANCE_SPAN = 1.4
 RESONANCE_POINTS = 41
+# Up to this many (reduced) slow samples the hyperparameters are tuned by Fisher
+# scoring (each iteration forms the M x M derivative of the data covariance per
+# hyperparameter); above it by L-BFGS-B, whose iterations need only traces.
+FISHER_MAX_OUTPUTS = 1000
 
 
-def _scale_paths(kernel, prefix: str = ""):
-    """Parameters whose change by ``c**power`` scales the kernel by ``c``, or None."""
-    if isinstance(kernel, ConstantKernel):
-        if kernel.hyperparameter_constant_value.fixed:
-            return None
-        return [(prefix + "constant_value", 1.0)]
-    if isinstance(kernel, PK):
-        if kernel.hyperparameter_sigma1.fixed or kernel.hyperparameter_sigma2.fixed:
-            return None
-        return [(prefix + "sigma1", 0.5), (prefix + "sigma2", 0.5)]
-    if isinstance(kernel, Product):
-        first = _scale_paths(kernel.k1, prefix + "k1__")
-        return first if first is not None else _scale_paths(kernel.k2, prefix + "k2__")
-    if isinstance(kernel, Sum):
-        first = _scale_paths(kernel.k1, prefix + "k1__")
-        second = _scale_paths(kernel.k2, prefix + "k2__")
-        if first is None or second is None:
-            return None
-        return first + second
-    return None
+def maximize(evidence, n_restarts: int = 0, random_state=None):
+    """Maximize the log evidence over its ``theta``; the whole tuning strategy.
 
+    Parameters
+    ----------
+    evidence : LogEvidence
+        The objective, with its initial point, bounds and roles.
+    n_restarts : int, default=0
+        Extra runs from points drawn uniformly in the log bounds.
+    random_state : int, RandomState, Generator or None
+        Seed of the restarts.
 
-def scale_kernel(kernel, factor: float) -> bool:
-    """Multiply ``kernel`` by ``factor`` in place through its amplitude parameters.
+    Returns
+    -------
+    scipy.optimize.OptimizeResult or None
+        The best run: ``x`` in ``theta`` coordinates, ``fun`` the negative
+        log evidence.  None when nothing is free.
 
-    Values are clipped to their bounds.  Returns False (and changes nothing)
-    when the kernel has no free amplitude that scales all of it.
+    Raises
+    ------
+    ValueError
+        When the evidence cannot be evaluated at any optimizer point.
     """
-    paths = _scale_paths(kernel)
-    if paths is None:
-        return False
-    params = kernel.get_params()
-    bounds = {h.name: h.bounds for h in kernel.hyperparameters}
-    new = {}
-    for name, power in paths:
-        low, high = np.ravel(bounds[name])[:2]
-        new[name] = float(np.clip(params[name] * factor**power, low, high))
-    kernel.set_params(**new)
-    return True
+    evidence = evidence.reusing_kernel()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        theta0 = prefit_scale_and_noise(evidence)
+        if theta0.shape[0] == 0:
+            return None
+        bounds = evidence.bounds
+        roles = evidence.roles()
+        resonances = [i for i, role in enumerate(roles) if role.kind == "frequency"]
+        if resonances:
+            theta0 = grid_search_resonances(evidence, theta0, bounds, resonances)
+            bounds = resonance_window(theta0, bounds, resonances)
+        transform = DecayRateTransform(
+            [i for i, role in enumerate(roles) if role.kind == "decay"]
+        )
+        if evidence.n_outputs <= FISHER_MAX_OUTPUTS:
+
+            def run(start):
+                return fisher_scoring(_value_grad_fisher(evidence), start, bounds, transform)
+        else:
+
+            def run(start):
+                return minimize_lbfgs(_negative(evidence), start, bounds, transform)
+
+        runs = [run(theta0)]
+        rng = check_rng(random_state)
+        for _ in range(n_restarts):
+            runs.append(run(rng.uniform(bounds[:, 0], bounds[:, 1])))
+    finite = [r for r in runs if np.isfinite(r.fun)]
+    if not finite:
+        raise ValueError(
+            "the marginal likelihood could not be evaluated at any optimizer point; "
+            "check the kernel, its bounds and noise_level_bounds"
+        )
+    best = min(finite, key=lambda r: r.fun)
+    warn_if_not_converged(best)
+    return best
 
 
-def _scale_range(kernel):
-    """Range of factors ``c`` that keeps every amplitude parameter within bounds."""
-    paths = _scale_paths(kernel)
-    params = kernel.get_params()
-    bounds = {h.name: h.bounds for h in kernel.hyperparameters}
-    low, high = -np.inf, np.inf
-    for name, power in paths:
-        b_low, b_high = np.ravel(bounds[name])[:2]
-        low = max(low, np.log(b_low / params[name]) / power)
-        high = min(high, np.log(b_high / params[name]) / power)
-    return (low, high) if low <= high else (None, None)
+def _negative(evidence):
+    """``theta -> (-log evidence, -gradient)``, infinite where it cannot be evaluated."""
+
+    def objective(theta):
+        try:
+            value, grad = evidence(theta, eval_gradient=True)
+        except ValueError:
+            return np.inf, np.zeros_like(theta)
+        return -value, -grad
+
+    return objective
 
 
-def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
+def _value_grad_fisher(evidence):
+    """``theta -> (log evidence, gradient, Fisher)``, ``-inf`` where it cannot be evaluated."""
+
+    def value_grad_fisher(theta):
+        try:
+            return evidence.with_fisher(theta)
+        except ValueError:
+            return -np.inf, None, None
+
+    return value_grad_fisher
+
+
+def prefit_scale_and_noise(evidence) -> np.ndarray:
     """Fit the overall kernel scale and the noise level with the shape fixed.
 
-    Modifies ``kernel`` in place and returns the new noise level.
-    ``noise_bounds`` is ``"fixed"`` or a pair.
+    Returns the initial ``theta`` with the amplitudes that scale the whole
+    kernel (``evidence.scale_positions()``) and the log noise level moved to
+    their optimum; values are clipped to their bounds.
     """
-    fit_scale = _scale_paths(kernel) is not None
-    fit_noise = not isinstance(noise_bounds, str)
+    theta = evidence.theta.copy()
+    scale_positions = evidence.scale_positions()
+    fit_scale = scale_positions is not None
+    fit_noise = evidence.noise_is_free
     if not (fit_scale or fit_noise):
-        return noise_level
-    S = observed_with_contractor(kernel, operator, need_gradient=False)[0]
-    s, Q = linalg.eigh(S, check_finite=False)
+        return theta
+    y = evidence.z
+    s, Q = linalg.eigh(evidence.covariance(), check_finite=False)
     s = np.maximum(s, 0.0)
     z2 = (Q.T @ y) ** 2
     power = float(np.mean(y**2)) or 1.0
+    noise_level = evidence.noise_level
 
     # samples a reduced observation left out: independent N(0, g), sum of squares rho^2
-    n_rest = getattr(operator, "n_discarded", 0)
-    rho2 = getattr(operator, "residual", 0.0)
+    n_rest = evidence.data.n_discarded
+    rho2 = getattr(evidence.data, "residual", 0.0)
 
     def objective(x):
         log_c = x[0] if fit_scale else 0.0
@@ -132,7 +187,7 @@ def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
         # bounds that do not admit it are reported instead of silently binding
         bounds.append((scale0 - 60.0, scale0 + 60.0))
     if fit_noise:
-        bounds.append(tuple(np.log(noise_bounds)))
+        bounds.append(tuple(np.log(evidence.noise_bounds)))
     starts = []
     for relative_noise in (1e-1, 1e-3, 1e-5, 1e-7):
         x = []
@@ -151,17 +206,25 @@ def prefit_scale_and_noise(operator, kernel, noise_level, noise_bounds, y):
         )
         if np.isfinite(result.fun) and (best is None or result.fun < best.fun):
             best = result
+    theta_bounds = evidence.bounds
     if fit_scale:
-        _warn_if_scale_out_of_bounds(kernel, best.x[0])
-        scale_kernel(kernel, float(np.exp(best.x[0])))
-    return float(np.exp(best.x[-1])) if fit_noise else noise_level
+        log_scale = float(best.x[0])
+        _warn_if_scale_out_of_bounds(evidence, theta, theta_bounds, scale_positions, log_scale)
+        for i, p in scale_positions:
+            theta[i] = np.clip(theta[i] + p * log_scale, *theta_bounds[i])
+    if fit_noise:
+        theta[-1] = best.x[-1]
+    return theta
 
 
-def _warn_if_scale_out_of_bounds(kernel, log_scale: float) -> None:
-    low, high = _scale_range(kernel)
-    if low is None or low - np.log(10.0) <= log_scale <= high + np.log(10.0):
+def _warn_if_scale_out_of_bounds(evidence, theta, bounds, positions, log_scale) -> None:
+    """Warn when the bounds of the amplitudes do not admit the data's scale."""
+    low = max((bounds[i, 0] - theta[i]) / p for i, p in positions)
+    high = min((bounds[i, 1] - theta[i]) / p for i, p in positions)
+    if low > high or low - np.log(10.0) <= log_scale <= high + np.log(10.0):
         return
-    names = ", ".join(name for name, _ in _scale_paths(kernel))
+    roles = evidence.roles()
+    names = ", ".join(roles[i].name for i, _ in positions)
     warnings.warn(
         f"the data call for the kernel to be scaled by {np.exp(log_scale):.3g}, which the "
         f"bounds of its amplitude hyperparameters ({names}) do not allow; the fit will be "
@@ -178,28 +241,6 @@ def _clip(x, bounds):
     return np.clip(x, low, high)
 
 
-def _free_lag_hyperparameters(kernel):
-    """Yield ``(position in theta, leaf name, owner)`` of free lag-kernel hyperparameters."""
-    params = kernel.get_params()
-    position = 0
-    for h in kernel.hyperparameters:
-        if h.fixed:
-            continue
-        prefix, _, leaf = h.name.rpartition("__")
-        owner = params[prefix] if prefix else kernel
-        if isinstance(owner, (TC, DC, SS, PK)):
-            yield position, leaf, owner
-        position += h.n_elements
-
-
-def free_resonance_indices(kernel) -> list[int]:
-    """Positions in ``kernel.theta`` of the free ``omega`` of each PK term."""
-    return [
-        i for i, leaf, owner in _free_lag_hyperparameters(kernel)
-        if leaf == "omega" and isinstance(owner, PK)
-    ]
-
-
 class DecayRateTransform:
     """Optimizer coordinates in which decay parameters are well scaled.
 
@@ -208,17 +249,18 @@ class DecayRateTransform:
     values near 1 that impulse responses need.  The optimizer works on
     ``z = log(-log a)``, the log of the decay rate per sample, instead;
     the other coordinates are unchanged.
+
+    Parameters
+    ----------
+    indices : sequence of int
+        Positions in ``theta`` of the decay parameters (role ``"decay"``).
     """
 
     # decay rates below this are treated as zero (a = 1 within rounding)
     MIN_RATE = 1e-10
 
-    def __init__(self, kernel, n_theta: int):
-        self.indices = np.array(
-            [i for i, leaf, _ in _free_lag_hyperparameters(kernel) if leaf in ("alpha", "beta")],
-            dtype=int,
-        )
-        self.n_theta = n_theta
+    def __init__(self, indices):
+        self.indices = np.array(indices, dtype=int)
 
     def to_z(self, theta):
         z = np.array(theta, dtype=float)
@@ -245,35 +287,34 @@ class DecayRateTransform:
         return g
 
 
-def grid_search_resonances(objective, theta, bounds, indices, along=None):
+def grid_search_resonances(evidence, theta, bounds, indices):
     """Coordinate-wise grid search of the resonance frequencies.
 
-    ``objective(theta)`` returns the negative log evidence.  When given,
-    ``along(theta, i, candidates)`` returns it for every candidate value of
-    ``theta[i]`` at once (or None to fall back to ``objective``).  Returns the
-    improved ``theta``.
+    For each position in ``indices``, the log evidence is evaluated on a
+    geometric grid of ``RESONANCE_POINTS`` values within a factor
+    ``RESONANCE_SPAN`` of the current one, all at once where
+    ``evidence.along`` can (a low-rank summand, by rank updates of one
+    factorization), one by one otherwise.  Returns the improved ``theta``.
     """
     theta = theta.copy()
     offsets = np.log(np.geomspace(1.0 / RESONANCE_SPAN, RESONANCE_SPAN, RESONANCE_POINTS))
     for i in indices:
         candidates = np.unique(np.clip(theta[i] + offsets, bounds[i, 0], bounds[i, 1]))
-        values = None if along is None else along(theta, i, candidates)
+        try:
+            values = evidence.along(theta, i, np.exp(candidates))
+        except ValueError:
+            values = None
         if values is None:
             values = []
             for candidate in candidates:
                 trial = theta.copy()
                 trial[i] = candidate
-                values.append(objective(trial))
-        theta[i] = candidates[int(np.nanargmin(values))]
+                try:
+                    values.append(evidence(trial))
+                except ValueError:
+                    values.append(-np.inf)
+        theta[i] = candidates[int(np.nanargmax(values))]
     return theta
-
-
-def resonance_owner(kernel, index: int):
-    """The PK term whose ``omega`` sits at ``index`` of ``kernel.theta``, or None."""
-    for position, leaf, owner in _free_lag_hyperparameters(kernel):
-        if position == index and leaf == "omega" and isinstance(owner, PK):
-            return owner
-    return None
 
 
 def resonance_window(theta, bounds, indices):

@@ -24,58 +24,86 @@ Each evaluation of the evidence then costs ``O(P^3)`` instead of ``O(M^3)``.
 from __future__ import annotations
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from scipy import linalg
+from scipy.linalg import blas
 
-from gpmultirate._contraction import kernel_matrix
+from gpmultirate.observations.base import Observation
+
+__all__ = ["ReducedObservation"]
 
 
-class ReducedObservation:
+class ReducedObservation(Observation):
     """The ``P x P`` observation ``(R, z)`` equivalent to ``M > P`` slow samples.
 
-    Behaves like a :class:`~gpmultirate.operator.DownsampledConvolution`
-    whose regressor is ``R`` and whose outputs are ``z`` (``n_outputs = P``);
-    ``n_discarded = M - P`` and ``residual = rho^2`` carry the rest of the
-    evidence.
+    An :class:`~gpmultirate.observations.base.Observation` whose regressor
+    is the upper-triangular ``R`` and whose outputs are ``z``
+    (``n_outputs = P``); ``n_discarded = M - P`` and ``residual = rho^2``
+    carry the rest of the evidence.  Products with matrices of the sparsity
+    of ``R`` use triangular BLAS (half the flops).
 
     Parameters
     ----------
-    operator : DownsampledConvolution
+    observation : Observation
+        Any observation with more outputs than coefficients; its rows are
+        read block by block (:meth:`~Observation.regressor_rows`).
     y : ndarray of shape (M,)
     block_rows : int, optional
-        Rows of ``Phi`` per block; by default ``max(4 P, 1024)``.
+        Rows of ``Phi`` per block; by default ``max(2 P, 1024)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(60), factor=2, order=5)
+    >>> y = rng.standard_normal(op.n_outputs)
+    >>> reduced = ReducedObservation(op, y)
+    >>> reduced.shape, reduced.n_discarded
+    ((5, 5), 25)
+    >>> bool(np.allclose(reduced.matrix.T @ reduced.matrix, op.matrix.T @ op.matrix))
+    True
     """
 
-    def __init__(self, operator, y: np.ndarray, block_rows: int | None = None):
-        P = operator.order
-        M = operator.n_outputs
+    def __init__(self, observation: Observation, y: np.ndarray, block_rows: int | None = None):
+        P = observation.order
+        M = observation.n_outputs
         block = block_rows or max(2 * P, 1024)
         top = np.zeros((0, P + 1))
         for start in range(0, M, block):
-            rows = operator.sample_indices[start : start + block]
+            rows = observation.regressor_rows(start, start + block)
             stacked = np.empty((top.shape[0] + rows.shape[0], P + 1), order="F")
             stacked[: top.shape[0]] = top
-            stacked[top.shape[0] :, :P] = _regressor_rows(operator.u, P, rows)
+            stacked[top.shape[0] :, :P] = rows
             stacked[top.shape[0] :, P] = y[start : start + block]
             top = linalg.qr(stacked, mode="r", overwrite_a=True, check_finite=False)[0]
             top = top[: P + 1]
         if top.shape[0] < P + 1:  # fewer rows than columns so far
             top = np.vstack([top, np.zeros((P + 1 - top.shape[0], P + 1))])
-        self.matrix = np.ascontiguousarray(top[:P, :P])
-        self.matrix.setflags(write=False)
+        self._matrix = np.ascontiguousarray(top[:P, :P])
+        self._matrix.setflags(write=False)
         self.z = top[:P, P].copy()
         self.residual = float(top[P, P] ** 2)
         self.n_discarded = M - P
-        self.upper_triangular = True  # lets products with the regressor use BLAS trmm
         self.order = P
         self.n_outputs = P
-        self.lags = operator.lags
 
-    def kernel_matrix(self, kernel, eval_gradient: bool = False):
-        """The prior covariance ``K`` at lags ``0..P-1``."""
-        if not eval_gradient:
-            return kernel_matrix(kernel, self.lags[:, 0])
-        return kernel(self.lags, eval_gradient=eval_gradient)
+    @property
+    def matrix(self) -> np.ndarray:
+        """The upper-triangular factor ``R`` (read-only)."""
+        return self._matrix
+
+    def reduced(self, y):
+        """Already reduced: ``(self, y)``."""
+        return self, y
+
+    def regressor_shaped_outer(self, H, G):
+        # G^T is a Fortran-ordered lower-triangular view of G: no copies.
+        # (H G^T)^T = G H^T = op(G^T) H^T with op = transpose
+        return blas.dtrmm(1.0, G.T, H.T, side=0, lower=1, trans_a=1).T
+
+    def symmetric_times_regressor_shaped(self, W, G):
+        # W is symmetric, so its transpose is a Fortran-ordered view of W
+        return blas.dtrmm(1.0, G.T, W.T, side=1, lower=1, trans_a=1)
 
     def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
         """Value, derivative and Fisher information in ``log(noise_level)`` of the rest.
@@ -88,17 +116,5 @@ class ReducedObservation:
         grad = -0.5 * n + 0.5 * self.residual / noise_level
         return float(value), float(grad), 0.5 * n
 
-
-def _regressor_rows(u: np.ndarray, order: int, rows: np.ndarray) -> np.ndarray:
-    """Rows ``Phi[r, i] = u[rows[r] - i]`` (zero before the record), as a strided view."""
-    padded = np.concatenate([np.zeros(order - 1), np.asarray(u, dtype=float)])
-    windows = sliding_window_view(padded, order)[:, ::-1]  # window n ends at u[n]
-    return windows[rows]
-
-
-def tuning_data(operator, y: np.ndarray):
-    """``(operator, y)`` for ``M <= P``, else the reduced ``(R, z)`` observation."""
-    if operator.n_outputs <= operator.order:
-        return operator, y
-    reduced = ReducedObservation(operator, y)
-    return reduced, reduced.z
+    def __repr__(self) -> str:
+        return f"ReducedObservation(order={self.order}, n_discarded={self.n_discarded})"

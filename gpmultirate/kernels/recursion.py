@@ -63,55 +63,23 @@ SS, 0 for ``log beta``) and ``Y'`` the product rule applied to the two
 factors; the factors depend on ``theta`` through ``a`` and through ``r``
 and ``s``, i.e. only through the first and last kernel rows.
 
-Products with ``K`` itself cost ``O(P)`` per vector: the entries of TC and
-SS are sums of terms ``b^{max(i,j)} c^{min(i,j)}``, whose products with a
-vector are prefix and suffix sums, and DC is ``D T D`` with
-``D = diag(alpha^{t/2})`` and the Toeplitz matrix ``T = beta^{|i-j|}``, a
-causal plus an anticausal first-order filter.
+The kernel enters only through ``a`` (:meth:`ShiftScaledKernel.shift_scale
+<gpmultirate.kernels.lag.ShiftScaledKernel.shift_scale>`) and its first and
+last rows, which come from the kernel's own formula
+(:meth:`~gpmultirate.kernels.lag.LagKernel.lag_covariance`), and the
+observation only through its uniform sampling (``u``, ``F``, offset).
+``Phi K`` costs ``O(M P)`` through the kernel's own ``right_multiply`` of the
+observation's strided regressor view.
 """
 
 from __future__ import annotations
 
-from typing import Callable
-
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from scipy import signal
 
-from gpmultirate.kernels import DC, SS, TC
+from gpmultirate.kernels.structure import ObservedTerm
 
-__all__ = [
-    "SHIFT_SCALED_KERNELS",
-    "is_shift_scaled",
-    "observed_shift_scaled",
-    "cross_covariance_shift_scaled",
-    "kernel_matvec",
-    "prefer_recursion",
-]
-
-#: Kernel types (exact types, not subclasses) handled by this module.
-SHIFT_SCALED_KERNELS = (TC, DC, SS)
-
-
-def is_shift_scaled(kernel) -> bool:
-    """Return True if ``kernel`` is exactly a TC, DC or SS kernel."""
-    return type(kernel) in SHIFT_SCALED_KERNELS
-
-
-def _two_sided(X, causal_b, causal_a, include_center: bool):
-    """Filter every row of ``X`` with a symmetric two-sided recursive filter.
-
-    The causal part has transfer function ``b(z)/a(z)``; the anticausal part
-    is its mirror image.  With ``include_center`` the zero-lag tap (present in
-    both halves) is counted once.
-    """
-    causal = signal.lfilter(causal_b, causal_a, X, axis=1)
-    anticausal = signal.lfilter(causal_b, causal_a, X[:, ::-1], axis=1)[:, ::-1]
-    total = causal + anticausal
-    if include_center:
-        total -= causal_b[0] * X
-    return total
-
+__all__ = ["ShiftScaledTerm", "observed_recursion", "prefer_recursion"]
 
 
 # ----------------------------------------------------------------------------
@@ -123,56 +91,19 @@ class _Rows:
     """First and last rows of ``K`` on lags ``0..P-1``, the scale ``a`` and derivatives.
 
     ``d_first[name]`` and ``d_last[name]`` are the derivatives of the rows
-    with respect to ``log(name)``, ``rho[name]`` that of ``log(a)``.
+    with respect to ``log(name)``, ``rho[name]`` that of ``log(a)``; ``free``
+    lists the free hyperparameters in ``theta`` order.
     """
 
     def __init__(self, kernel, order: int):
-        if not is_shift_scaled(kernel):
-            raise TypeError(
-                "expected a TC, DC or SS kernel (exact type); "
-                f"got {type(kernel).__name__}"
-            )
-        values = kernel._check_hyperparameters()
-        alpha = values["alpha"]
         j = np.arange(order, dtype=float)
-        last = float(order - 1)
-        if type(kernel) is TC:
-            # k(t, s) = alpha^max(t, s)
-            self.names = ["alpha"]
-            self.scale = alpha
-            self.first = alpha**j
-            self.last = np.full(order, alpha**last)
-            self.d_first = {"alpha": j * self.first}
-            self.d_last = {"alpha": last * self.last}
-            self.rho = {"alpha": 1.0}
-        elif type(kernel) is DC:
-            # k(t, s) = alpha^((t + s)/2) beta^|t - s|
-            beta = values["beta"]
-            self.names = ["alpha", "beta"]
-            self.scale = alpha
-            self.first = alpha ** (j / 2.0) * beta**j
-            self.last = alpha ** ((last + j) / 2.0) * beta ** (last - j)
-            self.d_first = {"alpha": j / 2.0 * self.first, "beta": j * self.first}
-            self.d_last = {
-                "alpha": (last + j) / 2.0 * self.last,
-                "beta": (last - j) * self.last,
-            }
-            self.rho = {"alpha": 1.0, "beta": 0.0}
-        else:
-            # k(t, s) = alpha^(t + s + max(t, s))/2 - alpha^(3 max(t, s))/6
-            self.names = ["alpha"]
-            self.scale = alpha**3
-            first_a, first_b = alpha ** (2.0 * j) / 2.0, alpha ** (3.0 * j) / 6.0
-            last_a, last_b = alpha ** (2.0 * last + j) / 2.0, alpha ** (3.0 * last) / 6.0
-            self.first = first_a - first_b
-            self.last = last_a - last_b
-            self.d_first = {"alpha": 2.0 * j * first_a - 3.0 * j * first_b}
-            self.d_last = {"alpha": (2.0 * last + j) * last_a - 3.0 * last * last_b}
-            self.rho = {"alpha": 3.0}
-        # free hyperparameters in the order of kernel.theta
-        self.free = [
-            h.name for h in kernel.hyperparameters if not h.fixed and h.name in self.names
-        ]
+        first, d_first = kernel.lag_covariance(np.zeros(1), j, eval_gradient=True)
+        last, d_last = kernel.lag_covariance(np.array([order - 1.0]), j, eval_gradient=True)
+        self.scale, self.rho = kernel.shift_scale()
+        self.first, self.last = first[0], last[0]
+        self.d_first = {name: d[0] for name, d in d_first.items()}
+        self.d_last = {name: d[0] for name, d in d_last.items()}
+        self.free = [h.name for h in kernel.hyperparameters if not h.fixed]
 
 
 # ----------------------------------------------------------------------------
@@ -317,40 +248,31 @@ def _observed(u, factor, offset, order, rows: _Rows, need_gradient):
     return S, gradients
 
 
-def observed_shift_scaled(
-    kernel, operator, need_gradient: bool = True
-) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray] | None]:
-    """Return ``S = Phi K Phi^T`` and its gradient contractor for TC, DC or SS.
+def observed_recursion(kernel, sampling, order: int, need_gradient: bool = True):
+    """``S = Phi K Phi^T`` and the list of ``dS_j`` by the diagonal recursion.
 
     Neither ``K`` (``P x P``) nor ``Phi`` (``M x P``) is formed: ``S`` comes
-    from the diagonal recursion of the module docstring in ``O(M N)``
-    operations, and with ``need_gradient`` every ``dS_j`` comes from its
-    forward-mode derivative at construction, so that ``contract`` costs one
-    ``O(M^2)`` inner product per hyperparameter.
+    from the recursion of the module docstring in ``O(M N)`` operations, and
+    with ``need_gradient`` every ``dS_j`` from its forward-mode derivative.
 
     Parameters
     ----------
-    kernel : TC, DC or SS
-        A leaf kernel of exactly one of these types (no sums or products).
-    operator : DownsampledConvolution
-        The observation operator (input, factor, order, offset).
+    kernel : ShiftScaledKernel
+        A TC, DC or SS kernel, or any kernel with ``shift_scale`` and
+        ``lag_covariance``.
+    sampling : UniformSampling
+        The input ``u``, ``factor`` and ``offset`` of the observation.
+    order : int
+        The FIR order ``P``.
     need_gradient : bool, default=True
-        Whether to compute the gradient contractor.
 
     Returns
     -------
     S : ndarray of shape (M, M)
-        The covariance of the noise-free slow output, exactly symmetric.
-    contract : callable or None
-        ``contract(W)`` returns ``[tr(W Phi dK_j Phi^T)]_j`` for a symmetric
-        ``W`` of shape ``(M, M)``, one entry per free hyperparameter in
-        ``kernel.theta`` order (derivatives with respect to the log values).
-        None when ``need_gradient`` is False.
-
-    Raises
-    ------
-    TypeError
-        If ``kernel`` is not exactly TC, DC or SS.
+        Exactly symmetric.
+    derivatives : list of ndarray of shape (M, M)
+        One per free hyperparameter in ``kernel.theta`` order; empty
+        without ``need_gradient``.
 
     Examples
     --------
@@ -359,164 +281,72 @@ def observed_shift_scaled(
     >>> from gpmultirate.kernels import DC
     >>> op = DownsampledConvolution(np.arange(1.0, 9.0), factor=2, order=5, offset=1)
     >>> kernel = DC(alpha=0.8, beta=0.6)
-    >>> S, contract = observed_shift_scaled(kernel, op)
+    >>> S, dS = observed_recursion(kernel, op.uniform_sampling, op.order)
     >>> Phi, K = op.matrix, kernel(op.lags)
-    >>> bool(np.allclose(S, Phi @ K @ Phi.T, rtol=1e-12, atol=0))
-    True
-    >>> contract(np.eye(op.n_outputs)).shape
-    (2,)
+    >>> bool(np.allclose(S, Phi @ K @ Phi.T, rtol=1e-12, atol=0)), len(dS)
+    (True, 2)
     """
-    rows = _Rows(kernel, operator.order)
-    S, dS = _observed(
-        np.asarray(operator.u, dtype=float),
-        operator.factor,
-        operator.offset,
-        operator.order,
-        rows,
-        need_gradient,
-    )
-    if not need_gradient:
-        return S, None
-
-    def contract(W: np.ndarray) -> np.ndarray:
-        W = np.asarray(W, dtype=float)
-        if W.shape != S.shape:
-            raise ValueError(f"W must have shape {S.shape}; got {W.shape}")
-        return np.array([np.vdot(W, d) for d in dS], dtype=float).reshape(-1)
-
-    return S, contract
-
-
-# ----------------------------------------------------------------------------
-# products with K: X @ K in O(rows * P)
-# ----------------------------------------------------------------------------
-
-
-def _suffix_after(X: np.ndarray) -> np.ndarray:
-    """``out[:, j] = sum_{i > j} X[:, i]`` (summed from the far end)."""
-    out = np.zeros_like(X)
-    out[:, :-1] = np.cumsum(X[:, :0:-1], axis=1)[:, ::-1]
-    return out
-
-
-def _right_multiply(kernel, X: np.ndarray) -> np.ndarray:
-    """Return ``X @ K`` for ``X`` of shape ``(r, P)`` and ``K = kernel(0..P-1)``."""
-    if not is_shift_scaled(kernel):
-        raise TypeError(
-            f"expected a TC, DC or SS kernel (exact type); got {type(kernel).__name__}"
-        )
-    values = kernel._check_hyperparameters()
-    alpha = values["alpha"]
-    j = np.arange(X.shape[1], dtype=float)
-    if type(kernel) is TC:
-        # sum_i X_i alpha^max(i, j) = alpha^j sum_{i<=j} X_i + sum_{i>j} alpha^i X_i
-        w = alpha**j
-        out = np.cumsum(X, axis=1)
-        out *= w
-        out += _suffix_after(X * w)
-        return out
-    if type(kernel) is DC:
-        # K = D T D, D = diag(alpha^(j/2)), T = beta^|i - j|
-        half = alpha ** (j / 2.0)
-        out = _two_sided(X * half, [1.0], [1.0, -values["beta"]], include_center=True)
-        out *= half
-        return out
-    # SS: i <= j -> alpha^(2j) alpha^i / 2 - alpha^(3j) / 6,
-    #     i > j  -> alpha^j alpha^(2i) / 2 - alpha^(3i) / 6
-    w1, w2, w3 = alpha**j, alpha ** (2.0 * j), alpha ** (3.0 * j)
-    out = np.cumsum(X * w1, axis=1)
-    out *= w2 / 2.0
-    out += (w1 / 2.0) * _suffix_after(X * w2)
-    out -= (w3 / 6.0) * np.cumsum(X, axis=1)
-    out -= _suffix_after(X * (w3 / 6.0))
-    return out
-
-
-def _regressor_view(operator) -> np.ndarray:
-    """Read-only strided view equal to ``operator.matrix`` (no copy)."""
-    u = np.asarray(operator.u, dtype=float)
-    n, order = u.shape[0], operator.order
-    reversed_padded = np.concatenate([u[::-1], np.zeros(order - 1)])
-    # row q of the window view is u(N-1-q), u(N-2-q), ...; slow sample m is q = N-1-n_m
-    windows = sliding_window_view(reversed_padded, order)
-    return windows[n - 1 - operator.offset :: -operator.factor]
-
-
-def cross_covariance_shift_scaled(kernel, operator) -> np.ndarray:
-    """Return ``Phi K`` of shape ``(M, P)`` for a TC, DC or SS kernel.
-
-    Row ``m`` is the covariance of slow sample ``m`` with the coefficients
-    ``g_0..g_{P-1}`` (its transpose is ``operator.cross_covariance`` at lags
-    ``0..P-1``).  ``Phi`` enters only as a strided view of the input and
-    ``K`` only through prefix/suffix sums (TC, SS) or a two-sided
-    first-order filter (DC): ``O(M P)`` operations and memory.
-
-    Parameters
-    ----------
-    kernel : TC, DC or SS
-        A leaf kernel of exactly one of these types.
-    operator : DownsampledConvolution
-        The observation operator.
-
-    Returns
-    -------
-    ndarray of shape (M, P)
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from gpmultirate import DownsampledConvolution
-    >>> from gpmultirate.kernels import SS
-    >>> op = DownsampledConvolution(np.arange(1.0, 8.0), factor=3, order=4)
-    >>> kernel = SS(alpha=0.7)
-    >>> bool(np.allclose(cross_covariance_shift_scaled(kernel, op),
-    ...                  op.matrix @ kernel(op.lags), rtol=1e-12, atol=0))
-    True
-    """
-    return _right_multiply(kernel, _regressor_view(operator))
-
-
-def kernel_matvec(kernel, order: int, v) -> np.ndarray:
-    """Return ``K @ v`` with ``K = kernel(0..order-1)`` in ``O(order k)``.
-
-    Parameters
-    ----------
-    kernel : TC, DC or SS
-        A leaf kernel of exactly one of these types.
-    order : int
-        ``P``, the number of lags ``0..P-1``.
-    v : array-like of shape (P,) or (P, k)
-
-    Returns
-    -------
-    ndarray of the shape of ``v``
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from gpmultirate.kernels import TC
-    >>> kernel_matvec(TC(alpha=0.5), 3, np.array([1.0, 0.0, 2.0]))
-    array([1.5 , 1.  , 0.75])
-    """
-    v = np.asarray(v, dtype=float)
-    if v.ndim not in (1, 2) or v.shape[0] != order:
-        raise ValueError(f"v must have shape ({order},) or ({order}, k); got {v.shape}")
-    if v.ndim == 1:
-        return _right_multiply(kernel, v[None, :])[0]
-    return _right_multiply(kernel, np.ascontiguousarray(v.T)).T
-
-
-def observed_shift_scaled_derivatives(kernel, operator) -> tuple[np.ndarray, list]:
-    """Return ``S`` and the list of ``dS_j`` (free hyperparameters, ``theta`` order).
-
-    The same recursion as :func:`observed_shift_scaled`, for callers that
-    need the derivative matrices themselves (the Fisher information).
-    """
-    rows = _Rows(kernel, operator.order)
     return _observed(
-        np.asarray(operator.u, dtype=float), operator.factor, operator.offset,
-        operator.order, rows, True,
+        np.asarray(sampling.u, dtype=float), sampling.factor, sampling.offset, order,
+        _Rows(kernel, order), need_gradient,
     )
+
+
+class ShiftScaledTerm(ObservedTerm):
+    """A shift-scaled kernel: the recursion where it pays off, ``other`` elsewhere.
+
+    The recursion needs uniformly spaced samples (``observation.uniform_sampling``
+    is not None) and is taken where :func:`prefer_recursion` says it is
+    faster than ``other``, the kernel's term without the recursion.
+    """
+
+    def __init__(self, kernel, observation, path: str, other: ObservedTerm):
+        super().__init__(kernel, observation, path)
+        self.other = other
+
+    def _sampling(self, need_gradient: bool):
+        sampling = self.observation.uniform_sampling
+        if sampling is None or not prefer_recursion(
+            self.observation.n_outputs, sampling.u.shape[0], self.observation.order,
+            need_gradient=need_gradient,
+        ):
+            return None
+        return sampling
+
+    def kernel_matrix(self):
+        return self.other.kernel_matrix()
+
+    def parameter_contractor(self):
+        return self.other.parameter_contractor()
+
+    def covariance(self):
+        sampling = self._sampling(False)
+        if sampling is None:
+            return self.other.covariance()
+        return observed_recursion(self.kernel, sampling, self.observation.order, False)[0]
+
+    def covariance_with_contractor(self):
+        sampling = self._sampling(True)
+        if sampling is None:
+            return self.other.covariance_with_contractor()
+        S, derivatives = observed_recursion(self.kernel, sampling, self.observation.order)
+
+        def contract(W):
+            if W.shape != S.shape:
+                raise ValueError(f"W must have shape {S.shape}; got {W.shape}")
+            return np.array([np.vdot(W, d) for d in derivatives], dtype=float).reshape(-1)
+
+        return S, contract
+
+    def covariance_with_derivatives(self):
+        sampling = self._sampling(True)
+        if sampling is None:
+            return self.other.covariance_with_derivatives()
+        return observed_recursion(self.kernel, sampling, self.observation.order)
+
+    def regressor_times_kernel(self):
+        # O(M P): the kernel's own product with the (strided) regressor
+        return self.kernel.right_multiply(self.observation.regressor_view())
 
 
 # ----------------------------------------------------------------------------

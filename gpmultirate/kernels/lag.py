@@ -21,9 +21,15 @@ import numpy as np
 from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
+from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
+from gpmultirate.kernels.recursion import ShiftScaledTerm
+from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
 from gpmultirate.validation import as_real_array, check_bounds, check_positive
 
-__all__ = ["TC", "DC", "SS", "PK", "check_lags"]
+__all__ = ["TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags"]
+
+# what the tuning strategy should know of each hyperparameter (see Role)
+_DECAY = ("decay", 1.0)
 
 
 def check_lags(X, name: str = "X") -> np.ndarray:
@@ -60,17 +66,34 @@ def check_lags(X, name: str = "X") -> np.ndarray:
     return lags
 
 
-class _LagKernel(Kernel):
-    """Common machinery of the lag kernels: input checks, repr, range checks."""
+class LagKernel(StructuredKernel, Kernel):
+    """Common machinery of the lag kernels: input checks, repr, range checks.
 
-    # (name, lower, upper, upper_inclusive) allowed ranges of the values
+    A subclass lists its hyperparameters with their allowed ranges in
+    ``_ranges`` as ``(name, lower, upper)`` (the range is ``(lower, upper]``)
+    and implements :meth:`lag_covariance`.
+    """
+
+    # (name, lower, upper): the allowed range (lower, upper] of each value
     _ranges: tuple = ()
 
     def is_stationary(self) -> bool:
         """Return False: impulse-response kernels decay with the lag."""
         return False
 
-    def _check_hyperparameters(self) -> dict:
+    def checked_values(self) -> dict:
+        """The hyperparameter values as floats, checked against their ranges.
+
+        Returns
+        -------
+        dict
+            ``{name: value}`` in the order of the constructor.
+
+        Raises
+        ------
+        ValueError
+            If a value is not a real number in its range.
+        """
         values = {}
         for name, low, high in self._ranges:
             value = getattr(self, name)
@@ -84,11 +107,55 @@ class _LagKernel(Kernel):
             values[name] = value
         return values
 
-    def _lags(self, X, Y):
+    def lag_covariance(self, t: np.ndarray, s: np.ndarray, eval_gradient: bool = False):
+        """``k(t_i, s_j)`` for lag vectors ``t`` and ``s`` (no checks).
+
+        Parameters
+        ----------
+        t, s : ndarray of shape (n,) and (m,)
+            Non-negative lags; ``s`` may be ``t`` itself.
+        eval_gradient : bool, default=False
+            Also return the derivatives with respect to the log of every
+            hyperparameter, fixed or not (unlike ``__call__``, also when
+            ``s`` is not ``t``).
+
+        Returns
+        -------
+        K : ndarray of shape (n, m)
+        gradients : dict of ndarray of shape (n, m), only with ``eval_gradient``
+            ``{name: dK / d log(name)}``.
+        """
+        raise NotImplementedError
+
+    def __call__(self, X, Y=None, eval_gradient=False):
+        """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n, 1)
+            Lags in fast samples, finite and non-negative.
+        Y : array-like of shape (m, 1), optional
+            Second lags; ``X`` when None.
+        eval_gradient : bool, default=False
+            Also return the gradient with respect to the log of the free
+            hyperparameters (only when ``Y`` is None).
+
+        Returns
+        -------
+        K : ndarray of shape (n, m)
+        K_gradient : ndarray of shape (n, n, n_free), only with ``eval_gradient``
+        """
+        if eval_gradient and Y is not None:
+            raise ValueError("gradient can only be evaluated when Y is None")
         t = check_lags(X, "X")
-        if Y is None:
-            return t, t, True
-        return t, check_lags(Y, "Y"), False
+        s = t if Y is None else check_lags(Y, "Y")
+        if not eval_gradient:
+            return self.lag_covariance(t, s)
+        K, gradients = self.lag_covariance(t, s, eval_gradient=True)
+        free = [gradients[h.name] for h in self.hyperparameters if not h.fixed]
+        if not free:
+            return K, np.empty(K.shape + (0,))
+        return K, np.stack(free, axis=-1)
 
     def __repr__(self) -> str:
         args = ", ".join(
@@ -97,10 +164,37 @@ class _LagKernel(Kernel):
         return f"{type(self).__name__}({args})"
 
 
-class _DecayKernel(_LagKernel):
+class ShiftScaledKernel(LagKernel):
+    """A lag kernel with ``K(i + 1, j + 1) = a K(i, j)`` on the integer grid (TC, DC, SS).
+
+    Such a kernel declares ``a`` (:meth:`shift_scale`) and its products
+    with matrices (:meth:`right_multiply`); the diagonal recursion of
+    :mod:`gpmultirate.kernels.recursion` then gives its observed covariance
+    in ``O(M N)`` wherever the observation has uniformly spaced samples.
+    """
+
+    def shift_scale(self) -> tuple[float, dict]:
+        """``a`` and ``{name: d log(a) / d log(name)}`` for every hyperparameter."""
+        raise NotImplementedError
+
+    def right_multiply(self, X: np.ndarray) -> np.ndarray:
+        """``X @ K`` for ``X`` of shape ``(r, P)`` and ``K`` at lags ``0..P-1``, in ``O(r P)``."""
+        raise NotImplementedError
+
+    def unshifted_term(self, observation, path: str = "") -> ObservedTerm:
+        """The term used where the recursion does not apply or does not pay off."""
+        return ObservedTerm(self, observation, path)
+
+    def observed(self, observation, path: str = "") -> ObservedTerm:
+        """The recursion where it pays off, :meth:`unshifted_term` elsewhere."""
+        return ShiftScaledTerm(self, observation, path, self.unshifted_term(observation, path))
+
+
+class _DecayKernel(ShiftScaledKernel):
     """A lag kernel with the single hyperparameter ``alpha`` (TC, SS)."""
 
     _ranges = (("alpha", 0.0, 1.0),)
+    tuning_roles = {"alpha": _DECAY}
 
     def __init__(self, alpha: float = 0.9, alpha_bounds=(1e-4, 1.0)):
         self.alpha = alpha
@@ -128,20 +222,6 @@ def _power_of_distance(t, s, beta):
     return beta ** np.abs(np.subtract.outer(t, s))
 
 
-def _no_gradient_for_cross(Y, eval_gradient):
-    if eval_gradient and Y is not None:
-        raise ValueError("gradient can only be evaluated when Y is None")
-
-
-def _stack(gradients, fixed_flags):
-    """Stack the gradients of the free hyperparameters along the last axis."""
-    free = [g for g, fixed in zip(gradients, fixed_flags) if not fixed]
-    if not free:
-        shape = gradients[0].shape if gradients else (0, 0)
-        return np.empty(shape + (0,))
-    return np.stack(free, axis=-1)
-
-
 class TC(_DecayKernel):
     r"""Tuned-correlated (first-order stable spline) kernel.
 
@@ -164,24 +244,50 @@ class TC(_DecayKernel):
            [0.177, 0.177, 0.177]])
     """
 
-    def __call__(self, X, Y=None, eval_gradient=False):
-        """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``."""
-        _no_gradient_for_cross(Y, eval_gradient)
-        (alpha,) = self._check_hyperparameters().values()
-        t, s, _ = self._lags(X, Y)
+    def lag_covariance(self, t, s, eval_gradient=False):
+        (alpha,) = self.checked_values().values()
         longest = np.maximum.outer(t, s)
         K = alpha**longest
         if not eval_gradient:
             return K
-        return K, _stack([longest * K], [self.hyperparameter_alpha.fixed])
+        return K, {"alpha": longest * K}
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
-        (alpha,) = self._check_hyperparameters().values()
+        (alpha,) = self.checked_values().values()
         return alpha ** check_lags(X, "X")
 
+    def shift_scale(self):
+        return self.checked_values()["alpha"], {"alpha": 1.0}
 
-class DC(_LagKernel):
+    def right_multiply(self, X):
+        # sum_i X_i alpha^max(i, j) = alpha^j sum_{i<=j} X_i + sum_{i>j} alpha^i X_i
+        alpha = self.checked_values()["alpha"]
+        w = alpha ** np.arange(X.shape[1], dtype=float)
+        out = np.cumsum(X, axis=1)
+        out *= w
+        out += suffix_after(X * w)
+        return out
+
+    def unshifted_term(self, observation, path=""):
+        return _TCTerm(self, observation, path)
+
+
+class _TCTerm(ObservedTerm):
+    """TC off the recursion: the gradient contraction without the gradient array."""
+
+    def parameter_contractor(self):
+        K = self.kernel_matrix()
+        longest = np.maximum.outer(self.lags, self.lags)
+        free = not self.kernel.hyperparameter_alpha.fixed
+
+        def contract(A):
+            return np.array([np.sum(A * K * longest)] if free else [])
+
+        return K, contract
+
+
+class DC(ShiftScaledKernel):
     r"""Diagonal-correlated kernel (paper eq. 16, without the scale ``lambda``).
 
     .. math:: k(t, s) = \alpha^{(t + s)/2}\, \beta^{|t - s|}
@@ -209,6 +315,7 @@ class DC(_LagKernel):
     """
 
     _ranges = (("alpha", 0.0, 1.0), ("beta", 0.0, 1.0))
+    tuning_roles = {"alpha": _DECAY, "beta": _DECAY}
 
     def __init__(
         self,
@@ -230,25 +337,33 @@ class DC(_LagKernel):
     def hyperparameter_beta(self) -> Hyperparameter:
         return Hyperparameter("beta", "numeric", self.beta_bounds)
 
-    def __call__(self, X, Y=None, eval_gradient=False):
-        """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``."""
-        _no_gradient_for_cross(Y, eval_gradient)
-        alpha, beta = self._check_hyperparameters().values()
-        t, s, _ = self._lags(X, Y)
+    def lag_covariance(self, t, s, eval_gradient=False):
+        alpha, beta = self.checked_values().values()
         if not eval_gradient:
             return _envelope_outer(t, s, alpha) * _power_of_distance(t, s, beta)
         mean_lag = np.add.outer(t, s) / 2.0
         distance = np.abs(np.subtract.outer(t, s))
         K = alpha**mean_lag * beta**distance
-        return K, _stack(
-            [mean_lag * K, distance * K],
-            [self.hyperparameter_alpha.fixed, self.hyperparameter_beta.fixed],
-        )
+        return K, {"alpha": mean_lag * K, "beta": distance * K}
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
-        alpha, _ = self._check_hyperparameters().values()
+        alpha, _ = self.checked_values().values()
         return alpha ** check_lags(X, "X")
+
+    def shift_scale(self):
+        return self.checked_values()["alpha"], {"alpha": 1.0, "beta": 0.0}
+
+    def right_multiply(self, X):
+        # K = D T D, D = diag(alpha^(j/2)), T = beta^|i - j|: a two-sided AR(1) filter
+        alpha, beta = self.checked_values().values()
+        half = alpha ** (np.arange(X.shape[1], dtype=float) / 2.0)
+        out = two_sided(X * half, [1.0], [1.0, -beta], include_center=True)
+        out *= half
+        return out
+
+    def unshifted_term(self, observation, path=""):
+        return DCFilterTerm(self, observation, path)
 
 
 class SS(_DecayKernel):
@@ -271,11 +386,8 @@ class SS(_DecayKernel):
     array([0.3333, 0.0417])
     """
 
-    def __call__(self, X, Y=None, eval_gradient=False):
-        """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``."""
-        _no_gradient_for_cross(Y, eval_gradient)
-        (alpha,) = self._check_hyperparameters().values()
-        t, s, _ = self._lags(X, Y)
+    def lag_covariance(self, t, s, eval_gradient=False):
+        (alpha,) = self.checked_values().values()
         longest = np.maximum.outer(t, s)
         first_exponent = np.add.outer(t, s) + longest
         first = alpha**first_exponent / 2.0
@@ -284,16 +396,31 @@ class SS(_DecayKernel):
         if not eval_gradient:
             return K
         # d/d(log alpha) of alpha**e is e * alpha**e
-        gradient = first_exponent * first - 3.0 * longest * second
-        return K, _stack([gradient], [self.hyperparameter_alpha.fixed])
+        return K, {"alpha": first_exponent * first - 3.0 * longest * second}
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
-        (alpha,) = self._check_hyperparameters().values()
+        (alpha,) = self.checked_values().values()
         return alpha ** (3.0 * check_lags(X, "X")) / 3.0
 
+    def shift_scale(self):
+        return self.checked_values()["alpha"] ** 3, {"alpha": 3.0}
 
-class PK(_LagKernel):
+    def right_multiply(self, X):
+        # i <= j: alpha^(2j) alpha^i / 2 - alpha^(3j) / 6
+        # i > j:  alpha^j alpha^(2i) / 2 - alpha^(3i) / 6
+        alpha = self.checked_values()["alpha"]
+        j = np.arange(X.shape[1], dtype=float)
+        w1, w2, w3 = alpha**j, alpha ** (2.0 * j), alpha ** (3.0 * j)
+        out = np.cumsum(X * w1, axis=1)
+        out *= w2 / 2.0
+        out += (w1 / 2.0) * suffix_after(X * w2)
+        out -= (w3 / 6.0) * np.cumsum(X, axis=1)
+        out -= suffix_after(X * (w3 / 6.0))
+        return out
+
+
+class PK(LagKernel):
     r"""Prior-knowledge kernel of one damped resonance (paper eq. 18-19).
 
     .. math::
@@ -341,6 +468,12 @@ class PK(_LagKernel):
         ("sigma1", 0.0, np.inf),
         ("sigma2", 0.0, np.inf),
     )
+    tuning_roles = {
+        "alpha": _DECAY,
+        "omega": ("frequency", 1.0),
+        "sigma1": ("amplitude", 0.5),
+        "sigma2": ("amplitude", 0.5),
+    }
 
     def __init__(
         self,
@@ -423,17 +556,29 @@ class PK(_LagKernel):
     def hyperparameter_sigma2(self) -> Hyperparameter:
         return Hyperparameter("sigma2", "numeric", self.sigma2_bounds)
 
-    def _parts(self, lags, alpha, omega):
-        envelope = alpha ** (lags / 2.0)
+    def basis(self, lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The two basis functions ``alpha^(t/2) cos(omega t)`` and ``alpha^(t/2) sin(omega t)``.
+
+        ``k(t, s) = sigma1^2 c(t) c(s) + sigma2^2 s(t) s(s)`` with ``(c, s)``
+        these functions.
+
+        Parameters
+        ----------
+        lags : ndarray of shape (n,)
+
+        Returns
+        -------
+        (ndarray of shape (n,), ndarray of shape (n,))
+        """
+        values = self.checked_values()
+        envelope = values["alpha"] ** (lags / 2.0)
+        omega = values["omega"]
         return envelope * np.cos(omega * lags), envelope * np.sin(omega * lags)
 
-    def __call__(self, X, Y=None, eval_gradient=False):
-        """Return ``k(X, Y)`` and, if requested, its gradient with respect to ``theta``."""
-        _no_gradient_for_cross(Y, eval_gradient)
-        alpha, omega, sigma1, sigma2 = self._check_hyperparameters().values()
-        t, s, _ = self._lags(X, Y)
-        ct, st = self._parts(t, alpha, omega)
-        cs, ss = self._parts(s, alpha, omega)
+    def lag_covariance(self, t, s, eval_gradient=False):
+        alpha, omega, sigma1, sigma2 = self.checked_values().values()
+        ct, st = self.basis(t)
+        cs, ss = self.basis(s)
         cos_part = sigma1**2 * np.outer(ct, cs)
         sin_part = sigma2**2 * np.outer(st, ss)
         K = cos_part + sin_part
@@ -445,17 +590,51 @@ class PK(_LagKernel):
             sigma1**2 * (-np.outer(t * st, cs) - np.outer(ct, s * ss))
             + sigma2**2 * (np.outer(t * ct, ss) + np.outer(st, s * cs))
         )
-        gradients = [mean_lag * K, d_omega, 2.0 * cos_part, 2.0 * sin_part]
-        fixed = [
-            self.hyperparameter_alpha.fixed,
-            self.hyperparameter_omega.fixed,
-            self.hyperparameter_sigma1.fixed,
-            self.hyperparameter_sigma2.fixed,
-        ]
-        return K, _stack(gradients, fixed)
+        return K, {
+            "alpha": mean_lag * K, "omega": d_omega,
+            "sigma1": 2.0 * cos_part, "sigma2": 2.0 * sin_part,
+        }
+
+    def observed(self, observation, path=""):
+        """Rank two: ``K = V D V^T`` with ``V = [c, s]`` and ``D = diag(sigma1^2, sigma2^2)``."""
+        if observation is None:
+            return ObservedTerm(self, None, path)
+        values = self.checked_values()
+        lags = observation.lags[:, 0]
+        c, s = self.basis(lags)
+        var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
+        omega = values["omega"]
+        # extended basis [c, s, t c, t s]: d/dlog(alpha) maps c -> (t/2) c and
+        # s -> (t/2) s; d/dlog(omega) maps c -> -omega t s and s -> omega t c
+        candidates = {
+            "alpha": _pair(0, 2, 0.5 * var1) + _pair(1, 3, 0.5 * var2),
+            "omega": _pair(0, 3, -omega * var1) + _pair(1, 2, omega * var2),
+            "sigma1": _single(0, 2.0 * var1),
+            "sigma2": _single(1, 2.0 * var2),
+        }
+        weights = [candidates[h.name] for h in self.hyperparameters if not h.fixed]
+        return LowRankTerm(
+            self, observation, np.column_stack([c, s]), np.diag([var1, var2]),
+            np.column_stack([lags * c, lags * s]), weights, path,
+        )
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
-        alpha, omega, sigma1, sigma2 = self._check_hyperparameters().values()
-        c, s = self._parts(check_lags(X, "X"), alpha, omega)
-        return sigma1**2 * c**2 + sigma2**2 * s**2
+        values = self.checked_values()
+        c, s = self.basis(check_lags(X, "X"))
+        return values["sigma1"] ** 2 * c**2 + values["sigma2"] ** 2 * s**2
+
+
+def _pair(i: int, j: int, weight: float) -> np.ndarray:
+    """A symmetric 4 x 4 weight with ``weight`` at ``(i, j)`` and ``(j, i)``."""
+    D = np.zeros((4, 4))
+    D[i, j] += weight
+    D[j, i] += weight
+    return D
+
+
+def _single(i: int, weight: float) -> np.ndarray:
+    """A 4 x 4 weight with ``weight`` at ``(i, i)``."""
+    D = np.zeros((4, 4))
+    D[i, i] = weight
+    return D

@@ -1,4 +1,4 @@
-"""Linear algebra of the Gaussian-process posterior in the data space.
+"""Inference: the posterior of the FIR coefficients and the log evidence.
 
 With ``Ky = Phi K Phi^T + gamma I_M`` (the covariance of the slow data) and
 its Cholesky factor ``L``:
@@ -12,6 +12,12 @@ its Cholesky factor ``L``:
   ``a = Ky^{-1} y``, evaluated as ``1/2 sum(A * dK_j)`` with
   ``A = Phi^T (a a^T - Ky^{-1}) Phi`` so that no ``Phi dK Phi^T`` product is
   formed per hyperparameter.
+
+Every route evaluates the Gaussian log density through one function,
+:func:`log_gaussian` (eq. 19, corrected); the structured products come from
+the kernel's terms (:func:`gpmultirate.kernels.observe`) and the
+observation's reduction, never from type tests here.  :class:`LogEvidence`
+packages the evidence as a function of the log hyperparameters for tuning.
 """
 
 from __future__ import annotations
@@ -21,16 +27,53 @@ import warnings
 import numpy as np
 from scipy import linalg
 
-from gpmultirate._reduced import ReducedObservation
-from gpmultirate._structured import (
-    observed_with_contractor,
-    observed_with_derivatives,
-    observed_without,
-    regressor_times_kernel,
-)
+from sklearn.base import clone
+
 from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.kernels import observe
+
+__all__ = [
+    "DataSpacePosterior",
+    "GaussianCoefficients",
+    "LogEvidence",
+    "ParameterSpacePosterior",
+    "gaussian_samples",
+    "log_gaussian",
+    "log_marginal_likelihood",
+    "log_marginal_likelihood_fisher",
+    "posterior",
+    "robust_cholesky",
+]
 
 LOG_2PI = np.log(2.0 * np.pi)
+
+
+def log_gaussian(quadratic: float, log_det: float, n: int) -> float:
+    """``log N(y; 0, Ky)`` from ``y^T Ky^{-1} y``, ``log det Ky`` and ``n = len(y)``.
+
+    The log marginal likelihood of eq. (19) with the noise inside the
+    determinant (see the reading notes):
+    ``-1/2 y^T Ky^{-1} y - 1/2 log det Ky - n/2 log(2 pi)``.
+
+    Examples
+    --------
+    >>> from scipy.stats import multivariate_normal
+    >>> value = log_gaussian(0.5**2 / 2.0, np.log(2.0), 1)
+    >>> bool(np.isclose(value, multivariate_normal(0.0, 2.0).logpdf(0.5)))
+    True
+    """
+    return float(-0.5 * quadratic - 0.5 * log_det - 0.5 * n * LOG_2PI)
+
+
+def gaussian_samples(mean: np.ndarray, cov: np.ndarray, n_samples: int, rng) -> np.ndarray:
+    """Draws of ``N(mean, cov)`` as columns, for a positive semidefinite ``cov``.
+
+    The covariance is decomposed by ``eigh`` (negative rounding eigenvalues
+    clipped to zero), which also serves singular covariances.
+    """
+    values, vectors = linalg.eigh(cov, check_finite=False)
+    root = vectors * np.sqrt(np.maximum(values, 0.0))
+    return mean[:, None] + root @ rng.standard_normal((mean.shape[0], n_samples))
 
 
 def robust_cholesky(A: np.ndarray, what: str = "data covariance") -> tuple[np.ndarray, float]:
@@ -115,7 +158,7 @@ class DataSpacePosterior(GaussianCoefficients):
 
     Parameters
     ----------
-    operator : DownsampledConvolution
+    operator : Observation
     kernel : sklearn Kernel over lags
     noise_level : float
         Noise variance ``gamma`` of the slow samples.
@@ -123,20 +166,19 @@ class DataSpacePosterior(GaussianCoefficients):
     """
 
     def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
-        K = operator.kernel_matrix(kernel)
-        PhiK = regressor_times_kernel(kernel, operator, K)
+        term = observe(kernel, operator)
+        K = term.kernel_matrix()
+        PhiK = term.regressor_times_kernel()
         # the structured S (filters, recursion) rather than the O(M^2 P) PhiK Phi^T
-        Ky = observed_with_contractor(kernel, operator, need_gradient=False)[0].copy()
+        Ky = term.covariance().copy()
         Ky[np.diag_indices_from(Ky)] += noise_level
         self.L, self.jitter = robust_cholesky(Ky)
         self.alpha = linalg.cho_solve((self.L, True), y, check_finite=False)
         B = linalg.solve_triangular(self.L, PhiK, lower=True, check_finite=False)
         # eq. (15): K Phi^T (Phi K Phi^T + gamma I)^{-1} y
         super().__init__(PhiK.T @ self.alpha, K, B)
-        self.log_marginal_likelihood = float(
-            -0.5 * y @ self.alpha
-            - np.log(np.diag(self.L)).sum()
-            - 0.5 * y.shape[0] * LOG_2PI
+        self.log_marginal_likelihood = log_gaussian(
+            y @ self.alpha, 2.0 * np.log(np.diag(self.L)).sum(), y.shape[0]
         )
 
     def mean_at_lags(self, operator, kernel, lags: np.ndarray) -> np.ndarray:
@@ -191,7 +233,7 @@ class ParameterSpacePosterior(GaussianCoefficients):
         residual = y - Phi @ (F @ z)
         quad = residual @ residual / noise_level + z @ z
         log_det = y.shape[0] * np.log(noise_level) + 2.0 * np.log(np.abs(np.diag(R))).sum()
-        self.log_marginal_likelihood = float(-0.5 * quad - 0.5 * log_det - 0.5 * y.shape[0] * LOG_2PI)
+        self.log_marginal_likelihood = log_gaussian(quad, log_det, y.shape[0])
         self.factor = linalg.solve_triangular(R, F.T, trans="T", check_finite=False).T
         super().__init__(F @ z, K, None)
 
@@ -233,25 +275,16 @@ def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCo
     """The posterior in whichever space is smaller: data (``M <= P``) or parameters.
 
     For ``M > P`` the data are first reduced to the ``P x P`` factor of
-    :class:`~gpmultirate._reduced.ReducedObservation` (never holding ``Phi``),
-    whose least-squares form gives the same posterior; ``operator`` may be
-    such a reduction already (``y`` is then ignored).
+    :class:`~gpmultirate.observations.ReducedObservation` (never holding
+    ``Phi``), whose least-squares form gives the same posterior; ``operator``
+    may be such a reduction already (``y`` is then its ``z``).
     """
-    if isinstance(operator, ReducedObservation) or operator.n_outputs > operator.order:
-        reduced = operator if isinstance(operator, ReducedObservation) else (
-            ReducedObservation(operator, y)
-        )
-        result = ParameterSpacePosterior(reduced, kernel, noise_level, reduced.z)
-        result.log_marginal_likelihood += reduced.discarded_log_likelihood(noise_level)[0]
-        return result
-    return DataSpacePosterior(operator, kernel, noise_level, y)
-
-
-def _discarded(operator, noise_level):
-    """The evidence of the samples a reduced observation left out (zeros otherwise)."""
-    if isinstance(operator, ReducedObservation):
-        return operator.discarded_log_likelihood(noise_level)
-    return 0.0, 0.0, 0.0
+    data, z = operator.reduced(y)
+    if data.n_discarded == 0:
+        return DataSpacePosterior(data, kernel, noise_level, z)
+    result = ParameterSpacePosterior(data, kernel, noise_level, z)
+    result.log_marginal_likelihood += data.discarded_log_likelihood(noise_level)[0]
+    return result
 
 
 def log_marginal_likelihood(
@@ -262,15 +295,17 @@ def log_marginal_likelihood(
     The gradient has the kernel's ``theta`` first and, when ``noise_free`` is
     true, the derivative with respect to ``log(noise_level)`` last.
     """
-    S, contract = observed_with_contractor(kernel, operator, need_gradient=eval_gradient)
+    term = observe(kernel, operator)
+    if eval_gradient:
+        S, contract = term.covariance_with_contractor()
+    else:
+        S = term.covariance()
     Ky = S.copy()
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     alpha = linalg.cho_solve((L, True), y, check_finite=False)
-    rest_value, rest_grad, _ = _discarded(operator, noise_level)
-    value = float(
-        -0.5 * y @ alpha - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI + rest_value
-    )
+    rest_value, rest_grad, _ = operator.discarded_log_likelihood(noise_level)
+    value = log_gaussian(y @ alpha, 2.0 * np.log(np.diag(L)).sum(), y.shape[0]) + rest_value
     if not eval_gradient:
         return value
     W = _inverse_from_cholesky(L)
@@ -312,14 +347,14 @@ def log_marginal_likelihood_fisher(
     follow the kernel's ``theta`` and, when ``noise_free``, ``log(noise_level)``
     last.
     """
-    S, items = observed_with_derivatives(kernel, operator)
+    S, items = observe(kernel, operator).covariance_with_derivatives()
     Ky = S.copy()  # S may itself be an item (the derivative of an amplitude)
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     M = y.shape[0]
     inverse = _inverse_from_cholesky(L)
     a = inverse @ y
-    value = float(-0.5 * y @ a - np.log(np.diag(L)).sum() - 0.5 * M * LOG_2PI)
+    value = log_gaussian(y @ a, 2.0 * np.log(np.diag(L)).sum(), M)
     terms = []  # ("dense", dS, V, V^T) or ("factor", U, B, D)
     solved = {}  # factors shared by the items of one PK term are solved once
     for item in items:
@@ -349,7 +384,7 @@ def log_marginal_likelihood_fisher(
             grad[j] = 0.5 * (quad - np.trace(V))
         for k in range(j + 1):
             fisher[j, k] = fisher[k, j] = 0.5 * _trace_of_product(term, terms[k])
-    rest_value, rest_grad, rest_fisher = _discarded(operator, noise_level)
+    rest_value, rest_grad, rest_fisher = operator.discarded_log_likelihood(noise_level)
     value += rest_value
     if noise_free:
         grad[-1] += rest_grad
@@ -375,39 +410,200 @@ def _trace_of_product(term1, term2) -> float:
 
 
 def resonance_grid_log_marginal_likelihood(
-    operator, kernel, term, noise_level: float, y: np.ndarray, omegas: np.ndarray
+    operator, kernel, term, name: str, noise_level: float, y: np.ndarray, values: np.ndarray
 ):
-    """Log evidence for each resonance frequency in ``omegas`` of one PK ``term``.
+    """Log evidence for each value of the hyperparameter ``name`` of one low-rank summand.
 
-    ``term`` must be a summand of ``kernel`` (not inside a product); returns
-    None otherwise.  The rest of the data covariance is factored once and the
-    term, of rank two, enters each candidate by the matrix determinant lemma
-    and the Woodbury identity: ``O(M^2)`` per candidate instead of
-    ``O(M^3)``.
+    ``term`` must be a summand of ``kernel`` (not inside a product) whose
+    structured term is low rank (:meth:`~gpmultirate.kernels.ObservedTerm.low_rank`),
+    such as a PK resonance; returns None otherwise.  The rest of the data
+    covariance is factored once and the summand enters each candidate by
+    the matrix determinant lemma and the Woodbury identity: ``O(M^2)`` per
+    candidate instead of ``O(M^3)``.
     """
-    S_rest = observed_without(kernel, term, operator)
+    S_rest = observe(kernel, operator).covariance_without(term)
     if S_rest is None:
         return None
+    factors = []
+    for value in values:
+        candidate = clone(term).set_params(**{name: float(value)})
+        factor = observe(candidate, operator).low_rank()
+        if factor is None:
+            return None
+        factors.append(factor)
     Ky = S_rest
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
-    base = float(
-        -0.5 * w @ w - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * LOG_2PI
-        + _discarded(operator, noise_level)[0]
-    )
-    values = term._check_hyperparameters()
-    roots = np.array([values["sigma1"], values["sigma2"]])
-    lags = operator.lags[:, 0]
-    parts = [term._parts(lags, values["alpha"], omega) for omega in omegas]
-    U = operator.matrix @ np.column_stack([v for pair in parts for v in pair])
+    half_log_det = np.log(np.diag(L)).sum()
+    rest = operator.discarded_log_likelihood(noise_level)[0]
+    # one product with the regressor for every candidate's basis
+    U = operator.matrix @ np.column_stack([basis for basis, _ in factors])
     A = linalg.solve_triangular(L, U, lower=True, check_finite=False)
-    result = np.empty(len(omegas))
-    for k in range(len(omegas)):
-        B = A[:, 2 * k : 2 * k + 2] * roots  # L^{-1} U_k D^{1/2}
-        C = np.eye(2) + B.T @ B
+    result = np.empty(len(values))
+    start = 0
+    for k, (basis, weight) in enumerate(factors):
+        rank = basis.shape[1]
+        # B = L^{-1} U_k D^{1/2}, for the positive semidefinite weight D
+        d, Q = np.linalg.eigh(weight)
+        B = A[:, start : start + rank] @ (Q * np.sqrt(np.maximum(d, 0.0)))
+        start += rank
+        C = np.eye(rank) + B.T @ B
         b = B.T @ w
         chol = np.linalg.cholesky(C)
         v = np.linalg.solve(chol, b)
-        result[k] = base + 0.5 * v @ v - np.log(np.diag(chol)).sum()
+        # Woodbury: quadratic w^T w - v^T v; determinant lemma: det Ky = det(L L^T) det C
+        result[k] = log_gaussian(
+            w @ w - v @ v, 2.0 * (half_log_det + np.log(np.diag(chol)).sum()), y.shape[0]
+        ) + rest
     return result
+
+
+class LogEvidence:
+    """The log marginal likelihood of the data as a function of the log hyperparameters.
+
+    The objective that tuning maximizes: ``theta`` is the kernel's ``theta``
+    followed, when the noise level is tuned, by ``log(noise_level)``.  Long
+    records are reduced once here (:meth:`~gpmultirate.observations.Observation.reduced`),
+    so an evaluation never costs more than ``O(P^3)``.
+
+    Parameters
+    ----------
+    observation : Observation
+    y : ndarray of shape (M,)
+    kernel : sklearn Kernel
+        The kernel at the initial hyperparameters (not modified).
+    noise_level : float
+        The noise variance; the initial value when it is tuned.
+    noise_bounds : pair of floats or "fixed"
+
+    Attributes
+    ----------
+    data, z : Observation and ndarray
+        The observation and outputs the evidence is computed from (reduced
+        when ``M > P``).
+    noise_is_free : bool
+        Whether ``log(noise_level)`` is the last entry of ``theta``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(90), factor=3, order=30)
+    >>> y = op.matvec(0.8 ** np.arange(30)) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> evidence = LogEvidence(op, y, C(1.0) * DC(), 1e-3, (1e-6, 1.0))
+    >>> value, gradient = evidence(evidence.theta, eval_gradient=True)
+    >>> gradient.shape
+    (4,)
+    """
+
+    def __init__(self, observation, y, kernel, noise_level: float, noise_bounds):
+        self.data, self.z = observation.reduced(y)
+        self.kernel = kernel
+        self.noise_level = float(noise_level)
+        self.noise_bounds = noise_bounds
+        self.noise_is_free = not isinstance(noise_bounds, str)
+        self._work = None
+
+    @property
+    def n_outputs(self) -> int:
+        """Outputs of the (reduced) data: the size of every data-space matrix."""
+        return self.data.n_outputs
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The initial ``theta``: the kernel's and, if tuned, ``log(noise_level)``."""
+        theta = self.kernel.theta
+        return np.append(theta, np.log(self.noise_level)) if self.noise_is_free else theta
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Log bounds of ``theta``, of shape ``(n, 2)``."""
+        bounds = self.kernel.bounds.reshape(-1, 2)
+        if self.noise_is_free:
+            bounds = np.vstack([bounds, np.log(self.noise_bounds)])
+        return bounds
+
+    def roles(self) -> list:
+        """One :class:`~gpmultirate.kernels.Role` per kernel entry of ``theta``."""
+        return observe(self.kernel).roles()
+
+    def scale_positions(self):
+        """``[(position, power)]`` of the amplitudes that scale the whole kernel, or None."""
+        term = observe(self.kernel)
+        positions = term.scale_roles()
+        if positions is None:
+            return None
+        roles = term.roles()
+        return [(i, roles[i].power) for i in positions]
+
+    def split(self, theta, into=None):
+        """The kernel and noise level of ``theta``.
+
+        With ``into`` (a kernel of the same structure) its ``theta`` is set
+        in place instead of cloning.
+        """
+        n_kernel = self.kernel.theta.shape[0]
+        if into is None:
+            kernel = self.kernel.clone_with_theta(theta[:n_kernel])
+        else:
+            into.theta = theta[:n_kernel]
+            kernel = into
+        noise = float(np.exp(theta[n_kernel])) if self.noise_is_free else self.noise_level
+        return kernel, noise
+
+    def moved_to(self, kernel, noise_level: float) -> "LogEvidence":
+        """The same objective, on the same (reduced) data, started at ``kernel`` and ``noise_level``."""
+        moved = LogEvidence.__new__(LogEvidence)
+        moved.__dict__.update(self.__dict__)
+        moved.kernel, moved.noise_level = kernel, float(noise_level)
+        return moved
+
+    def reusing_kernel(self) -> "LogEvidence":
+        """A copy whose evaluations set the hyperparameters of one working kernel in place.
+
+        An optimizer evaluates hundreds of points, and a deep copy of the
+        kernel per point is a large part of a small problem's cost.
+        """
+        reusing = self.moved_to(self.kernel, self.noise_level)
+        reusing._work = clone(self.kernel)
+        return reusing
+
+    def covariance(self) -> np.ndarray:
+        """``S = Phi K Phi^T`` of the (reduced) data at the initial kernel."""
+        return observe(self.kernel, self.data).covariance()
+
+    def __call__(self, theta, eval_gradient: bool = False):
+        """The log evidence at ``theta`` and, with ``eval_gradient``, its gradient."""
+        kernel, noise = self.split(theta, into=self._work)
+        return log_marginal_likelihood(
+            self.data, kernel, noise, self.z, eval_gradient, self.noise_is_free
+        )
+
+    def with_fisher(self, theta):
+        """The log evidence, its gradient and its Fisher information at ``theta``."""
+        kernel, noise = self.split(theta, into=self._work)
+        return log_marginal_likelihood_fisher(
+            self.data, kernel, noise, self.z, self.noise_is_free
+        )
+
+    def along(self, theta, index: int, values):
+        """The log evidence for each value of ``theta[index]``, or None.
+
+        ``values`` are hyperparameter values (not their logs).  None unless
+        the entry belongs to a low-rank summand of the kernel.
+        """
+        role = self.roles()[index]
+        kernel, noise = self.split(theta, into=self._work)
+        prefix = role.name[: -len(role.leaf_name)].rstrip("_")
+        owner = kernel.get_params()[prefix] if prefix else kernel
+        return resonance_grid_log_marginal_likelihood(
+            self.data, kernel, owner, role.leaf_name, noise, self.z, values
+        )
+
+    def posterior(self, kernel, noise_level: float):
+        """The posterior of the coefficients for ``kernel`` and ``noise_level``."""
+        return posterior(self.data, kernel, noise_level, self.z)

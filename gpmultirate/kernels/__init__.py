@@ -1,0 +1,37 @@
+"""Impulse-response kernels over continuous lag (paper eq. 16-19) and their structure.
+
+The kernel home of the library: the lag kernels TC, DC, SS and PK
+(:mod:`gpmultirate.kernels.lag`), the structure layer through which every
+kernel answers for its own fast paths (:mod:`gpmultirate.kernels.structure`,
+with :func:`observe`, the one walker over ``Sum``, ``Product`` and
+``ConstantKernel``), the diagonal recursion of shift-scaled kernels
+(:mod:`gpmultirate.kernels.recursion`) and the filter form of DC
+(:mod:`gpmultirate.kernels.filters`).
+
+A new kernel subclasses :class:`StructuredKernel` and, to get a fast path,
+returns a structured term from :meth:`StructuredKernel.observed`; see the
+"Adding a kernel" guide.
+"""
+
+from gpmultirate.kernels.lag import DC, PK, SS, TC, LagKernel, check_lags
+from gpmultirate.kernels.structure import (
+    LowRankTerm,
+    ObservedTerm,
+    Role,
+    StructuredKernel,
+    observe,
+)
+
+__all__ = [
+    "DC",
+    "PK",
+    "SS",
+    "TC",
+    "LagKernel",
+    "LowRankTerm",
+    "ObservedTerm",
+    "Role",
+    "StructuredKernel",
+    "check_lags",
+    "observe",
+]

@@ -1,0 +1,129 @@
+r"""The DC kernel through an observation by recursive filters.
+
+``K = D T D`` with the envelope ``D = diag(alpha^(t/2))`` and the Toeplitz
+matrix ``T[i, j] = beta^|i - j|``, whose product with a row vector is a pair
+of first-order recursive filters (causal and anticausal, the centre counted
+once).  With ``G = Phi D`` and ``H = G T``:
+
+* ``S = Phi K Phi^T = H G^T``, ``O(M P + M^2 P)`` instead of ``O(M P^2)``;
+* the derivative in ``log alpha`` is ``E K + K E`` with ``E = diag(t / 2)``,
+  so ``tr(W Phi dK Phi^T) = sum_{m, i} t_i H[m, i] (W G)[m, i]``;
+* the derivative in ``log beta`` replaces ``T`` by ``|i - j| beta^|i - j|``,
+  a second-order filter;
+* ``Phi K = H D``.
+
+The products of ``G`` (which has the sparsity of ``Phi``) with ``H`` and
+with ``W`` are the observation's: a triangular regressor halves them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from gpmultirate.kernels.structure import ObservedTerm, symmetrize
+
+__all__ = ["DCFilterTerm", "suffix_after", "two_sided"]
+
+
+def two_sided(X, causal_b, causal_a, include_center: bool) -> np.ndarray:
+    """Filter every row of ``X`` with a symmetric two-sided recursive filter.
+
+    The causal part has transfer function ``b(z)/a(z)``; the anticausal part
+    is its mirror image.  With ``include_center`` the zero-lag tap (present in
+    both halves) is counted once.
+
+    Examples
+    --------
+    >>> two_sided(np.array([[0.0, 1.0, 0.0]]), [1.0], [1.0, -0.5], include_center=True)
+    array([[0.5, 1. , 0.5]])
+    """
+    causal = signal.lfilter(causal_b, causal_a, X, axis=1)
+    anticausal = signal.lfilter(causal_b, causal_a, X[:, ::-1], axis=1)[:, ::-1]
+    total = causal + anticausal
+    if include_center:
+        total -= causal_b[0] * X
+    return total
+
+
+def suffix_after(X: np.ndarray) -> np.ndarray:
+    """``out[:, j] = sum_{i > j} X[:, i]`` (summed from the far end).
+
+    Examples
+    --------
+    >>> suffix_after(np.array([[1.0, 2.0, 3.0]]))
+    array([[5., 3., 0.]])
+    """
+    out = np.zeros_like(X)
+    out[:, :-1] = np.cumsum(X[:, :0:-1], axis=1)[:, ::-1]
+    return out
+
+
+def _distance_filtered(G, beta):
+    """``G T'`` with ``T'[i, j] = |i - j| beta^|i - j|`` (derivative in ``log beta``)."""
+    return two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
+
+
+class DCFilterTerm(ObservedTerm):
+    """A DC kernel through any observation, by the filters of the module docstring."""
+
+    def _filtered(self):
+        """``beta``, the envelope ``d``, ``G = Phi D`` and ``H = G T``."""
+        values = self.kernel.checked_values()
+        beta = values["beta"]
+        decay = values["alpha"] ** (self.lags / 2.0)
+        G = self.observation.matrix * decay
+        return beta, decay, G, two_sided(G, [1.0], [1.0, -beta], include_center=True)
+
+    def _free(self):
+        return [h.name for h in self.kernel.hyperparameters if not h.fixed]
+
+    def parameter_contractor(self):
+        K = self.kernel_matrix()
+        lags = self.lags
+        distance = np.abs(np.subtract.outer(lags, lags))
+        free = self._free()
+
+        def contract(A):
+            AK = A * K
+            # sum_ij A_ij K_ij (t_i + t_j) / 2 = t^T (A * K) 1 for symmetric A and K
+            values = {"alpha": lags @ AK.sum(axis=1), "beta": np.sum(AK * distance)}
+            return np.array([values[name] for name in free])
+
+        return K, contract
+
+    def covariance(self):
+        _, _, G, H = self._filtered()
+        return symmetrize(self.observation.regressor_shaped_outer(H, G))
+
+    def covariance_with_contractor(self):
+        beta, _, G, H = self._filtered()
+        S = symmetrize(self.observation.regressor_shaped_outer(H, G))
+        lags, free = self.lags, self._free()
+
+        def contract(W):
+            WG = self.observation.symmetric_times_regressor_shaped(W, G)
+            values = {
+                "alpha": np.einsum("mi,mi,i->", H, WG, lags),
+                "beta": np.einsum("mi,mi->", _distance_filtered(G, beta), WG),
+            }
+            return np.array([values[name] for name in free])
+
+        return S, contract
+
+    def covariance_with_derivatives(self):
+        beta, _, G, H = self._filtered()
+        S = symmetrize(H @ G.T)
+        items = []
+        for name in self._free():
+            if name == "alpha":
+                # Phi (E K + K E) Phi^T = (G E) H^T + H (G E)^T
+                half = (G * (self.lags / 2.0)) @ H.T
+                items.append(half + half.T)
+            else:
+                items.append(symmetrize(_distance_filtered(G, beta) @ G.T))
+        return S, items
+
+    def regressor_times_kernel(self):
+        _, decay, _, H = self._filtered()
+        return H * decay

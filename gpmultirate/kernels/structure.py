@@ -1,0 +1,579 @@
+r"""The structure layer: a kernel seen through an observation.
+
+Tuning and inference ask the same few questions of the prior covariance
+``K`` (``P x P``, the kernel at the lags ``0..P-1`` of an observation) and of
+the covariance of the noise-free observed data ``S = Phi K Phi^T``:
+
+=============================================  ===============================
+question                                       method of :class:`ObservedTerm`
+=============================================  ===============================
+``K``                                          ``kernel_matrix``
+``K`` and ``A -> [sum(A * dK_j)]_j``           ``parameter_contractor``
+``S``                                          ``covariance``
+``S`` and ``W -> [tr(W Phi dK_j Phi^T)]_j``    ``covariance_with_contractor``
+``S`` and every ``dS_j = Phi dK_j Phi^T``      ``covariance_with_derivatives``
+``Phi K``                                      ``regressor_times_kernel``
+``S`` with one summand left out                ``covariance_without``
+=============================================  ===============================
+
+(``dK_j`` is the derivative with respect to the ``j``-th entry of
+``kernel.theta``, the log of a free hyperparameter; ``A`` and ``W`` are
+symmetric.)  :class:`ObservedTerm` answers all of them densely, from the
+kernel matrix and scikit-learn's gradient, so any scikit-learn kernel works.
+A kernel with structure subclasses :class:`StructuredKernel` and returns,
+from :meth:`StructuredKernel.observed`, a term class that answers faster: a
+:class:`LowRankTerm` for ``K = V D V^T`` (PK, constants), the filter form of
+DC (:mod:`gpmultirate.kernels.filters`), or the diagonal recursion of
+shift-scaled kernels (:mod:`gpmultirate.kernels.recursion`).  How the data
+enter (a triangular factor, a strided view of the input) is the
+observation's business: terms call its products and never ask its type.
+
+:func:`observe` is the one walker over the kernel algebra: ``Sum`` adds
+terms, ``ConstantKernel * k`` keeps the constant a scalar factor, any other
+``Product`` is formed densely with the product rule, and ``ConstantKernel``
+alone is rank one.
+
+Tuning also asks what each free hyperparameter *is* (:class:`Role`): a decay
+or correlation in (0, 1] (``"decay"``, tuned in decay-rate coordinates), a
+resonance frequency (``"frequency"``, searched on a grid), an amplitude
+(``"amplitude"``; the set that scales the whole kernel is
+:meth:`ObservedTerm.scale_roles`), or anything else (``"other"``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
+
+__all__ = ["LowRankTerm", "ObservedTerm", "Role", "StructuredKernel", "observe"]
+
+
+@dataclass(frozen=True)
+class Role:
+    """What one free entry of ``kernel.theta`` means to the tuning strategy.
+
+    Attributes
+    ----------
+    name : str
+        The parameter's full name in the kernel (``k1__k2__alpha``), as
+        :meth:`~sklearn.base.BaseEstimator.set_params` takes it.
+    kind : {"decay", "frequency", "amplitude", "other"}
+        ``"decay"``: a value in (0, 1] such as ``alpha`` or ``beta``;
+        ``"frequency"``: a resonance frequency in radians per sample;
+        ``"amplitude"``: the kernel scales with ``value ** (1 / power)``.
+    owner : sklearn Kernel
+        The leaf kernel the parameter belongs to.
+    leaf_name : str
+        The parameter's name within ``owner``.
+    power : float
+        For amplitudes: scaling the owner by ``c`` multiplies the value by
+        ``c ** power`` (1 for a constant, 1/2 for a standard deviation).
+    """
+
+    name: str
+    kind: str
+    owner: Kernel
+    leaf_name: str
+    power: float = 1.0
+
+
+def no_gradient(A) -> np.ndarray:
+    """The contraction of a term without free hyperparameters: an empty vector."""
+    return np.empty(0)
+
+
+def symmetrize(A: np.ndarray) -> np.ndarray:
+    """``(A + A^T) / 2``: removes the rounding asymmetry of a product."""
+    return 0.5 * (A + A.T)
+
+
+class ObservedTerm:
+    """A kernel seen through an observation; every question answered densely.
+
+    This is the fallback for any scikit-learn kernel and the base class of
+    the structured terms, which override what their structure makes
+    cheaper.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        Prior covariance over lag.
+    observation : Observation or None
+        The observation operator (see :mod:`gpmultirate.observations`);
+        None for questions about the hyperparameters only (:meth:`roles`).
+    path : str, default=""
+        Prefix of this kernel's parameter names within the whole kernel
+        (``"k1__"``), for :class:`Role`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import RBF
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import observe
+    >>> op = DownsampledConvolution(np.arange(1.0, 7.0), factor=2, order=3)
+    >>> term = observe(RBF(1.0), op)
+    >>> S = term.covariance()
+    >>> K = RBF(1.0)(op.lags)
+    >>> bool(np.allclose(S, op.matrix @ K @ op.matrix.T))
+    True
+    """
+
+    def __init__(self, kernel: Kernel, observation=None, path: str = ""):
+        self.kernel = kernel
+        self.observation = observation
+        self.path = path
+
+    @property
+    def lags(self) -> np.ndarray:
+        """The lags ``0..P-1`` of the observation as a float vector."""
+        return self.observation.lags[:, 0]
+
+    # ------------------------------------------------------ parameter space
+    def kernel_matrix(self) -> np.ndarray:
+        """``K`` at the lags ``0..P-1``."""
+        return self.kernel(self.observation.lags)
+
+    def kernel_with_gradient(self) -> tuple[np.ndarray, np.ndarray]:
+        """``K`` and its gradient, of shape ``(P, P, n_theta)``."""
+        return self.kernel(self.observation.lags, eval_gradient=True)
+
+    def parameter_contractor(self):
+        """``K`` and ``contract(A) -> [sum(A * dK_j)]_j`` for symmetric ``A``."""
+        K, dK = self.kernel_with_gradient()
+        n = dK.shape[2]
+        if n == 0:
+            return K, no_gradient
+        return K, lambda A: A.reshape(-1) @ dK.reshape(-1, n)
+
+    # ----------------------------------------------------------- data space
+    def covariance(self) -> np.ndarray:
+        """``S = Phi K Phi^T``, of shape ``(M, M)``."""
+        return self.observation.sandwich(self.kernel_matrix())
+
+    def covariance_with_contractor(self):
+        """``S`` and ``contract(W) -> [tr(W Phi dK_j Phi^T)]_j`` for symmetric ``W``."""
+        K, contract = self.parameter_contractor()
+        observation = self.observation
+        return observation.sandwich(K), lambda W: contract(observation.project(W))
+
+    def covariance_with_derivatives(self):
+        """``S`` and the list of ``dS_j``, one per free hyperparameter.
+
+        Each item is a dense symmetric ``(M, M)`` array or, for low-rank
+        derivatives, a pair ``(U, D)`` with ``dS_j = U D U^T``.
+        """
+        K, dK = self.kernel_with_gradient()
+        sandwich = self.observation.sandwich
+        return sandwich(K), [sandwich(dK[:, :, j]) for j in range(dK.shape[2])]
+
+    def regressor_times_kernel(self) -> np.ndarray:
+        """``Phi K``, of shape ``(M, P)``: the covariance of the data with the coefficients."""
+        return self.observation.matrix @ self.kernel_matrix()
+
+    def covariance_without(self, kernel: Kernel) -> np.ndarray | None:
+        """``S`` with the summand ``kernel`` left out, or None if it is not a summand."""
+        if self.kernel is kernel:
+            size = self.observation.n_outputs
+            return np.zeros((size, size))
+        return None
+
+    def low_rank(self):
+        """``(V, D)`` with ``K = V D V^T`` (``V`` of shape ``(P, r)``), or None."""
+        return None
+
+    # -------------------------------------------------------------- roles
+    def roles(self) -> list[Role]:
+        """One :class:`Role` per free entry of ``kernel.theta``, in order."""
+        declared = getattr(self.kernel, "tuning_roles", {})
+        roles = []
+        for h in self.kernel.hyperparameters:
+            if h.fixed:
+                continue
+            kind, power = declared.get(h.name, ("other", 1.0))
+            roles += [Role(self.path + h.name, kind, self.kernel, h.name, power)] * h.n_elements
+        return roles
+
+    def scale_roles(self) -> list[int] | None:
+        """Positions (in :meth:`roles`) of amplitudes that together scale all of ``K``.
+
+        None when no set of free amplitudes scales the whole kernel.
+        """
+        roles = self.roles()
+        amplitudes = [i for i, role in enumerate(roles) if role.kind == "amplitude"]
+        owned = [h.name for h in self.kernel.hyperparameters]
+        declared = getattr(self.kernel, "tuning_roles", {})
+        every_amplitude = [n for n in owned if declared.get(n, ("other",))[0] == "amplitude"]
+        if not amplitudes or len(amplitudes) != len(every_amplitude):
+            return None
+        return amplitudes
+
+
+class StructuredKernel:
+    """Mixin of kernels that answer for their own structure: the extension point.
+
+    A subclass (also a scikit-learn ``Kernel``) may
+
+    * override :meth:`observed` to return a term whose methods use its
+      structure (subclass :class:`ObservedTerm`, or use :class:`LowRankTerm`);
+    * declare ``tuning_roles``, a dict from hyperparameter name to
+      ``(kind, power)`` (see :class:`Role`), so that tuning treats decays,
+      frequencies and amplitudes well.
+
+    Everything not overridden falls back to the dense answers of
+    :class:`ObservedTerm`.
+    """
+
+    #: ``{name: (kind, power)}``, see :class:`Role`
+    tuning_roles: dict = {}
+
+    def observed(self, observation, path: str = "") -> ObservedTerm:
+        """This kernel seen through ``observation``; dense unless overridden."""
+        return ObservedTerm(self, observation, path)
+
+
+class SumTerm(ObservedTerm):
+    """``k1 + k2``: every answer is the sum (or concatenation) of the terms' answers."""
+
+    def __init__(self, kernel, first: ObservedTerm, second: ObservedTerm, observation, path):
+        super().__init__(kernel, observation, path)
+        self.first, self.second = first, second
+
+    def kernel_matrix(self):
+        return self.first.kernel_matrix() + self.second.kernel_matrix()
+
+    def parameter_contractor(self):
+        K1, c1 = self.first.parameter_contractor()
+        K2, c2 = self.second.parameter_contractor()
+        return K1 + K2, lambda A: np.concatenate([c1(A), c2(A)])
+
+    def covariance(self):
+        return self.first.covariance() + self.second.covariance()
+
+    def covariance_with_contractor(self):
+        S1, c1 = self.first.covariance_with_contractor()
+        S2, c2 = self.second.covariance_with_contractor()
+        return S1 + S2, lambda W: np.concatenate([c1(W), c2(W)])
+
+    def covariance_with_derivatives(self):
+        S1, d1 = self.first.covariance_with_derivatives()
+        S2, d2 = self.second.covariance_with_derivatives()
+        return S1 + S2, d1 + d2
+
+    def regressor_times_kernel(self):
+        return self.first.regressor_times_kernel() + self.second.regressor_times_kernel()
+
+    def covariance_without(self, kernel):
+        if self.kernel is kernel:
+            return super().covariance_without(kernel)
+        for inside, other in ((self.first, self.second), (self.second, self.first)):
+            rest = inside.covariance_without(kernel)
+            if rest is not None:
+                return rest + other.covariance()
+        return None
+
+    def roles(self):
+        return self.first.roles() + self.second.roles()
+
+    def scale_roles(self):
+        first, second = self.first.scale_roles(), self.second.scale_roles()
+        if first is None or second is None:
+            return None
+        return first + [len(self.first.roles()) + i for i in second]
+
+
+class ScaledTerm(ObservedTerm):
+    """``c * k`` (either order) with the constant kept a scalar.
+
+    The derivative with respect to ``log c`` of ``c X`` is ``c X`` itself,
+    and every other derivative is ``c`` times that of ``k``.
+    """
+
+    def __init__(self, kernel, constant, inner: ObservedTerm, constant_first, observation, path):
+        super().__init__(kernel, observation, path)
+        self.value = float(constant.constant_value)
+        self.free = not constant.hyperparameter_constant_value.fixed
+        self.constant = constant
+        self.inner = inner
+        self.constant_first = constant_first
+
+    def _join(self, own, rest):
+        return np.concatenate([own, rest] if self.constant_first else [rest, own])
+
+    def kernel_matrix(self):
+        return self.value * self.inner.kernel_matrix()
+
+    def parameter_contractor(self):
+        K_inner, c_inner = self.inner.parameter_contractor()
+        K = self.value * K_inner
+
+        def contract(A):
+            own = np.array([np.sum(A * K)]) if self.free else np.empty(0)
+            return self._join(own, c_inner(self.value * A))
+
+        return K, contract
+
+    def covariance(self):
+        return self.value * self.inner.covariance()
+
+    def covariance_with_contractor(self):
+        S_inner, c_inner = self.inner.covariance_with_contractor()
+        S = self.value * S_inner
+
+        def contract(W):
+            own = np.array([np.sum(W * S)]) if self.free else np.empty(0)
+            return self._join(own, c_inner(self.value * W))
+
+        return S, contract
+
+    def covariance_with_derivatives(self):
+        S_inner, d_inner = self.inner.covariance_with_derivatives()
+        S = self.value * S_inner
+        rest = [
+            (item[0], self.value * item[1]) if isinstance(item, tuple) else self.value * item
+            for item in d_inner
+        ]
+        own = [S] if self.free else []
+        return S, (own + rest if self.constant_first else rest + own)
+
+    def regressor_times_kernel(self):
+        return self.value * self.inner.regressor_times_kernel()
+
+    def _own_roles(self):
+        if not self.free:
+            return []
+        prefix = self.path + ("k1__" if self.constant_first else "k2__")
+        return [Role(prefix + "constant_value", "amplitude", self.constant, "constant_value")]
+
+    def roles(self):
+        own, rest = self._own_roles(), self.inner.roles()
+        return own + rest if self.constant_first else rest + own
+
+    def scale_roles(self):
+        # the first factor's amplitudes if it has any, else the second's
+        # (a fixed constant has no role, so the inner positions are unchanged)
+        own = [0 if self.constant_first else len(self.inner.roles())] if self.free else None
+        inner = self.inner.scale_roles()
+        if self.constant_first:
+            return own if own is not None else inner
+        return inner if inner is not None else own
+
+
+class ProductTerm(ObservedTerm):
+    """A general product ``k1 * k2``: dense, with the product rule in parameter space.
+
+    ``d(K1 * K2) = dK1 * K2 + K1 * dK2`` (elementwise), so the first factor
+    is contracted against ``A * K2`` and the second against ``A * K1``.
+    """
+
+    def __init__(self, kernel, first: ObservedTerm, second: ObservedTerm, observation, path):
+        super().__init__(kernel, observation, path)
+        self.first, self.second = first, second
+
+    def kernel_matrix(self):
+        return self.first.kernel_matrix() * self.second.kernel_matrix()
+
+    def parameter_contractor(self):
+        K1, c1 = self.first.parameter_contractor()
+        K2, c2 = self.second.parameter_contractor()
+        return K1 * K2, lambda A: np.concatenate([c1(A * K2), c2(A * K1)])
+
+    def roles(self):
+        return self.first.roles() + self.second.roles()
+
+    def scale_roles(self):
+        first = self.first.scale_roles()
+        if first is not None:
+            return first
+        second = self.second.scale_roles()
+        if second is None:
+            return None
+        return [len(self.first.roles()) + i for i in second]
+
+
+class LowRankTerm(ObservedTerm):
+    """A term with ``K = V D V^T`` of low rank ``r``, e.g. PK (``r = 2``) or a constant.
+
+    The data covariance is ``S = U D U^T`` with ``U = Phi V``, so nothing of
+    size ``P x P`` or ``M x M x n_theta`` is formed: ``S`` costs one product
+    ``Phi V``, its gradient contraction ``O(M^2 q)`` and its derivatives stay
+    factored, ``dS_j = U_x D_j U_x^T`` on the extended basis
+    ``V_x = [V, V']``.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+    observation : Observation
+    basis : ndarray of shape (P, r)
+        ``V``.
+    weight : ndarray of shape (r, r)
+        ``D``, symmetric positive semidefinite.
+    derivative_basis : ndarray of shape (P, q - r), optional
+        ``V'``, the extra columns the derivatives need.
+    derivative_weights : sequence of ndarray of shape (q, q)
+        ``D_j`` with ``dK_j = V_x D_j V_x^T``, one per free hyperparameter
+        in ``theta`` order.
+    path : str, default=""
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import PK, observe
+    >>> op = DownsampledConvolution(np.arange(1.0, 9.0), factor=2, order=6)
+    >>> kernel = PK(alpha=0.8, omega=0.7)
+    >>> term = observe(kernel, op)
+    >>> type(term).__name__
+    'LowRankTerm'
+    >>> Phi, K = op.matrix, kernel(op.lags)
+    >>> bool(np.allclose(term.covariance(), Phi @ K @ Phi.T))
+    True
+    """
+
+    def __init__(self, kernel, observation, basis, weight, derivative_basis=None,
+                 derivative_weights=(), path: str = ""):
+        super().__init__(kernel, observation, path)
+        self.basis = basis
+        self.weight = weight
+        self.derivative_basis = derivative_basis
+        self.derivative_weights = list(derivative_weights)
+        self._observed_basis = None
+
+    def low_rank(self):
+        return self.basis, self.weight
+
+    def _extended(self):
+        if self.derivative_basis is None:
+            return self.basis
+        return np.hstack([self.basis, self.derivative_basis])
+
+    def observed_basis(self) -> np.ndarray:
+        """``U_x = Phi V_x``, of shape ``(M, q)`` (computed once)."""
+        if self._observed_basis is None:
+            self._observed_basis = self.observation.matrix @ self._extended()
+        return self._observed_basis
+
+    def parameter_contractor(self):
+        V = self._extended()
+        K = self.kernel_matrix()
+        weights = self.derivative_weights
+
+        def contract(A):
+            projected = V.T @ A @ V
+            return np.array([np.sum(D * projected) for D in weights])
+
+        return K, contract
+
+    def covariance(self):
+        U = self.observed_basis()[:, : self.basis.shape[1]]
+        return (U @ self.weight) @ U.T
+
+    def covariance_with_contractor(self):
+        U = self.observed_basis()
+        S = self.covariance()
+        weights = self.derivative_weights
+
+        def contract(W):
+            projected = U.T @ (W @ U)
+            return np.array([np.sum(D * projected) for D in weights])
+
+        return S, contract
+
+    def covariance_with_derivatives(self):
+        U = self.observed_basis()
+        return self.covariance(), [(U, D) for D in self.derivative_weights]
+
+    def regressor_times_kernel(self):
+        r = self.basis.shape[1]
+        return (self.observed_basis()[:, :r] @ self.weight) @ self.basis.T
+
+
+def split_constant(kernel: Product):
+    """``(constant, other, constant_first)`` of ``c * k`` or ``k * c``, else None."""
+    if isinstance(kernel.k1, ConstantKernel):
+        return kernel.k1, kernel.k2, True
+    if isinstance(kernel.k2, ConstantKernel):
+        return kernel.k2, kernel.k1, False
+    return None
+
+
+class ConstantTerm(LowRankTerm):
+    """A constant alone, of rank one: ``K = c 1 1^T``; its value is an amplitude."""
+
+    def __init__(self, kernel: ConstantKernel, observation, path: str = ""):
+        value = float(kernel.constant_value)
+        weight = np.array([[value]])
+        self.free = not kernel.hyperparameter_constant_value.fixed
+        basis = None if observation is None else np.ones((observation.order, 1))
+        super().__init__(kernel, observation, basis, weight, None,
+                         [weight] if self.free else [], path)
+
+    def roles(self):
+        if not self.free:
+            return []
+        return [Role(self.path + "constant_value", "amplitude", self.kernel, "constant_value")]
+
+    def scale_roles(self):
+        return [0] if self.free else None
+
+
+def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
+    """The one walker: ``kernel`` seen through ``observation``, as a tree of terms.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        Prior covariance over lag: a lag kernel, any scikit-learn kernel,
+        or sums and products of them.
+    observation : Observation, optional
+        The observation operator; None for questions about roles only.
+    path : str, default=""
+        Prefix of the parameter names (used by the recursion).
+
+    Returns
+    -------
+    ObservedTerm
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC, PK, observe
+    >>> op = DownsampledConvolution(np.arange(1.0, 13.0), factor=3, order=12)
+    >>> kernel = C(2.0) * DC(alpha=0.8, beta=0.7) + PK(alpha=0.8, omega=1.0)
+    >>> term = observe(kernel, op)
+    >>> S, contract = term.covariance_with_contractor()
+    >>> bool(np.allclose(S, op.matrix @ kernel(op.lags) @ op.matrix.T))
+    True
+    >>> [role.kind for role in term.roles()]
+    ['amplitude', 'decay', 'decay', 'decay', 'frequency', 'amplitude', 'amplitude']
+    """
+    if isinstance(kernel, Sum):
+        return SumTerm(
+            kernel,
+            observe(kernel.k1, observation, path + "k1__"),
+            observe(kernel.k2, observation, path + "k2__"),
+            observation,
+            path,
+        )
+    if isinstance(kernel, Product):
+        split = split_constant(kernel)
+        if split is not None:
+            constant, other, first = split
+            inner = observe(other, observation, path + ("k2__" if first else "k1__"))
+            return ScaledTerm(kernel, constant, inner, first, observation, path)
+        return ProductTerm(
+            kernel,
+            observe(kernel.k1, observation, path + "k1__"),
+            observe(kernel.k2, observation, path + "k2__"),
+            observation,
+            path,
+        )
+    if isinstance(kernel, ConstantKernel):
+        return ConstantTerm(kernel, observation, path)
+    if isinstance(kernel, StructuredKernel):
+        return kernel.observed(observation, path)
+    return ObservedTerm(kernel, observation, path)

@@ -1,0 +1,157 @@
+"""The observation family: how the slow data see the impulse response.
+
+Every observation is linear in the FIR coefficients ``g`` at the lags
+``0..P-1``: ``y = Phi g + e``.  :class:`Observation` is the interface that
+inference and the kernels' structured terms use; its members own the
+structure of ``Phi``:
+
+* :class:`~gpmultirate.observations.convolution.DownsampledConvolution`,
+  the paper's eq. (8): uniformly spaced slow samples of a convolution, whose
+  rows are a strided view of the input and which offers its uniform
+  sampling to the diagonal recursion of shift-scaled kernels;
+* :class:`~gpmultirate.observations.reduced.ReducedObservation`, the
+  ``P x P`` triangular factor that summarizes a long record, whose products
+  use triangular BLAS.
+
+The base class implements everything from :attr:`Observation.matrix`, so a
+new member needs only that (and ``order``, ``n_outputs``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from gpmultirate.kernels import observe
+from gpmultirate.validation import check_array
+
+__all__ = ["Observation", "UniformSampling"]
+
+
+class UniformSampling(NamedTuple):
+    """Slow samples ``offset + m * factor`` of the response to the input ``u``."""
+
+    u: np.ndarray
+    factor: int
+    offset: int
+
+
+class Observation:
+    """A linear observation ``y = Phi g`` of the FIR coefficients at lags ``0..P-1``.
+
+    Subclasses set ``order`` (``P``) and ``n_outputs`` (``M``) and provide
+    :attr:`matrix`; the products below may be overridden where the
+    structure of ``Phi`` makes them cheaper.
+    """
+
+    order: int
+    n_outputs: int
+    #: samples a reduction has summarized into ``discarded_log_likelihood``
+    n_discarded: int = 0
+    #: the uniform sampling the diagonal recursion needs, if any
+    uniform_sampling: UniformSampling | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(M, P)``, the shape of the regressor."""
+        return (self.n_outputs, self.order)
+
+    @property
+    def lags(self) -> np.ndarray:
+        """Lags ``0..P-1`` as a kernel input of shape ``(P, 1)``."""
+        return np.arange(self.order, dtype=float)[:, None]
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The regressor ``Phi`` of shape ``(M, P)``."""
+        raise NotImplementedError
+
+    def regressor_view(self) -> np.ndarray:
+        """``Phi`` in its cheapest read-only form (a view where possible)."""
+        return self.matrix
+
+    # ------------------------------------------------------------- products
+    def matvec(self, coef) -> np.ndarray:
+        """Return ``Phi @ coef``: the observed output of FIR coefficients ``coef``.
+
+        ``coef`` has shape ``(P,)`` or ``(P, k)``.
+        """
+        coef = check_array(coef, "coef", rows=self.order)
+        return self.matrix @ coef
+
+    def rmatvec(self, y) -> np.ndarray:
+        """Return ``Phi.T @ y`` for ``y`` of shape ``(M,)`` or ``(M, k)``."""
+        y = check_array(y, "y", rows=self.n_outputs)
+        return self.matrix.T @ y
+
+    def sandwich(self, K: np.ndarray) -> np.ndarray:
+        """``Phi K Phi^T`` for a symmetric ``P x P`` matrix ``K``, exactly symmetric."""
+        Phi = self.matrix
+        A = Phi @ K @ Phi.T
+        return 0.5 * (A + A.T)
+
+    def project(self, W: np.ndarray) -> np.ndarray:
+        """``Phi^T W Phi`` for a symmetric ``M x M`` matrix ``W``, exactly symmetric."""
+        Phi = self.matrix
+        A = Phi.T @ W @ Phi
+        return 0.5 * (A + A.T)
+
+    def regressor_shaped_outer(self, H: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """``H @ G.T`` where ``G`` has the sparsity of ``Phi`` (e.g. ``Phi D``)."""
+        return H @ G.T
+
+    def symmetric_times_regressor_shaped(self, W: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """``W @ G`` for a symmetric ``W``, where ``G`` has the sparsity of ``Phi``."""
+        return W @ G
+
+    # ------------------------------------------------------------- reduction
+    def reduced(self, y: np.ndarray):
+        """``(observation, y)`` for the evidence and the posterior.
+
+        With more samples than coefficients (``M > P``), the long-record
+        reduction :class:`~gpmultirate.observations.reduced.ReducedObservation`
+        and its ``z``; otherwise ``(self, y)``.
+        """
+        if self.n_outputs <= self.order:
+            return self, y
+        from gpmultirate.observations.reduced import ReducedObservation
+
+        reduction = ReducedObservation(self, y)
+        return reduction, reduction.z
+
+    def regressor_rows(self, start: int, stop: int) -> np.ndarray:
+        """Rows ``start..stop-1`` of ``Phi`` (the reduction reads them block by block)."""
+        return self.matrix[start:stop]
+
+    def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
+        """Evidence of the samples a reduction left out: value, derivative, Fisher information.
+
+        Derivative and information are with respect to ``log(noise_level)``;
+        all zero unless this is a reduction.
+        """
+        return 0.0, 0.0, 0.0
+
+    # ------------------------------------------------- with a kernel (dense)
+    def kernel_matrix(self, kernel, eval_gradient: bool = False):
+        """Return the prior covariance ``K`` of the coefficients at lags ``0..P-1``."""
+        if not eval_gradient:
+            return observe(kernel, self).kernel_matrix()
+        return kernel(self.lags, eval_gradient=True)
+
+    def covariance(self, kernel, eval_gradient: bool = False):
+        """Return the prior covariance ``Phi K Phi^T`` of the noise-free observed output.
+
+        With ``eval_gradient=True`` also return its gradient with respect to
+        ``kernel.theta``, of shape ``(M, M, n_theta)``.
+        """
+        if not eval_gradient:
+            return self.sandwich(self.kernel_matrix(kernel))
+        Phi = self.matrix
+        K, dK = self.kernel_matrix(kernel, eval_gradient=True)
+        grad = np.einsum("mi,ijk,nj->mnk", Phi, dK, Phi, optimize=True)
+        return self.sandwich(K), grad
+
+    def cross_covariance(self, kernel, lags) -> np.ndarray:
+        """Return ``Cov(g(lags), y) = k(lags, 0..P-1) Phi^T``, shape ``(n, M)``."""
+        return kernel(lags, self.lags) @ self.matrix.T
