@@ -6,7 +6,7 @@ import numpy as np
 from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
 
 from gpmultirate.validation import as_real_array
-from gpmultirate.observations import DownsampledConvolution
+from gpmultirate.observations import Observation
 
 __all__ = ["ObservedKernel"]
 
@@ -25,8 +25,9 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     ----------
     kernel : sklearn Kernel
         Prior covariance of the impulse response over lag.
-    operator : DownsampledConvolution
-        The observation operator built from the training input.
+    operator : Observation
+        The observation operator built from the training input, e.g. a
+        :class:`~gpmultirate.DownsampledConvolution`.
 
     Examples
     --------
@@ -46,7 +47,7 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     True
     """
 
-    def __init__(self, kernel: Kernel, operator: DownsampledConvolution):
+    def __init__(self, kernel: Kernel, operator: Observation):
         self.kernel = kernel
         self.operator = operator
 
@@ -89,9 +90,10 @@ class ObservedKernel(GenericKernelMixin, Kernel):
         return self.kernel == other.kernel and self.operator == other.operator
 
     def _check_parts(self) -> None:
-        if not isinstance(self.operator, DownsampledConvolution):
+        if not isinstance(self.operator, Observation):
             raise ValueError(
-                f"operator must be a DownsampledConvolution; got {type(self.operator).__name__}"
+                "operator must be an observation such as DownsampledConvolution; "
+                f"got {type(self.operator).__name__}"
             )
         if not isinstance(self.kernel, Kernel):
             raise ValueError(f"kernel must be a scikit-learn Kernel; got {type(self.kernel).__name__}")

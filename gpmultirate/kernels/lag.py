@@ -597,8 +597,6 @@ class PK(LagKernel):
 
     def observed(self, observation, path=""):
         """Rank two: ``K = V D V^T`` with ``V = [c, s]`` and ``D = diag(sigma1^2, sigma2^2)``."""
-        if observation is None:
-            return ObservedTerm(self, None, path)
         values = self.checked_values()
         lags = observation.lags[:, 0]
         c, s = self.basis(lags)

@@ -574,6 +574,6 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
         )
     if isinstance(kernel, ConstantKernel):
         return ConstantTerm(kernel, observation, path)
-    if isinstance(kernel, StructuredKernel):
+    if isinstance(kernel, StructuredKernel) and observation is not None:
         return kernel.observed(observation, path)
     return ObservedTerm(kernel, observation, path)
