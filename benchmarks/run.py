@@ -135,7 +135,7 @@ def paper_case(kernel_name, implementation, n_samples=600):
 
 def study_case(n_runs=100):
     """The paper's study: LS over the orders 50..600, DC and PK at P = N = 600."""
-    from gpmultirate.experiments import PAPER_ORDERS, run_paper_study
+    from gpmultirate.study import PAPER_ORDERS, run_paper_study
 
     start = time.perf_counter()
     common = dict(n_runs=n_runs, n_jobs=2, random_state=0, progress=False)

@@ -7,7 +7,7 @@ changes the fast-rate response (its FRF above the slow Nyquist frequency, its
 intersample output) but leaves every slow sample unchanged.  This script
 
 1. reproduces Fig. 2 of the paper: three impulse responses with identical slow
-   outputs and different fast-rate FRFs (:func:`gpmultirate.plotting.nonidentifiable_example`);
+   outputs and different fast-rate FRFs (:func:`gpmultirate.study.nonidentifiable_example`);
 2. shows that :class:`gpmultirate.LeastSquaresFIR` refuses such problems with an
    :class:`gpmultirate.IdentifiabilityError` instead of returning one arbitrary
    solution: once for the impulsive input of Example 1 (``order >= M``, Lemma 1)
@@ -35,7 +35,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 import gpmultirate as gm  # noqa: E402
-from gpmultirate import plotting, simulation  # noqa: E402
+from gpmultirate import plotting, simulation, study  # noqa: E402
 from gpmultirate.kernels import DC  # noqa: E402
 
 DEFAULT_OUTPUT = pathlib.Path(__file__).resolve().parent / "output"
@@ -63,7 +63,7 @@ def main() -> None:
     # dimension P - M = 750.  theta* and theta' add to theta (a slow oscillation)
     # the null-space part of an oscillation between the slow and the fast Nyquist
     # frequency.
-    example = plotting.nonidentifiable_example(n_samples=1000, factor=4, random_state=0)
+    example = study.nonidentifiable_example(n_samples=1000, factor=4, random_state=0)
     n_models, order = example.models.shape
     n_slow = example.y_slow.shape[0]
     slow_outputs = example.y_fast[:, :: example.factor]

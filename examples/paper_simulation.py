@@ -11,7 +11,7 @@ goodness of fit (eq. 20) on the noise-free fast-rate validation output.
 The paper reports 99.50 % (PK) against 94.67 % (DC) at P = N = 600, with
 least squares limited to P < M.
 
-The work is done by :mod:`gpmultirate.experiments`; this script chooses the
+The work is done by :mod:`gpmultirate.study`; this script chooses the
 size, prints the table and draws the figures:
 
 * ``paper_study_gof.png``: GoF against order, mean +- 2 std over the runs (Fig. 5);
@@ -42,7 +42,7 @@ matplotlib.use("Agg")  # draw into files only
 import matplotlib.pyplot as plt  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
-from gpmultirate import experiments  # noqa: E402
+from gpmultirate import study  # noqa: E402
 from gpmultirate.plotting import plot_bode, plot_study  # noqa: E402
 
 DEFAULT_OUTPUT = pathlib.Path(__file__).resolve().parent / "output"
@@ -81,7 +81,7 @@ def main() -> None:
     elif args.runs is None:
         n_runs, orders = REDUCED_RUNS, REDUCED_ORDERS
     else:
-        n_runs, orders = args.runs, experiments.PAPER_ORDERS
+        n_runs, orders = args.runs, study.PAPER_ORDERS
     if args.orders is not None:
         orders = tuple(args.orders)
     print(f"Monte Carlo study: {n_runs} runs, N = {n_samples}, orders P = {list(orders)}, "
@@ -92,7 +92,7 @@ def main() -> None:
     # each run's data depend only on random_state and the run index, so the
     # numbers do not depend on --jobs.
     # ------------------------------------------------------------------
-    result = experiments.run_paper_study(n_runs=n_runs, orders=orders, n_samples=n_samples,
+    result = study.run_paper_study(n_runs=n_runs, orders=orders, n_samples=n_samples,
                                          n_jobs=args.jobs, random_state=args.seed)
     print(f"\nvalidation GoF, mean ± std over {result.n_runs} runs "
           f"(M = {result.n_slow_samples} slow samples):\n")
@@ -123,7 +123,7 @@ def main() -> None:
     figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
     seeds = np.random.SeedSequence(args.seed).spawn(n_runs)
     for k, seed in enumerate(seeds):
-        system = experiments.simulate_run(seed, n_samples=n_samples, factor=3,
+        system = study.simulate_run(seed, n_samples=n_samples, factor=3,
                                           sample_time=0.1, snr_db=(40.0, 60.0),
                                           perturbation=0.1).system
         magnitude = 20 * np.log10(np.abs(system.frequency_response(family_freqs)))
@@ -146,7 +146,7 @@ def main() -> None:
     # order below M, DC and PK at P = N.
     # ------------------------------------------------------------------
     # (n_jobs=1: two fits do not repay starting worker processes)
-    example = experiments.paper_example(random_state=args.seed, order=None,
+    example = study.paper_example(random_state=args.seed, order=None,
                                         n_samples=n_samples, n_jobs=1)
     print(f"\nexample run (SNR {example.data.snr_db:.1f} dB): "
           + ", ".join(f"{name}{' (P=%d)' % example.ls_order if name == 'LS' else ''} "

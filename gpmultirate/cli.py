@@ -21,7 +21,7 @@ import joblib
 import numpy as np
 
 from gpmultirate import __version__
-from gpmultirate.experiments import METHODS, paper_example, run_paper_study
+from gpmultirate.study import METHODS, paper_example, run_paper_study
 
 __all__ = ["build_parser", "main"]
 
@@ -229,6 +229,7 @@ def _study_figure(args, result, out: Path) -> None:
 
 def _example_figures(args, example, out: Path) -> None:
     from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
+    from gpmultirate.responses import ImpulseResponse, OutputPrediction
 
     methods = list(example.models)
     data = example.data
@@ -262,10 +263,10 @@ def _example_figures(args, example, out: Path) -> None:
         model = example.models[method]
         order = model.coef_.shape[0]
         shown = min(order, n_lags)
-        lags = (np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1) if method != "LS"
+        lags = (np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1) if model.continuous_lags
                 else np.arange(shown))
-        plot_impulse_response(model, lags, ax=ax, label=method, color=_STYLES[method],
-                              true_response=true_g)
+        plot_impulse_response(ImpulseResponse.from_model(model, lags), ax=ax, label=method,
+                              color=_STYLES[method], true_response=true_g)
         ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
         if ax is not axes[-1]:
@@ -281,10 +282,11 @@ def _example_figures(args, example, out: Path) -> None:
     fig = _figure(figsize=(8.5, 2.4 * len(methods) + 0.4))
     axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
     for ax, method in zip(axes, methods):
-        plot_intersample(example.models[method], data.u, ax=ax, y_fast=data.y_fast,
-                         y_slow=data.y_slow, sample_time=data.sample_time,
-                         window=(start, min(n, start + width)), label=method,
-                         color=_STYLES[method])
+        prediction = OutputPrediction.from_model(
+            example.models[method], data.u, y_fast=data.y_fast, y_slow=data.y_slow,
+            sample_time=data.sample_time)
+        plot_intersample(prediction, ax=ax, window=(start, min(n, start + width)),
+                         label=method, color=_STYLES[method])
         ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
         if ax is not axes[-1]:
@@ -350,7 +352,8 @@ def _demo(parser, args) -> int:
 
 
 def _example1(parser, args) -> int:
-    from gpmultirate.plotting import nonidentifiable_example, plot_nonidentifiable_example
+    from gpmultirate.plotting import plot_nonidentifiable_example
+    from gpmultirate.study import nonidentifiable_example
 
     if args.n_samples < 2 * args.factor:
         parser.error(f"argument --n-samples: must be at least 2 * factor = {2 * args.factor}, "

@@ -14,7 +14,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from gpmultirate.cli import build_parser, main  # noqa: E402
-from gpmultirate.experiments import StudyResult  # noqa: E402
+from gpmultirate.study import StudyResult  # noqa: E402
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = ["--runs", "1", "--n-samples", "60", "--orders", "10", "20", "--n-jobs", "1"]

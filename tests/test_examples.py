@@ -13,6 +13,7 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
 
 # script -> files it must write into --output
 OUTPUTS = {
+    "adding_a_kernel.py": ["adding_a_kernel.png"],
     "example1_nonidentifiability.py": ["example1_nonidentifiability.png"],
     "wafer_stage_pk.py": ["wafer_stage_bode.png"],
     "intersample_prediction.py": ["intersample_prediction.png"],
@@ -23,6 +24,7 @@ OUTPUTS = {
 }
 # a line each script prints when it got to its key result
 KEY_OUTPUT = {
+    "adding_a_kernel.py": "LowRankTerm",
     "example1_nonidentifiability.py": "IdentifiabilityError",
     "wafer_stage_pk.py": "validation GoF",
     "intersample_prediction.py": "empirical coverage",

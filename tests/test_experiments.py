@@ -1,4 +1,4 @@
-"""Tests of gpmultirate.experiments on tiny studies (N = 60, M = 20), against numpy formulas."""
+"""Tests of gpmultirate.study on tiny studies (N = 60, M = 20), against numpy formulas."""
 
 import csv
 import math
@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-import gpmultirate.experiments as ex
+import gpmultirate.study.runner as ex
 from gpmultirate import FIRGaussianProcess
-from gpmultirate.experiments import (
+from gpmultirate.study import (
     METHODS,
     PAPER_ORDERS,
     StudyResult,

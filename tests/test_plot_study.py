@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from gpmultirate.experiments import StudyResult, run_paper_study  # noqa: E402
+from gpmultirate.study import StudyResult, run_paper_study  # noqa: E402
 from gpmultirate.plotting import GoFPlot, StudyPlot, plot_study  # noqa: E402
 
 ORDERS = np.array([10, 20, 30])

@@ -18,14 +18,13 @@ from gpmultirate.plotting import (  # noqa: E402
     GoFPlot,
     ImpulseResponsePlot,
     IntersamplePlot,
-    NonidentifiableExample,
-    nonidentifiable_example,
     plot_bode,
     plot_gof_vs_order,
     plot_impulse_response,
     plot_intersample,
     plot_nonidentifiable_example,
 )
+from gpmultirate.study import NonidentifiableExample, nonidentifiable_example  # noqa: E402
 
 Z95 = 1.959963984540054  # two-sided 95 % standard normal quantile
 N, FACTOR, ORDER, T = 120, 3, 40, 0.1

@@ -1,0 +1,291 @@
+"""Bode plot of a :class:`~gpmultirate.responses.FrequencyResponse` (Fig. 6, 10, 11).
+
+:func:`plot_bode` draws the FRF magnitude and phase with their credible
+bands, the true FRF, the FRF error and the slow and fast Nyquist
+frequencies; it draws the data it is given and computes nothing about the
+model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.collections import PolyCollection
+from matplotlib.lines import Line2D
+
+from gpmultirate.plotting.axes import (
+    NYQUIST_GID,
+    check_axes,
+    check_choice,
+    draw_band,
+    label_marker,
+    to_db,
+)
+from gpmultirate.responses import FrequencyResponse
+from gpmultirate.validation import check_positive
+
+__all__ = ["BodePlot", "plot_bode"]
+
+_TRUE_GID = "gpmultirate-true-frf"
+
+
+@dataclass
+class BodePlot:
+    """Axes and artists drawn by :func:`plot_bode`.
+
+    Attributes
+    ----------
+    axes : tuple of (Axes, Axes or None)
+        The magnitude and the phase axes (``None`` with ``phase=False``).
+    magnitude_line, phase_line : Line2D
+        Magnitude and phase of the posterior-mean FRF (``phase_line`` is
+        ``None`` with ``phase=False``).
+    magnitude_band, phase_band : PolyCollection or None
+        Shaded credible bands (``None`` with ``show_band=False``).
+    true_magnitude_line, true_phase_line : Line2D or None
+        The true FRF, if ``true_frf`` was given.
+    error_line : Line2D or None
+        ``error_scale * |G0 - G|`` on the magnitude axes, with ``show_error``.
+    nyquist_lines : list of Line2D
+        Vertical markers at the slow and fast Nyquist frequencies on every
+        axes; markers already drawn by an earlier call are reused.
+    nyquist_labels : list of Text
+        Their labels on the magnitude axes.
+
+    Examples
+    --------
+    >>> import matplotlib
+    >>> matplotlib.use("Agg")
+    >>> import numpy as np
+    >>> from gpmultirate.plotting import plot_bode
+    >>> from gpmultirate.responses import FrequencyResponse
+    >>> frf = FrequencyResponse.from_gaussian(
+    ...     np.linspace(0.0, 1.0, 5), np.linspace(1.0, 0.5, 5) + 0j, np.full(5, 1e-3),
+    ...     np.full(5, 1e-3), np.zeros(5), sample_time=0.5, factor=2)
+    >>> drawn = plot_bode(frf)
+    >>> drawn.magnitude_line.get_xdata().tolist()
+    [0.0, 0.25, 0.5, 0.75, 1.0]
+    >>> import matplotlib.pyplot as plt
+    >>> plt.close("all")
+    """
+
+    axes: tuple
+    magnitude_line: Line2D
+    phase_line: Line2D | None = None
+    magnitude_band: PolyCollection | None = None
+    phase_band: PolyCollection | None = None
+    true_magnitude_line: Line2D | None = None
+    true_phase_line: Line2D | None = None
+    error_line: Line2D | None = None
+    nyquist_lines: list | None = None
+    nyquist_labels: list | None = None
+
+
+def _nyquist_markers(axes: list, frf: FrequencyResponse, xscale: str) -> tuple[list, list]:
+    """Vertical lines at both Nyquist frequencies, drawn once per axes."""
+    lines, labels = [], []
+    for ax in axes:
+        for which, freq in (("slow", frf.slow_nyquist), ("fast", frf.fast_nyquist)):
+            existing = [ln for ln in ax.get_lines() if ln.get_gid() == NYQUIST_GID[which]]
+            if existing:
+                lines.extend(existing)
+                continue
+            lines.append(
+                ax.axvline(freq, color="0.4", linestyle="-.", linewidth=0.8,
+                           gid=NYQUIST_GID[which], label="_nolegend_")
+            )
+            if ax is axes[0]:
+                # the fast Nyquist frequency usually ends the axis, so its label ends at
+                # the line; on a log axis the two lines are close, so both labels do
+                ha = "right" if which == "fast" or xscale == "log" else "center"
+                text = f"{which} Nyquist" + (" " if ha == "right" else "")
+                labels.append(label_marker(ax, freq, text, NYQUIST_GID[which], ha=ha))
+    return lines, labels
+
+
+def plot_bode(
+    frf: FrequencyResponse,
+    *,
+    axes=None,
+    label: str | None = None,
+    color=None,
+    true_frf=None,
+    show_band: bool = True,
+    show_error: bool = False,
+    error_scale: float = 1.0,
+    show_nyquist: bool = True,
+    db: bool = True,
+    phase: bool = True,
+    xscale: str = "linear",
+    legend: bool = True,
+) -> BodePlot:
+    """Bode plot of an identified FRF with its credible band.
+
+    Draws ``|G|`` of ``frf.mean`` (in dB by default) and its unwrapped phase
+    in degrees, the pointwise credible bands of :class:`FrequencyResponse`
+    shaded, optionally the true FRF (dashed black) and the FRF error
+    ``error_scale * |G0 - G|`` (dotted, in the estimate's colour; the paper
+    uses ``error_scale=0.1``), and vertical markers at the slow and fast
+    Nyquist frequencies.  Calling it again with the returned axes overlays
+    another estimate.
+
+    Parameters
+    ----------
+    frf : FrequencyResponse
+        From ``model.frequency_response(...)``.
+    axes : Axes or pair of Axes, optional
+        ``(magnitude, phase)`` axes, or a single magnitude Axes with
+        ``phase=False``.  By default a new figure with two stacked axes.
+    label : str, optional
+        Legend entry of the estimate.
+    color : matplotlib colour, optional
+        Colour of the estimate and its band; default the next colour of the
+        magnitude axes' cycle.
+    true_frf : complex array-like of shape (n,), optional
+        True FRF at ``frf.freqs``.  Its phase is shifted by a multiple of 360
+        degrees to start on the estimate's branch.
+    show_band : bool, default=True
+        Shade the credible bands.
+    show_error : bool, default=False
+        Plot ``error_scale * |true_frf - frf.mean|`` (needs ``true_frf``).
+    error_scale : float, default=1.0
+        Scale of the error curve.
+    show_nyquist : bool, default=True
+        Mark the slow Nyquist frequency ``1 / (2 F T)`` and the fast one
+        ``1 / (2 T)``.
+    db : bool, default=True
+        Magnitude in dB on a linear axis; otherwise ``|G|`` on a log axis.
+    phase : bool, default=True
+        Draw the phase axes.
+    xscale : {"linear", "log"}, default="linear"
+        Frequency axis; the paper uses a linear axis up to the fast Nyquist
+        frequency.  With ``"log"`` the zero frequency is left out.
+    legend : bool, default=True
+        Draw (or redraw) the legend of the magnitude axes when it has
+        labelled artists.
+
+    Returns
+    -------
+    BodePlot
+        The axes and every artist drawn.
+
+    Examples
+    --------
+    >>> import matplotlib
+    >>> matplotlib.use("Agg")
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.kernels import DC
+    >>> from gpmultirate.plotting import plot_bode
+    >>> rng = np.random.default_rng(0)
+    >>> g = 0.9 ** np.arange(40) * np.cos(0.8 * np.arange(40))
+    >>> u = rng.standard_normal(120)
+    >>> y_slow = np.convolve(u, g)[:120:3]
+    >>> model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=40,
+    ...                               noise_level=1e-4, optimizer=None).fit(u, y_slow)
+    >>> frf = model.frequency_response(sample_time=0.1)
+    >>> true = np.fft.rfft(g, 120)  # FRF of g at the same DFT bins
+    >>> bode = plot_bode(frf, label="DC", true_frf=true, show_error=True, error_scale=0.1)
+    >>> bode.axes[0].get_ylabel(), len(bode.nyquist_lines)
+    ('magnitude [dB]', 4)
+    >>> again = plot_bode(frf, axes=bode.axes, label="again")  # overlays
+    >>> again.axes == bode.axes
+    True
+    >>> import matplotlib.pyplot as plt
+    >>> plt.close("all")
+    """
+    if not isinstance(frf, FrequencyResponse):
+        raise ValueError(f"frf must be a FrequencyResponse; got {type(frf).__name__}")
+    xscale = check_choice(xscale, "xscale", ("linear", "log"))
+    error_scale = check_positive(error_scale, "error_scale")
+    freqs = frf.freqs
+    if true_frf is not None:
+        true_frf = np.asarray(true_frf)
+        if true_frf.shape != freqs.shape or not np.all(np.isfinite(true_frf)):
+            raise ValueError(
+                f"true_frf must be a finite array of shape {freqs.shape} (one value per "
+                f"frequency of frf); got shape {true_frf.shape}"
+            )
+        true_frf = true_frf.astype(complex)
+    if show_error and true_frf is None:
+        raise ValueError("true_frf must be given with show_error=True")
+
+    if axes is None:
+        if phase:
+            _, (ax_mag, ax_phase) = plt.subplots(
+                2, 1, sharex=True, layout="constrained", height_ratios=(3, 2),
+                figsize=(6.4, 5.6),
+            )
+        else:
+            _, ax_mag = plt.subplots(layout="constrained")
+            ax_phase = None
+    elif phase:
+        if isinstance(axes, Axes) or not isinstance(axes, (Sequence, np.ndarray)) \
+                or len(axes) != 2:
+            raise ValueError("axes must be a pair (magnitude Axes, phase Axes) with phase=True")
+        ax_mag, ax_phase = (check_axes(a, "axes") for a in axes)
+    else:
+        if isinstance(axes, (Sequence, np.ndarray)) and len(axes) >= 1:
+            axes = axes[0]
+        ax_mag, ax_phase = check_axes(axes, "axes"), None
+
+    keep = freqs > 0 if xscale == "log" else np.ones(freqs.shape, dtype=bool)
+    if not np.any(keep):
+        raise ValueError("frf must have positive frequencies for xscale='log'")
+    f = freqs[keep]
+
+    def magnitude(values):
+        return to_db(values) if db else values
+
+    (mag_line,) = ax_mag.plot(f, magnitude(frf.magnitude[keep]), color=color, label=label)
+    color = mag_line.get_color()
+    result = BodePlot(axes=(ax_mag, ax_phase), magnitude_line=mag_line,
+                      nyquist_lines=[], nyquist_labels=[])
+    if show_band:
+        result.magnitude_band = draw_band(ax_mag, f, magnitude(frf.magnitude_lower[keep]),
+                                      magnitude(frf.magnitude_upper[keep]), color)
+    if true_frf is not None:
+        already = any(ln.get_gid() == _TRUE_GID for ln in ax_mag.get_lines())
+        (result.true_magnitude_line,) = ax_mag.plot(
+            f, magnitude(np.abs(true_frf[keep])), color="k", linestyle="--", linewidth=1.0,
+            label="_nolegend_" if already else "true", gid=_TRUE_GID, zorder=2.5)
+    if show_error:
+        error_label = ("" if error_scale == 1 else f"{error_scale:g}") + r"$|G_0 - G|$"
+        (result.error_line,) = ax_mag.plot(
+            f, magnitude(error_scale * np.abs(true_frf - frf.mean)[keep]), color=color,
+            linestyle=":", label=error_label if label is None else f"{label}: {error_label}")
+
+    if ax_phase is not None:
+        phase_deg = np.degrees(frf.phase)
+        (result.phase_line,) = ax_phase.plot(f, phase_deg[keep], color=color, label=label)
+        if show_band:
+            result.phase_band = draw_band(ax_phase, f, np.degrees(frf.phase_lower[keep]),
+                                      np.degrees(frf.phase_upper[keep]), color)
+        if true_frf is not None:
+            true_deg = np.degrees(np.unwrap(np.angle(true_frf)))
+            true_deg += 360.0 * np.round((phase_deg[0] - true_deg[0]) / 360.0)
+            (result.true_phase_line,) = ax_phase.plot(
+                f, true_deg[keep], color="k", linestyle="--", linewidth=1.0, zorder=2.5)
+
+    used = [a for a in (ax_mag, ax_phase) if a is not None]
+    if show_nyquist:
+        result.nyquist_lines, result.nyquist_labels = _nyquist_markers(used, frf, xscale)
+    for ax in used:
+        ax.set_xscale(xscale)
+        ax.margins(x=0)
+        ax.grid(True, which="major", alpha=0.3)
+    ax_mag.set_yscale("linear" if db else "log")
+    ax_mag.set_ylabel("magnitude [dB]" if db else "magnitude")
+    if ax_phase is not None:
+        ax_phase.set_ylabel("phase [deg]")
+    used[-1].set_xlabel("frequency [Hz]")
+    if legend and ax_mag.get_legend_handles_labels()[0]:
+        ax_mag.legend(fontsize="small", loc="best")
+    return result
+
+

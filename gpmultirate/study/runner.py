@@ -1,0 +1,351 @@
+"""Fits and scores of the paper's Monte Carlo study (Section 5), run in parallel.
+
+For every order ``P`` of a grid, a run fits the least-squares FIR model
+(eq. 11, only for ``P < M``) and the kernel-regularised models with the DC
+and the prior-knowledge kernels (eq. 15-19, hyperparameters tuned by the
+marginal likelihood), and scores each by its goodness of fit (eq. 20) on the
+noise-free fast-rate validation output.
+
+Run ``i`` of a study uses child ``i`` of ``SeedSequence(random_state)``, so
+results depend only on ``random_state``, not on ``n_jobs``, the order in
+which runs finish, or (for the system) on ``n_samples``.  Each fit uses one
+BLAS thread (threadpoolctl, a scikit-learn dependency): the parallelism is
+over runs.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+
+import joblib
+import numpy as np
+from sklearn.exceptions import ConvergenceWarning
+from threadpoolctl import threadpool_limits
+
+from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
+from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
+from gpmultirate.study.results import StudyResult
+from gpmultirate.study.simulation import (
+    METHODS,
+    PAPER_ORDERS,
+    RunData,
+    check_config,
+    check_methods,
+    check_orders,
+    child_seed,
+    paper_kernels,
+    seed_sequence,
+    simulate_run,
+)
+from gpmultirate.validation import check_int
+
+__all__ = [
+    "TrialResult",
+    "check_n_jobs",
+    "fit_and_score",
+    "fit_method",
+    "make_estimator",
+    "run_paper_study",
+    "run_trial",
+    "unordered_parallel",
+]
+
+
+# ------------------------------------------------------------------ one fit
+def make_estimator(method: str, order: int, factor: int, sample_time: float):
+    """The unfitted estimator of a study ``method`` at FIR order ``order``.
+
+    ``"LS"`` is :class:`~gpmultirate.LeastSquaresFIR`; ``"DC"`` and ``"PK"``
+    are :class:`~gpmultirate.FIRGaussianProcess` with the kernel and noise
+    level of :func:`~gpmultirate.study.paper_kernels` and default tuning.
+
+    Examples
+    --------
+    >>> make_estimator("LS", 10, 3, 0.1)
+    LeastSquaresFIR(factor=3, order=10)
+    """
+    if method == "LS":
+        return LeastSquaresFIR(factor=factor, order=order)
+    kernel, noise_level = paper_kernels(sample_time)[method]
+    return FIRGaussianProcess(kernel, factor=factor, order=order, noise_level=noise_level)
+
+
+def fit_method(method: str, order: int, data: RunData):
+    """Fit one model on a run's data; return ``(model or None, seconds, n_warnings)``.
+
+    Convergence and jitter warnings of the tuning are counted rather than
+    printed once per fit; any other warning is passed on.  BLAS runs on one
+    thread during the fit.  The model is None when least squares has no
+    unique solution (Lemma 1, 2).
+
+    Examples
+    --------
+    >>> from gpmultirate.study import simulate_run
+    >>> model, seconds, n_warnings = fit_method("LS", 25, simulate_run(0, n_samples=60))
+    >>> model is None, n_warnings  # P = 25 >= M = 20
+    (True, 0)
+    """
+    model = make_estimator(method, order, data.factor, data.sample_time)
+    start = time.perf_counter()
+    # One BLAS thread: the study is parallel over runs, multithreaded BLAS on these small
+    # matrices costs far more than it saves, and the result must not depend on n_jobs.
+    with threadpool_limits(limits=1, user_api="blas"), \
+            warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConvergenceWarning)
+        warnings.simplefilter("always", NumericalWarning)
+        try:
+            model.fit(data.u, data.y_slow)
+        except IdentifiabilityError:
+            if method != "LS":
+                raise
+            model = None  # P >= M or a rank-deficient regressor (Lemma 1, 2)
+    seconds = time.perf_counter() - start
+    counted = (ConvergenceWarning, NumericalWarning)
+    for w in caught:
+        if not issubclass(w.category, counted):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return model, seconds, sum(issubclass(w.category, counted) for w in caught)
+
+
+def fit_and_score(method: str, order: int, data: RunData):
+    """Fit one model and score it on the validation data: ``(method, model, gof)``.
+
+    The GoF is NaN (and the model None) where least squares is not identifiable.
+
+    Examples
+    --------
+    >>> from gpmultirate.study import simulate_run
+    >>> data = simulate_run(0, n_samples=60)
+    >>> method, model, gof = fit_and_score("LS", 10, data)
+    >>> bool(gof == model.score(data.u_val, data.y_val))
+    True
+    >>> fit_and_score("LS", 25, data)[1:]  # P = 25 >= M = 20
+    (None, nan)
+    """
+    model, _, _ = fit_method(method, order, data)
+    return method, model, (math.nan if model is None else model.score(data.u_val, data.y_val))
+
+
+# ------------------------------------------------------------------ one run
+@dataclass
+class TrialResult:
+    """Scores of one Monte Carlo run, see :func:`run_trial`.
+
+    Attributes
+    ----------
+    run : int
+        Index of the run in its study.
+    gof : dict of str to ndarray of shape (n_orders,)
+        Validation goodness of fit in percent per method; NaN where the
+        model does not exist (least squares with ``P >= M``).
+    identifiable : dict of str to bool ndarray of shape (n_orders,)
+    fit_seconds : dict of str to ndarray of shape (n_orders,)
+        Wall time of each ``fit``.
+    n_warnings : dict of str to int ndarray of shape (n_orders,)
+        Convergence or jitter warnings raised by each fit.
+    snr_db : float
+        The run's training SNR.
+    seconds : float
+        Wall time of the whole run.
+    """
+
+    run: int
+    gof: dict
+    identifiable: dict
+    fit_seconds: dict
+    n_warnings: dict
+    snr_db: float
+    seconds: float
+
+
+def run_trial(
+    seed,
+    orders=PAPER_ORDERS,
+    methods=METHODS,
+    *,
+    run: int = 0,
+    n_samples: int = 600,
+    factor: int = 3,
+    sample_time: float = 0.1,
+    snr_db=(40.0, 60.0),
+    perturbation: float = 0.1,
+) -> TrialResult:
+    """Fit and score every method at every order on one run's data.
+
+    Parameters
+    ----------
+    seed : int, SeedSequence or None
+        Seed of the run's data, see :func:`~gpmultirate.study.simulate_run`.
+    orders : sequence of int, default=PAPER_ORDERS
+        FIR orders ``P`` in ``1..n_samples``.
+    methods : sequence of {"LS", "DC", "PK"}, default=METHODS
+    run : int, default=0
+        Index stored in the result.
+    n_samples, factor, sample_time, snr_db, perturbation
+        As in :func:`~gpmultirate.study.simulate_run`.
+
+    Returns
+    -------
+    TrialResult
+
+    Examples
+    --------
+    >>> from gpmultirate.study import run_trial
+    >>> trial = run_trial(0, orders=(10, 20), methods=("LS",), n_samples=60)
+    >>> trial.identifiable["LS"].tolist()  # M = 20 slow samples
+    [True, False]
+    """
+    config = check_config(n_samples, factor, sample_time, snr_db, perturbation)
+    orders = check_orders(orders, config["n_samples"])
+    methods = check_methods(methods)
+    start = time.perf_counter()
+    data = simulate_run(seed, **config)
+    shape = orders.shape
+    gof = {m: np.full(shape, np.nan) for m in methods}
+    identifiable = {m: np.zeros(shape, dtype=bool) for m in methods}
+    fit_seconds = {m: np.zeros(shape) for m in methods}
+    n_warnings = {m: np.zeros(shape, dtype=int) for m in methods}
+    for method in methods:
+        for j, order in enumerate(orders):
+            model, seconds, n_warn = fit_method(method, int(order), data)
+            fit_seconds[method][j], n_warnings[method][j] = seconds, n_warn
+            if model is not None:
+                identifiable[method][j] = True
+                # eq. (20) against the noise-free fast validation output
+                gof[method][j] = model.score(data.u_val, data.y_val)
+    return TrialResult(run=int(run), gof=gof, identifiable=identifiable,
+                       fit_seconds=fit_seconds, n_warnings=n_warnings, snr_db=data.snr_db,
+                       seconds=time.perf_counter() - start)
+
+
+# -------------------------------------------------------------------- study
+def check_n_jobs(n_jobs) -> int:
+    """Validate a joblib process count: a non-zero integer.
+
+    Examples
+    --------
+    >>> check_n_jobs(-1)
+    -1
+    """
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, numbers.Integral) or n_jobs == 0:
+        raise ValueError(
+            f"n_jobs must be a non-zero integer (negative counts back from all CPUs, "
+            f"as in joblib); got {n_jobs!r}"
+        )
+    return int(n_jobs)
+
+
+def unordered_parallel(n_jobs: int, tasks):
+    """Results of joblib ``tasks`` as they finish (in order on joblib < 1.4).
+
+    Examples
+    --------
+    >>> import joblib
+    >>> sorted(unordered_parallel(1, (joblib.delayed(abs)(-k) for k in range(3))))
+    [0, 1, 2]
+    """
+    try:
+        return joblib.Parallel(n_jobs=n_jobs, return_as="generator_unordered")(tasks)
+    except (TypeError, ValueError):  # pragma: no cover - joblib < 1.4
+        return joblib.Parallel(n_jobs=n_jobs)(tasks)
+
+
+def run_paper_study(
+    n_runs: int = 100,
+    orders=PAPER_ORDERS,
+    methods=METHODS,
+    *,
+    n_samples: int = 600,
+    factor: int = 3,
+    sample_time: float = 0.1,
+    snr_db=(40.0, 60.0),
+    perturbation: float = 0.1,
+    n_jobs: int = 1,
+    random_state=0,
+    progress: bool = True,
+) -> StudyResult:
+    """Run the paper's Monte Carlo study (Section 5) and collect the GoF of every fit.
+
+    Parameters
+    ----------
+    n_runs : int, default=100
+        Monte Carlo runs.
+    orders : int or sequence of int, default=(50, 100, ..., 600)
+        FIR orders ``P`` in ``1..n_samples`` (sorted in the result); a single
+        order, e.g. ``(600,)``, is allowed.
+    methods : sequence of {"LS", "DC", "PK"}, default=("LS", "DC", "PK")
+        Least squares (eq. 11), and :class:`~gpmultirate.FIRGaussianProcess`
+        with the DC or the DC + prior-knowledge kernel of
+        :func:`~gpmultirate.study.paper_kernels`.
+    n_samples : int, default=600
+        Samples ``N`` per multisine; ``M = ceil(N / factor)`` slow samples.
+    factor : int, default=3
+        Downsampling factor ``F``, in ``1..n_samples``.
+    sample_time : float, default=0.1
+        Fast sample time ``T`` in seconds, below 0.25 s (see
+        :func:`~gpmultirate.study.paper_kernels`).
+    snr_db : float or (float, float), default=(40, 60)
+        Range of the uniformly drawn training SNR in dB.
+    perturbation : float, default=0.1
+        Relative range of the system's parameters around nominal.
+    n_jobs : int, default=1
+        Parallel runs (joblib processes); -1 uses every CPU.
+    random_state : int, SeedSequence or None, default=0
+        Seed of the study; run ``i`` uses child ``i`` of
+        ``SeedSequence(random_state)`` (``SeedSequence(random_state).spawn(n_runs)[i]``).
+        With None fresh entropy is drawn and stored in the result.
+    progress : bool, default=True
+        Print ``run k/n done (t s)`` to stderr as runs finish.
+
+    Returns
+    -------
+    StudyResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate.study import run_paper_study
+    >>> result = run_paper_study(n_runs=2, orders=(10, 20), methods=("LS",),
+    ...                          n_samples=60, progress=False)
+    >>> result.gof["LS"].shape, result.n_slow_samples
+    ((2, 2), 20)
+    >>> bool(np.isnan(result.gof["LS"][:, 1]).all())  # P = 20 >= M: not identifiable
+    True
+    """
+    n_runs = check_int(n_runs, "n_runs", low=1)
+    config = check_config(n_samples, factor, sample_time, snr_db, perturbation)
+    orders = check_orders(orders, config["n_samples"])
+    methods = check_methods(methods)
+    n_jobs = check_n_jobs(n_jobs)
+    if not isinstance(progress, bool):
+        raise ValueError(f"progress must be True or False; got {progress!r}")
+    root = seed_sequence(random_state)
+    seeds = [child_seed(root, i) for i in range(n_runs)]
+
+    start = time.perf_counter()
+    tasks = (joblib.delayed(run_trial)(seed, orders, methods, run=i, **config)
+             for i, seed in enumerate(seeds))
+    trials: list[TrialResult | None] = [None] * n_runs
+    for done, trial in enumerate(unordered_parallel(n_jobs, tasks), start=1):
+        trials[trial.run] = trial
+        if progress:
+            print(f"run {done}/{n_runs} done ({trial.seconds:.1f} s)", file=sys.stderr,
+                  flush=True)
+
+    def stack(name):
+        return {m: np.array([getattr(t, name)[m] for t in trials]) for m in methods}
+
+    return StudyResult(
+        orders=orders, methods=methods, gof=stack("gof"), identifiable=stack("identifiable"),
+        fit_seconds=stack("fit_seconds"), n_warnings=stack("n_warnings"),
+        snr_db=np.array([t.snr_db for t in trials]),
+        run_seconds=np.array([t.seconds for t in trials]), random_state=int(root.entropy),
+        n_samples=config["n_samples"], factor=config["factor"],
+        sample_time=config["sample_time"], snr_range=config["snr_db"],
+        perturbation=config["perturbation"], total_seconds=time.perf_counter() - start,
+    )
