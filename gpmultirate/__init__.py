@@ -14,7 +14,7 @@ from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
 from gpmultirate.frequency import FrequencyResponse
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observed import ObservedKernel
-from gpmultirate.observations import DownsampledConvolution
+from gpmultirate.observations import DownsampledConvolution, SampledConvolution
 from gpmultirate.persistence import ModelFileError, load_model, save_model
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "ModelFileError",
     "NumericalWarning",
     "ObservedKernel",
+    "SampledConvolution",
     "__version__",
     "goodness_of_fit",
     "load_model",

@@ -421,29 +421,23 @@ def resonance_grid_log_marginal_likelihood(
     the matrix determinant lemma and the Woodbury identity: ``O(M^2)`` per
     candidate instead of ``O(M^3)``.
     """
-    S_rest = observe(kernel, operator).covariance_without(term)
-    if S_rest is None:
+    tree = observe(kernel, operator)
+    S_rest = tree.covariance_without(term)
+    found = None if S_rest is None else tree.candidate_factors(term, name, values)
+    if found is None:
         return None
-    factors = []
-    for value in values:
-        candidate = clone(term).set_params(**{name: float(value)})
-        factor = observe(candidate, operator).low_rank()
-        if factor is None:
-            return None
-        factors.append(factor)
+    U, weights = found
     Ky = S_rest
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
     half_log_det = np.log(np.diag(L)).sum()
     rest = operator.discarded_log_likelihood(noise_level)[0]
-    # one product with the regressor for every candidate's basis
-    U = operator.matrix @ np.column_stack([basis for basis, _ in factors])
     A = linalg.solve_triangular(L, U, lower=True, check_finite=False)
     result = np.empty(len(values))
     start = 0
-    for k, (basis, weight) in enumerate(factors):
-        rank = basis.shape[1]
+    for k, weight in enumerate(weights):
+        rank = weight.shape[0]
         # B = L^{-1} U_k D^{1/2}, for the positive semidefinite weight D
         d, Q = np.linalg.eigh(weight)
         B = A[:, start : start + rank] @ (Q * np.sqrt(np.maximum(d, 0.0)))

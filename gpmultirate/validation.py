@@ -157,3 +157,56 @@ def check_bounds(bounds, name: str):
     if not (np.isfinite(low) and np.isfinite(high) and 0 < low <= high):
         raise ValueError(f"{name} must satisfy 0 < low <= high (finite); got {bounds!r}")
     return (low, high)
+
+
+def check_inputs(u, name: str = "u") -> np.ndarray:
+    """Return the input(s) ``u`` as a new finite float array of shape ``(N, n_inputs)``.
+
+    A 1-D ``u`` is one input.
+
+    Examples
+    --------
+    >>> check_inputs([1.0, 2.0, 3.0]).shape
+    (3, 1)
+    """
+    arr = as_real_array(u, name)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise ValueError(
+            f"{name} must be 1-D (one input) or 2-D of shape (n_samples, n_inputs); "
+            f"got shape {arr.shape}"
+        )
+    if arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise ValueError(f"{name} must have at least one sample and one input; got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return np.array(arr, dtype=float)
+
+
+def check_sample_indices(indices, n_samples: int, name: str = "sample_indices") -> np.ndarray:
+    """Return strictly increasing integer fast-sample indices in ``0..n_samples-1``.
+
+    Examples
+    --------
+    >>> check_sample_indices([0, 3, 7], 10)
+    array([0, 3, 7])
+    """
+    arr = np.asarray(indices)
+    if arr.dtype == bool or arr.dtype.kind not in "iuf" or arr.ndim != 1 or arr.size == 0:
+        raise ValueError(
+            f"{name} must be a non-empty 1-D array of integer fast-sample indices; "
+            f"got {arr.dtype} of shape {arr.shape}"
+        )
+    if arr.dtype.kind == "f":
+        if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
+            raise ValueError(f"{name} must hold integers")
+    index = arr.astype(np.int64)
+    if index[0] < 0 or index[-1] >= n_samples or np.any(index < 0) or np.any(index >= n_samples):
+        raise ValueError(
+            f"{name} must lie in 0..{n_samples - 1} (the fast samples of u); "
+            f"got values from {index.min()} to {index.max()}"
+        )
+    if np.any(np.diff(index) <= 0):
+        raise ValueError(f"{name} must be strictly increasing")
+    return index

@@ -5,14 +5,16 @@ The kernel home of the library: the lag kernels TC, DC, SS and PK
 kernel answers for its own fast paths (:mod:`gpmultirate.kernels.structure`,
 with :func:`observe`, the one walker over ``Sum``, ``Product`` and
 ``ConstantKernel``), the diagonal recursion of shift-scaled kernels
-(:mod:`gpmultirate.kernels.recursion`) and the filter form of DC
-(:mod:`gpmultirate.kernels.filters`).
+(:mod:`gpmultirate.kernels.recursion`), the filter form of DC
+(:mod:`gpmultirate.kernels.filters`) and independent priors for several
+inputs (:mod:`gpmultirate.kernels.inputs`).
 
 A new kernel subclasses :class:`StructuredKernel` and, to get a fast path,
 returns a structured term from :meth:`StructuredKernel.observed`; see the
 "Adding a kernel" guide.
 """
 
+from gpmultirate.kernels.inputs import BlockTerm, PerInputKernel
 from gpmultirate.kernels.lag import DC, PK, SS, TC, LagKernel, check_lags
 from gpmultirate.kernels.structure import (
     LowRankTerm,
@@ -23,8 +25,10 @@ from gpmultirate.kernels.structure import (
 )
 
 __all__ = [
+    "BlockTerm",
     "DC",
     "PK",
+    "PerInputKernel",
     "SS",
     "TC",
     "LagKernel",

@@ -190,9 +190,8 @@ def _recurse_upper(left, right, scale, out, source=None, coupling=0.0):
             row += coupling * source[m - 1, m - 1 : size - 1]
 
 
-def _observed(u, factor, offset, order, rows: _Rows, need_gradient):
+def _observed(u, factor, offset, order, rows: _Rows, need_gradient, n_out):
     """``S`` and the list of ``dS_j`` (free hyperparameters) on the slow grid."""
-    n_out = len(range(offset, u.shape[0], factor))
     a = rows.scale
     period = a**factor
     phase_weight = a ** np.arange(factor, dtype=float)[:, None]  # a^l
@@ -288,7 +287,7 @@ def observed_recursion(kernel, sampling, order: int, need_gradient: bool = True)
     """
     return _observed(
         np.asarray(sampling.u, dtype=float), sampling.factor, sampling.offset, order,
-        _Rows(kernel, order), need_gradient,
+        _Rows(kernel, order), need_gradient, sampling.n_outputs,
     )
 
 

@@ -45,6 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from sklearn.base import clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
 
 __all__ = ["LowRankTerm", "ObservedTerm", "Role", "StructuredKernel", "observe"]
@@ -184,6 +185,27 @@ class ObservedTerm:
         """``(V, D)`` with ``K = V D V^T`` (``V`` of shape ``(P, r)``), or None."""
         return None
 
+    def candidate_factors(self, kernel: Kernel, name: str, values):
+        """Low-rank factors of the summand ``kernel`` with ``name`` set to each of ``values``.
+
+        Returns ``(U, weights)``: ``U`` of shape ``(M, sum r_k)`` holds the
+        observed bases ``Phi V_k`` side by side and ``weights`` the ``D_k``,
+        so that the summand's data covariance at ``values[k]`` is
+        ``U_k D_k U_k^T``.  None when ``kernel`` is not a summand reached
+        through sums, or is not low rank.
+        """
+        if self.kernel is not kernel:
+            return None
+        factors = []
+        for value in values:
+            candidate = clone(kernel).set_params(**{name: float(value)})
+            factor = observe(candidate, self.observation).low_rank()
+            if factor is None:
+                return None
+            factors.append(factor)
+        U = self.observation.matrix @ np.column_stack([basis for basis, _ in factors])
+        return U, [weight for _, weight in factors]
+
     # -------------------------------------------------------------- roles
     def roles(self) -> list[Role]:
         """One :class:`Role` per free entry of ``kernel.theta``, in order."""
@@ -233,6 +255,10 @@ class StructuredKernel:
         """This kernel seen through ``observation``; dense unless overridden."""
         return ObservedTerm(self, observation, path)
 
+    def roles_term(self, path: str = "") -> ObservedTerm:
+        """The term that answers questions about the hyperparameters only (no observation)."""
+        return ObservedTerm(self, None, path)
+
 
 class SumTerm(ObservedTerm):
     """``k1 + k2``: every answer is the sum (or concatenation) of the terms' answers."""
@@ -273,6 +299,12 @@ class SumTerm(ObservedTerm):
             if rest is not None:
                 return rest + other.covariance()
         return None
+
+    def candidate_factors(self, kernel, name, values):
+        found = self.first.candidate_factors(kernel, name, values)
+        if found is None:
+            found = self.second.candidate_factors(kernel, name, values)
+        return found
 
     def roles(self):
         return self.first.roles() + self.second.roles()
@@ -574,6 +606,8 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
         )
     if isinstance(kernel, ConstantKernel):
         return ConstantTerm(kernel, observation, path)
-    if isinstance(kernel, StructuredKernel) and observation is not None:
+    if isinstance(kernel, StructuredKernel):
+        if observation is None:
+            return kernel.roles_term(path)
         return kernel.observed(observation, path)
     return ObservedTerm(kernel, observation, path)

@@ -2,22 +2,39 @@
 
 See :mod:`gpmultirate.observations.base` for the interface shared by the
 family; :class:`DownsampledConvolution` is the paper's eq. (8) and
-:class:`ReducedObservation` the triangular factor of a long record.
+:class:`ReducedObservation` the triangular factor of a long record;
+:class:`SampledConvolution` observes any instants, several inputs and
+periodic or unknown initial conditions, and :class:`RecordStack` stacks
+several records.
 """
 
-from gpmultirate.observations.base import Observation, UniformSampling
+from gpmultirate.observations.base import ColumnBlock, Observation, UniformSampling
 from gpmultirate.observations.convolution import (
     DownsampledConvolution,
     convolution_matrix,
     regressor_rows,
 )
+from gpmultirate.observations.experiment import Experiment, build_experiment
 from gpmultirate.observations.reduced import ReducedObservation
+from gpmultirate.observations.sampled import (
+    INITIAL_CONDITIONS,
+    RecordStack,
+    SampledConvolution,
+    check_initial_conditions,
+)
 
 __all__ = [
+    "INITIAL_CONDITIONS",
+    "ColumnBlock",
     "DownsampledConvolution",
+    "Experiment",
     "Observation",
+    "RecordStack",
     "ReducedObservation",
+    "SampledConvolution",
     "UniformSampling",
+    "build_experiment",
+    "check_initial_conditions",
     "convolution_matrix",
     "regressor_rows",
 ]

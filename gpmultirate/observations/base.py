@@ -26,15 +26,19 @@ import numpy as np
 from gpmultirate.kernels import observe
 from gpmultirate.validation import check_array
 
-__all__ = ["Observation", "UniformSampling"]
+__all__ = ["ColumnBlock", "Observation", "UniformSampling"]
 
 
 class UniformSampling(NamedTuple):
-    """Slow samples ``offset + m * factor`` of the response to the input ``u``."""
+    """Slow samples ``offset + m * factor``, ``m < n_outputs``, of the response to ``u`` from rest.
+
+    ``offset < factor``: the sample before the first lies before the record.
+    """
 
     u: np.ndarray
     factor: int
     offset: int
+    n_outputs: int
 
 
 class Observation:
@@ -42,11 +46,15 @@ class Observation:
 
     Subclasses set ``order`` (``P``) and ``n_outputs`` (``M``) and provide
     :attr:`matrix`; the products below may be overridden where the
-    structure of ``Phi`` makes them cheaper.
+    structure of ``Phi`` makes them cheaper.  With several inputs
+    (``n_inputs > 1``) the coefficients are stacked input-major, ``Phi`` has
+    ``n_inputs * P`` columns and :attr:`lags` has the columns
+    ``(input, lag)``.
     """
 
     order: int
     n_outputs: int
+    n_inputs: int = 1
     #: samples a reduction has summarized into ``discarded_log_likelihood``
     n_discarded: int = 0
     #: the uniform sampling the diagonal recursion needs, if any
@@ -58,9 +66,28 @@ class Observation:
         return (self.n_outputs, self.order)
 
     @property
+    def n_coefficients(self) -> int:
+        """``n_inputs * P``, the number of columns of the regressor."""
+        return self.n_inputs * self.order
+
+    @property
     def lags(self) -> np.ndarray:
-        """Lags ``0..P-1`` as a kernel input of shape ``(P, 1)``."""
-        return np.arange(self.order, dtype=float)[:, None]
+        """The kernel input of the coefficients.
+
+        Lags ``0..P-1`` of shape ``(P, 1)`` for one input; for several, the
+        pairs ``(input, lag)`` input-major, of shape ``(n_inputs * P, 2)``.
+        """
+        lags = np.arange(self.order, dtype=float)
+        if self.n_inputs == 1:
+            return lags[:, None]
+        inputs = np.repeat(np.arange(self.n_inputs, dtype=float), self.order)
+        return np.column_stack([inputs, np.tile(lags, self.n_inputs)])
+
+    def input_block(self, k: int) -> "Observation":
+        """The observation of the coefficients of input ``k`` alone (its columns of ``Phi``)."""
+        if self.n_inputs == 1:
+            return self
+        return ColumnBlock(self, k)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -77,7 +104,7 @@ class Observation:
 
         ``coef`` has shape ``(P,)`` or ``(P, k)``.
         """
-        coef = check_array(coef, "coef", rows=self.order)
+        coef = check_array(coef, "coef", rows=self.n_coefficients)
         return self.matrix @ coef
 
     def rmatvec(self, y) -> np.ndarray:
@@ -113,7 +140,7 @@ class Observation:
         reduction :class:`~gpmultirate.observations.reduced.ReducedObservation`
         and its ``z``; otherwise ``(self, y)``.
         """
-        if self.n_outputs <= self.order:
+        if self.n_outputs <= self.n_coefficients:
             return self, y
         from gpmultirate.observations.reduced import ReducedObservation
 
@@ -155,3 +182,33 @@ class Observation:
     def cross_covariance(self, kernel, lags) -> np.ndarray:
         """Return ``Cov(g(lags), y) = k(lags, 0..P-1) Phi^T``, shape ``(n, M)``."""
         return kernel(lags, self.lags) @ self.matrix.T
+
+
+class ColumnBlock(Observation):
+    """The columns of one input of a several-input observation, as an observation.
+
+    Parameters
+    ----------
+    parent : Observation
+    k : int
+        The input.
+    """
+
+    def __init__(self, parent: Observation, k: int):
+        self.parent = parent
+        self.input = k
+        self.order = parent.order
+        self.n_outputs = parent.n_outputs
+        self._matrix = None
+
+    @property
+    def matrix(self) -> np.ndarray:
+        if self._matrix is None:
+            P, k = self.order, self.input
+            block = np.ascontiguousarray(self.parent.matrix[:, k * P : (k + 1) * P])
+            block.setflags(write=False)
+            self._matrix = block
+        return self._matrix
+
+    def __repr__(self) -> str:
+        return f"ColumnBlock({self.parent!r}, input={self.input})"

@@ -85,7 +85,7 @@ class DownsampledConvolution(Observation):
     @property
     def uniform_sampling(self) -> UniformSampling:
         """The input, factor and offset: the samples are uniformly spaced."""
-        return UniformSampling(self.u, self.factor, self.offset)
+        return UniformSampling(self.u, self.factor, self.offset, self.n_outputs)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -137,7 +137,8 @@ class DownsampledConvolution(Observation):
         )
 
 
-def regressor_rows(u: np.ndarray, order: int, rows, view: bool = False) -> np.ndarray:
+def regressor_rows(u: np.ndarray, order: int, rows, view: bool = False,
+                   periodic: bool = False) -> np.ndarray:
     """Rows of the convolution regressor: ``T[r, i] = u[rows[r] - i]`` (zero before the record).
 
     The one place where the regressor of eq. (8) is built.  Row ``r`` is a
@@ -154,6 +155,9 @@ def regressor_rows(u: np.ndarray, order: int, rows, view: bool = False) -> np.nd
     view : bool, default=False
         With ``rows`` a uniformly spaced increasing sequence, return a
         read-only strided view of the input instead of a new array.
+    periodic : bool, default=False
+        ``u`` is one period of a periodic input: ``u[n - i]`` is
+        ``u[(n - i) mod N]`` instead of zero for ``n < i``.
 
     Returns
     -------
@@ -167,6 +171,9 @@ def regressor_rows(u: np.ndarray, order: int, rows, view: bool = False) -> np.nd
     """
     u = np.asarray(u, dtype=float)
     rows = np.asarray(rows)
+    if periodic:
+        padded = u[np.arange(-(order - 1), u.shape[0]) % u.shape[0]]
+        return sliding_window_view(padded, order)[:, ::-1][rows]
     if view and rows.shape[0] > 1:
         step = int(rows[1] - rows[0])
         # window q of the reversed, padded input is u(N-1-q), u(N-2-q), ...;

@@ -27,7 +27,7 @@ import numpy as np
 from scipy import linalg
 from scipy.linalg import blas
 
-from gpmultirate.observations.base import Observation
+from gpmultirate.observations.base import ColumnBlock, Observation
 
 __all__ = ["ReducedObservation"]
 
@@ -65,7 +65,7 @@ class ReducedObservation(Observation):
     """
 
     def __init__(self, observation: Observation, y: np.ndarray, block_rows: int | None = None):
-        P = observation.order
+        P = observation.n_coefficients
         M = observation.n_outputs
         block = block_rows or max(2 * P, 1024)
         top = np.zeros((0, P + 1))
@@ -84,8 +84,15 @@ class ReducedObservation(Observation):
         self.z = top[:P, P].copy()
         self.residual = float(top[P, P] ** 2)
         self.n_discarded = M - P
-        self.order = P
+        self.order = observation.order
+        self.n_inputs = observation.n_inputs
         self.n_outputs = P
+        self._lags = observation.lags
+
+    @property
+    def lags(self) -> np.ndarray:
+        """The lags (and inputs) of the reduced observation's coefficients."""
+        return self._lags
 
     @property
     def matrix(self) -> np.ndarray:
@@ -95,6 +102,12 @@ class ReducedObservation(Observation):
     def reduced(self, y):
         """Already reduced: ``(self, y)``."""
         return self, y
+
+    def input_block(self, k: int):
+        """The columns of input ``k`` of ``R``: triangular only for a single input."""
+        if self.n_inputs == 1:
+            return self
+        return ColumnBlock(self, k)
 
     def regressor_shaped_outer(self, H, G):
         # G^T is a Fortran-ordered lower-triangular view of G: no copies.
@@ -117,4 +130,7 @@ class ReducedObservation(Observation):
         return float(value), float(grad), 0.5 * n
 
     def __repr__(self) -> str:
-        return f"ReducedObservation(order={self.order}, n_discarded={self.n_discarded})"
+        return (
+            f"ReducedObservation(order={self.order}, n_inputs={self.n_inputs}, "
+            f"n_discarded={self.n_discarded})"
+        )
