@@ -5,6 +5,11 @@
   marginal-likelihood tuning (eq. 19, noise inside the log-determinant).
 * :class:`LeastSquaresFIR`: the least-squares baseline of eq. (11), which
   refuses non-unique problems (Lemma 1 and 2).
+
+Both take one input or several (``u`` of shape ``(N, n_inputs)``), one record
+or several (lists), slow samples at ``offset + m * factor`` or at any
+``sample_indices``, missing samples as ``NaN``, and the initial conditions
+``"zero"`` (at rest, the paper's case), ``"discard"`` or ``"periodic"``.
 """
 
 from __future__ import annotations
@@ -19,26 +24,27 @@ from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
 from gpmultirate import tuning
-from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
-from gpmultirate.validation import (
-    check_bounds,
-    check_int,
-    check_kernel,
-    check_rng,
-    check_level,
-    check_positive,
-    check_signal,
-)
 from gpmultirate.exceptions import IdentifiabilityError
-from gpmultirate.frequency import (
+from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
+from gpmultirate.kernels import DC, PerInputKernel, check_lags
+from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.observations import build_experiment, check_initial_conditions, regressor_rows
+from gpmultirate.observations.experiment import check_records, is_record_list
+from gpmultirate.responses import (
     FrequencyResponse,
     check_frequencies,
     default_frequencies,
     dft_matrix,
 )
-from gpmultirate.kernels import DC, check_lags
-from gpmultirate.metrics import goodness_of_fit
-from gpmultirate.observations import DownsampledConvolution, convolution_matrix
+from gpmultirate.validation import (
+    check_bounds,
+    check_int,
+    check_kernel,
+    check_level,
+    check_positive,
+    check_rng,
+    check_signal,
+)
 
 __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 
@@ -46,24 +52,56 @@ __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 class _FIRModelMixin:
     """Prediction, scoring and frequency response shared by the FIR estimators.
 
-    Subclasses set ``coef_``, ``operator_`` and ``posterior_`` (a
-    :class:`~gpmultirate.inference.GaussianCoefficients`) and implement
-    ``impulse_response``.
+    Subclasses set ``coef_``, ``operator_``, ``n_inputs_`` and ``posterior_``
+    (a :class:`~gpmultirate.inference.GaussianCoefficients` of the
+    input-major coefficient vector) through :meth:`_store_layout`, and
+    implement ``impulse_response``.
     """
 
     #: whether the impulse response is defined between the integer lags
     continuous_lags = False
 
-    def predict(self, u, return_std: bool = False):
-        """Fast-rate output of the model for input ``u``, starting at rest.
+    @property
+    def _order(self) -> int:
+        return self.operator_.order
 
-        ``y(n) = sum_i g_i u(n - i)`` for ``n = 0..len(u)-1``.  For the
-        training input this is the intersample (fast-rate) response.
+    def _shaped(self, flat: np.ndarray) -> np.ndarray:
+        """Coefficient-like values ``(n_inputs * n,)`` as ``(n_inputs, n)`` for several inputs."""
+        if self.n_inputs_ > 1:
+            return flat.reshape(self.n_inputs_, -1)
+        return flat
+
+    def _check_prediction_input(self, u, name: str = "u") -> np.ndarray:
+        inputs, several_records, _ = check_records(u, name)
+        if several_records:
+            raise ValueError(f"{name} must be one record here; got a list")
+        x = inputs[0]
+        if x.shape[1] != self.n_inputs_:
+            raise ValueError(
+                f"{name} must have {self.n_inputs_} input column(s), as in fit; got {x.shape[1]}"
+            )
+        return x
+
+    def _fast_rows(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Rows of the fast-rate regressor of input(s) ``x`` (all inputs side by side)."""
+        periodic = getattr(self, "initial_conditions", "zero") == "periodic"
+        return np.hstack([
+            regressor_rows(x[:, k], self._order, rows, periodic=periodic)
+            for k in range(x.shape[1])
+        ])
+
+    def predict(self, u, return_std: bool = False):
+        """Fast-rate output of the model for input ``u``.
+
+        ``y(n) = sum_k sum_i g_k(i) u_k(n - i)`` for ``n = 0..len(u)-1``,
+        starting at rest (for ``initial_conditions="periodic"``, in periodic
+        steady state: ``u`` is one period).  For the training input this is
+        the intersample (fast-rate) response.
 
         Parameters
         ----------
-        u : array-like of shape (n,)
-            Fast-rate input.
+        u : array-like of shape (n,) or (n, n_inputs), or a list of them
+            Fast-rate input, shaped as in ``fit``; a list gives a list.
         return_std : bool, default=False
             Also return the posterior standard deviation of the noise-free
             output (``sqrt(diag(T Sigma T^T))`` with ``T`` the convolution
@@ -75,26 +113,32 @@ class _FIRModelMixin:
         std : ndarray of shape (n,), only if ``return_std``
         """
         check_is_fitted(self, "coef_")
-        u = check_signal(u, "u")
-        if not return_std:
-            return np.convolve(u, self.coef_)[: u.shape[0]]
+        if is_record_list(u):
+            return [self.predict(u_r, return_std) for u_r in u]
+        x = self._check_prediction_input(u)
+        n = x.shape[0]
+        periodic = getattr(self, "initial_conditions", "zero") == "periodic"
+        coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
+        if not return_std and not periodic:
+            return sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
         # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
-        order = self.coef_.shape[0]
-        block = max(1, _PREDICT_BLOCK_ENTRIES // order)
-        mean, var = np.empty(u.shape[0]), np.empty(u.shape[0])
-        for start in range(0, u.shape[0], block):
-            rows = np.arange(start, min(start + block, u.shape[0]))
-            mean[rows], var[rows] = self.posterior_.linear_map(
-                convolution_matrix(u, order, rows)
-            )
-        return mean, np.sqrt(var)
+        block = max(1, _PREDICT_BLOCK_ENTRIES // coef.size)
+        mean, var = np.empty(n), np.empty(n)
+        for start in range(0, n, block):
+            rows = np.arange(start, min(start + block, n))
+            A = self._fast_rows(x, rows)
+            if return_std:
+                mean[rows], var[rows] = self.posterior_.linear_map(A)
+            else:
+                mean[rows] = A @ self.posterior_.coef
+        return (mean, np.sqrt(var)) if return_std else mean
 
     def score(self, u, y_fast) -> float:
         """Goodness of fit in percent (eq. 20) of ``predict(u)`` against ``y_fast``.
 
         Parameters
         ----------
-        u : array-like of shape (n,)
+        u : array-like of shape (n,) or (n, n_inputs)
             Fast-rate validation input.
         y_fast : array-like of shape (n,)
             Fast-rate validation output.
@@ -103,18 +147,29 @@ class _FIRModelMixin:
         -------
         float
         """
+        check_is_fitted(self, "coef_")
         y_fast = check_signal(y_fast, "y_fast")
-        u = check_signal(u, "u")
-        if u.shape != y_fast.shape:
+        x = self._check_prediction_input(u)
+        if x.shape[0] != y_fast.shape[0]:
             raise ValueError(
-                f"y_fast must have the length of u ({u.shape[0]}); got {y_fast.shape[0]}"
+                f"y_fast must have the length of u ({x.shape[0]}); got {y_fast.shape[0]}"
             )
         if np.ptp(y_fast) == 0:
             raise ValueError("y_fast must not be constant: the goodness of fit is undefined")
         return goodness_of_fit(y_fast, self.predict(u))
 
+    def _input(self, input) -> int:
+        if input is None:
+            if self.n_inputs_ > 1:
+                raise ValueError(
+                    f"input must be given for a model of {self.n_inputs_} inputs "
+                    f"(0..{self.n_inputs_ - 1})"
+                )
+            return 0
+        return check_int(input, "input", low=0, high=self.n_inputs_ - 1)
+
     def frequency_response(
-        self, freqs=None, sample_time: float = 1.0, level: float = 0.95
+        self, freqs=None, sample_time: float = 1.0, level: float = 0.95, input=None
     ) -> FrequencyResponse:
         """FRF of the identified model with a pointwise credible band.
 
@@ -129,6 +184,8 @@ class _FIRModelMixin:
             Fast sample time ``T`` in seconds.
         level : float, default=0.95
             Credible level of the band, in (0, 1).
+        input : int, optional
+            The input whose FRF is returned; needed for several inputs.
 
         Returns
         -------
@@ -136,26 +193,31 @@ class _FIRModelMixin:
         """
         check_is_fitted(self, "coef_")
         level = check_level(level)
+        k = self._input(input)
         if freqs is None:
             sample_time = check_positive(sample_time, "sample_time")
             freqs = default_frequencies(self.operator_.n_samples, sample_time)
         freqs, sample_time = check_frequencies(freqs, sample_time)
-        E = dft_matrix(freqs, sample_time, self.coef_.shape[0])
-        re, im = np.ascontiguousarray(E.real), np.ascontiguousarray(E.imag)
+        P = self._order
+        E = dft_matrix(freqs, sample_time, P)
+        # the DFT of input k's block of the input-major coefficients
+        A = np.zeros((E.shape[0], self.n_inputs_ * P), dtype=complex)
+        A[:, k * P : (k + 1) * P] = E
+        re, im = np.ascontiguousarray(A.real), np.ascontiguousarray(A.imag)
         var_re, var_im, cov = self.posterior_.pair_variances(re, im)
         return FrequencyResponse.from_gaussian(
             freqs,
-            E @ self.coef_,
+            A @ self.posterior_.coef,
             var_re,
             var_im,
             cov,
             level=level,
             sample_time=sample_time,
-            factor=self.operator_.factor,
+            factor=self.operator_.slow_factor,
         )
 
     def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
-        """Draw impulse responses from the posterior (or, for least squares, the estimate's distribution).
+        """Draw impulse responses from the posterior (for least squares, the estimate's distribution).
 
         Parameters
         ----------
@@ -166,11 +228,14 @@ class _FIRModelMixin:
 
         Returns
         -------
-        ndarray of shape (n, n_samples)
+        ndarray of shape (n, n_samples), or (n_inputs, n, n_samples) for several inputs
         """
         n_samples = check_int(n_samples, "n_samples", low=1)
         mean, cov = self.impulse_response(lags, return_cov=True)
-        return gaussian_samples(mean, cov, n_samples, check_rng(random_state))
+        draws = gaussian_samples(mean.reshape(-1), cov, n_samples, check_rng(random_state))
+        if self.n_inputs_ > 1:
+            return draws.reshape(self.n_inputs_, -1, n_samples)
+        return draws
 
 
 # Below this size the matrices of a fit are too small for threaded BLAS to pay
@@ -182,19 +247,41 @@ _PREDICT_BLOCK_ENTRIES = 2**22
 
 def _blas_threads_for(operator):
     """Limit BLAS to one thread for small problems; no limit otherwise."""
-    if max(operator.n_outputs, operator.order) <= _SINGLE_THREAD_SIZE:
+    if max(operator.n_outputs, operator.n_coefficients) <= _SINGLE_THREAD_SIZE:
         return threadpool_limits(limits=1, user_api="blas")
     return contextlib.nullcontext()
 
 
-def _check_slow_output(y_slow, operator) -> np.ndarray:
-    y = check_signal(y_slow, "y_slow")
-    if y.shape[0] != operator.n_outputs:
-        raise ValueError(
-            f"y_slow must have len(range(offset, len(u), factor)) = {operator.n_outputs} "
-            f"samples; got {y.shape[0]}"
-        )
-    return y
+def _initial_kernel(kernel, experiment):
+    """The prior of the fit: the user's kernel(s), one per input, or the default."""
+    inputs = np.vstack([obs_u for obs_u in _record_inputs(experiment)])
+    power_y = float(np.mean(experiment.y**2)) or 1.0
+    n = experiment.n_inputs
+    if kernel is None:
+        kernels = []
+        for k in range(n):
+            # scale reference: output power per unit input power
+            reference = power_y / (float(np.mean(inputs[:, k] ** 2)) or 1.0)
+            kernels.append(ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC())
+    elif isinstance(kernel, (list, tuple)):
+        if len(kernel) != n:
+            raise ValueError(
+                f"kernel must be one kernel or a list with one kernel per input ({n}); "
+                f"got a list of {len(kernel)}"
+            )
+        kernels = [clone(check_kernel(k, f"kernel[{i}]")) for i, k in enumerate(kernel)]
+    else:
+        kernels = [clone(check_kernel(kernel)) for _ in range(n)]
+    return kernels[0] if n == 1 else PerInputKernel(kernels)
+
+
+def _record_inputs(experiment):
+    """The inputs of every record, as ``(N, n_inputs)`` arrays."""
+    out = []
+    for record in experiment.observation.records:
+        u = np.asarray(record.u, dtype=float)
+        out.append(u[:, None] if u.ndim == 1 else u)
+    return out
 
 
 class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
@@ -202,21 +289,30 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
 
     The impulse response ``g(t)``, ``t >= 0`` real, has a zero-mean Gaussian
     process prior with covariance ``kernel``; the slow samples
-    ``y_slow[m] = sum_{i<P} g(i) u[offset + m F - i] + e[m]`` observe it
-    through a :class:`~gpmultirate.DownsampledConvolution` with white noise of
-    variance ``noise_level`` (the ``gamma`` of eq. 15).  The posterior mean at
-    lags ``0..P-1`` is the kernel-regularised estimate of eq. (15).
+    ``y_slow[m] = sum_{i<P} g(i) u[n_m - i] + e[m]``, ``n_m = offset + m F``
+    (or ``sample_indices[m]``), observe it through a
+    :class:`~gpmultirate.DownsampledConvolution` (or a
+    :class:`~gpmultirate.SampledConvolution`) with white noise of variance
+    ``noise_level`` (the ``gamma`` of eq. 15).  The posterior mean at lags
+    ``0..P-1`` is the kernel-regularised estimate of eq. (15).
+
+    With several inputs (``u`` of shape ``(N, n_inputs)``) each input has
+    its own impulse response ``g_k``; the prior makes them independent, the
+    posterior does not.  Several records (lists of ``u`` and ``y_slow``)
+    share the hyperparameters and the noise level.
 
     Parameters
     ----------
-    kernel : sklearn Kernel, optional
-        Prior covariance over lag.  Default
-        ``ConstantKernel(c) * DC(alpha=0.9, beta=0.9)`` with ``c`` and its
-        bounds set from the data.
+    kernel : sklearn Kernel or list of them, optional
+        Prior covariance over lag; a list gives one kernel per input, and
+        one kernel for several inputs is copied for each (each copy tuned
+        separately).  Default ``ConstantKernel(c) * DC(alpha=0.9, beta=0.9)``
+        per input, with ``c`` and its bounds set from the data.
     factor : int, default=1
-        Downsampling factor ``F``.
+        Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, optional
-        FIR order ``P`` in ``1..N``; default ``N = len(u)``.
+        FIR order ``P`` in ``1..N``, shared by all inputs; default ``N``, the
+        length of the (longest) record.
     offset : int, default=0
         Fast index of the first slow sample, ``0..F-1``.
     noise_level : float, default=1.0
@@ -235,11 +331,19 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         bounds; the best optimum is kept.
     random_state : int, RandomState or None, default=None
         Seed of the restarts.
+    initial_conditions : {"zero", "discard", "periodic"}, default="zero"
+        ``"zero"``: the system is at rest before the record (the paper's
+        case); ``"discard"``: the input before the record is unknown, so
+        only slow samples at fast index ``>= order - 1`` are used;
+        ``"periodic"``: ``u`` is one period of a periodic input in steady
+        state (the regressor is circular).
 
     Attributes
     ----------
-    coef_ : ndarray of shape (P,)
+    coef_ : ndarray of shape (P,), or (n_inputs, P) for a 2-D ``u``
         Posterior mean of ``g`` at lags ``0..P-1`` (eq. 15).
+    n_inputs_ : int
+        The number of inputs.
     kernel_ : sklearn Kernel
         The kernel with the tuned hyperparameters.
     noise_level_ : float
@@ -247,10 +351,14 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
         (scikit-learn's sign and constants: higher is better).
-    operator_ : DownsampledConvolution
-        The observation operator of the training input.
+    operator_ : Observation
+        The observation operator of the training data: a
+        :class:`~gpmultirate.DownsampledConvolution` in the paper's case, a
+        :class:`~gpmultirate.SampledConvolution` or a stack of records
+        otherwise.
     y_slow_ : ndarray of shape (M,)
-        The slow output the model was fitted to.
+        The slow samples the model was fitted to (the used ones: finite,
+        and late enough for ``"discard"``; records concatenated).
     noise_level_bounds_ : pair of floats or "fixed"
         The bounds of ``noise_level`` used for tuning (``"auto"`` resolved).
     posterior_ : GaussianCoefficients
@@ -275,6 +383,15 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
     >>> mean, std = model.impulse_response([0.5, 1.5], return_std=True)
     >>> bool(np.all(std > 0))
     True
+
+    Two inputs, and a slow sample that was not measured:
+
+    >>> u2 = rng.standard_normal((120, 2))
+    >>> y2 = (np.convolve(u2[:, 0], g)[:120] + np.convolve(u2[:, 1], -g)[:120])[::3]
+    >>> y2[5] = np.nan
+    >>> model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=60).fit(u2, y2)
+    >>> model.coef_.shape, model.frequency_response(input=1).magnitude.shape
+    ((2, 60), (61,))
     """
 
     continuous_lags = True
@@ -290,6 +407,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         optimizer: str | None = "marginal_likelihood",
         n_restarts_optimizer: int = 0,
         random_state=None,
+        initial_conditions: str = "zero",
     ):
         self.kernel = kernel
         self.factor = factor
@@ -300,27 +418,33 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         self.optimizer = optimizer
         self.n_restarts_optimizer = n_restarts_optimizer
         self.random_state = random_state
+        self.initial_conditions = initial_conditions
 
     # ------------------------------------------------------------------ fit
-    def fit(self, u, y_slow) -> "FIRGaussianProcess":
+    def fit(self, u, y_slow, sample_indices=None) -> "FIRGaussianProcess":
         """Condition the prior on slow data, tuning hyperparameters if asked.
 
         Parameters
         ----------
-        u : array-like of shape (N,)
-            Fast-rate input, the system at rest before it.
-        y_slow : array-like of shape (M,)
-            Slow output, ``y_slow[m] = y[offset + m * factor]``, with
-            ``M = len(range(offset, N, factor))``.
+        u : array-like of shape (N,) or (N, n_inputs), or a list of them
+            Fast-rate input(s); a list holds one record per entry.
+        y_slow : array-like of shape (M,), or a list of them
+            Slow output, ``y_slow[m] = y[offset + m * factor]`` (then
+            ``M = len(range(offset, N, factor))``) or ``y[sample_indices[m]]``;
+            ``NaN`` marks a sample that was not measured.
+        sample_indices : array-like of int, or a list of them, optional
+            The fast-sample index of each slow sample, strictly increasing
+            in ``0..N-1``; ``factor`` and ``offset`` are then ignored.
 
         Returns
         -------
         self
         """
-        u = check_signal(u, "u")
-        order = u.shape[0] if self.order is None else self.order
-        operator = DownsampledConvolution(u, self.factor, order, self.offset)
-        y = _check_slow_output(y_slow, operator)
+        experiment = build_experiment(
+            u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
+            order=self.order, initial_conditions=self.initial_conditions,
+        )
+        operator, y = experiment.observation, experiment.y
         if not (self.optimizer is None or (
             isinstance(self.optimizer, str) and self.optimizer == "marginal_likelihood"
         )):
@@ -330,7 +454,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
         check_rng(self.random_state)
         noise = check_positive(self.noise_level, "noise_level")
-        kernel = self._initial_kernel(u, y)
+        kernel = _initial_kernel(self.kernel, experiment)
         noise_bounds = self._resolve_noise_bounds(y)
         if self.optimizer is not None and not isinstance(noise_bounds, str):
             noise = float(np.clip(noise, *noise_bounds))
@@ -338,6 +462,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         self.y_slow_ = y
         self.noise_level_bounds_ = noise_bounds
         self.optimizer_result_ = None
+        self.n_inputs_ = experiment.n_inputs
         with _blas_threads_for(operator):
             evidence = LogEvidence(operator, y, kernel, noise, noise_bounds)
             if self.optimizer is not None:
@@ -350,16 +475,9 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         self._evidence = evidence.moved_to(kernel, noise)
         self.kernel_ = kernel
         self.noise_level_ = noise
-        self.coef_ = self.posterior_.coef
+        self.coef_ = self._shaped(self.posterior_.coef)
         self.log_marginal_likelihood_value_ = self.posterior_.log_marginal_likelihood
         return self
-
-    def _initial_kernel(self, u, y):
-        if self.kernel is None:
-            # scale reference: output power per unit input power
-            reference = (np.mean(y**2) or 1.0) / (np.mean(u**2) or 1.0)
-            return ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC()
-        return clone(check_kernel(self.kernel))
 
     def _resolve_noise_bounds(self, y):
         if isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto":
@@ -414,25 +532,31 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
 
         Returns
         -------
-        mean : ndarray of shape (n,)
-        std : ndarray of shape (n,), only with ``return_std``
-        cov : ndarray of shape (n, n), only with ``return_cov``
+        mean : ndarray of shape (n,), or (n_inputs, n) for several inputs
+        std : ndarray of the shape of ``mean``, only with ``return_std``
+        cov : ndarray of shape (n, n), only with ``return_cov``; for several
+            inputs ``(n_inputs * n, n_inputs * n)``, of the input-major
+            flattened ``mean``
         """
         check_is_fitted(self, "coef_")
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
-        lags = self._lags(lags)
+        X = self._points(lags)
+        data = self._evidence.data
         if not (return_std or return_cov):
-            return self.posterior_.mean_at_lags(self._evidence.data, self.kernel_, lags)
-        mean, second = self.posterior_.at_lags(
-            self._evidence.data, self.kernel_, lags, full_cov=return_cov
-        )
-        return (mean, second) if return_cov else (mean, np.sqrt(second))
+            return self._shaped(self.posterior_.mean_at_lags(data, self.kernel_, X))
+        mean, second = self.posterior_.at_lags(data, self.kernel_, X, full_cov=return_cov)
+        if return_cov:
+            return self._shaped(mean), second
+        return self._shaped(mean), self._shaped(np.sqrt(second))
 
-    def _lags(self, lags) -> np.ndarray:
-        if lags is None:
-            return np.arange(self.coef_.shape[0], dtype=float)
-        return check_lags(lags, "lags")
+    def _points(self, lags) -> np.ndarray:
+        """The kernel inputs of the lags: a column, or ``(input, lag)`` pairs input-major."""
+        lags = np.arange(self._order, dtype=float) if lags is None else check_lags(lags, "lags")
+        if self.n_inputs_ == 1:
+            return lags[:, None]
+        inputs = np.repeat(np.arange(self.n_inputs_, dtype=float), lags.shape[0])
+        return np.column_stack([inputs, np.tile(lags, self.n_inputs_)])
 
 
 class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
@@ -446,21 +570,25 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
     Parameters
     ----------
     factor : int, default=1
-        Downsampling factor ``F``.
+        Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int
-        FIR order ``P``, below the number of slow samples ``M``.
+        FIR order ``P``; ``n_inputs * P`` must be below the number of used
+        slow samples ``M``.
     offset : int, default=0
         Fast index of the first slow sample, ``0..F-1``.
+    initial_conditions : {"zero", "discard", "periodic"}, default="zero"
+        As for :class:`FIRGaussianProcess`.
 
     Attributes
     ----------
-    coef_ : ndarray of shape (P,)
+    coef_ : ndarray of shape (P,), or (n_inputs, P) for a 2-D ``u``
+    n_inputs_ : int
     noise_variance_ : float
         Residual variance ``||y - Phi g||^2 / (M - P)`` (NaN when ``M = P + 0``).
-    coef_covariance_ : ndarray of shape (P, P)
+    coef_covariance_ : ndarray of shape (n_inputs * P, n_inputs * P)
         ``noise_variance_ (Phi^T Phi)^{-1}``, used for the bands of
         :meth:`predict` and :meth:`frequency_response`.
-    operator_ : DownsampledConvolution
+    operator_ : Observation
     posterior_ : GaussianCoefficients
         The Gaussian distribution ``N(coef_, coef_covariance_)``.
 
@@ -476,18 +604,23 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
     array([1.  , 0.5 , 0.25])
     """
 
-    def __init__(self, factor: int = 1, order: int | None = None, offset: int = 0):
+    def __init__(self, factor: int = 1, order: int | None = None, offset: int = 0,
+                 initial_conditions: str = "zero"):
         self.factor = factor
         self.order = order
         self.offset = offset
+        self.initial_conditions = initial_conditions
 
-    def fit(self, u, y_slow) -> "LeastSquaresFIR":
+    def fit(self, u, y_slow, sample_indices=None) -> "LeastSquaresFIR":
         """Solve the least-squares problem of eq. (10)-(11).
 
         Parameters
         ----------
-        u : array-like of shape (N,)
-        y_slow : array-like of shape (M,)
+        u : array-like of shape (N,) or (N, n_inputs), or a list of them
+        y_slow : array-like of shape (M,), or a list of them
+            ``NaN`` marks a sample that was not measured.
+        sample_indices : array-like of int, or a list of them, optional
+            As for :meth:`FIRGaussianProcess.fit`.
 
         Returns
         -------
@@ -496,32 +629,38 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
         Raises
         ------
         IdentifiabilityError
-            If ``order >= M`` or the regressor is rank deficient.
+            If ``n_inputs * order >= M`` (the used slow samples) or the
+            regressor is rank deficient.
         """
-        u = check_signal(u, "u")
         if self.order is None:
             raise ValueError("order must be given: an integer below the number of slow samples")
-        operator = DownsampledConvolution(u, self.factor, self.order, self.offset)
-        y = _check_slow_output(y_slow, operator)
-        M, P = operator.shape
+        experiment = build_experiment(
+            u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
+            order=self.order, initial_conditions=self.initial_conditions,
+        )
+        operator, y = experiment.observation, experiment.y
+        M, P = operator.n_outputs, operator.n_coefficients
         if P >= M:
+            inputs = f" x {operator.n_inputs} inputs" if operator.n_inputs > 1 else ""
             raise IdentifiabilityError(
-                f"order={P} is not below the number of slow samples M={M}: the "
-                "least-squares FIR estimate is not unique (Lemma 1). Use order < M, "
-                "more data, or FIRGaussianProcess, whose prior makes any order unique."
+                f"order={operator.order}{inputs} is not below the number of used slow samples "
+                f"M={M}: the least-squares FIR estimate is not unique (Lemma 1). Use a lower "
+                "order, more data, or FIRGaussianProcess, whose prior makes any order unique."
             )
         U, s, Vt = linalg.svd(operator.matrix, full_matrices=False, check_finite=False)
         tolerance = max(M, P) * np.finfo(float).eps * (s[0] if s.size else 0.0)
         rank = int(np.sum(s > tolerance))
         if rank < P:
+            hold = any(
+                _is_zero_order_hold(x[:, k], operator.slow_factor)
+                for x in _record_inputs(experiment) for k in range(x.shape[1])
+            )
             hint = (
                 "The input is constant between slow samples (zero-order hold, Lemma 2): "
-                "excite the system at the fast rate. "
-                if _is_zero_order_hold(u, operator.factor)
-                else ""
+                "excite the system at the fast rate. " if hold else ""
             )
             raise IdentifiabilityError(
-                f"the regressor has rank {rank} < order={P}, so the least-squares FIR "
+                f"the regressor has rank {rank} < {P} coefficients, so the least-squares FIR "
                 f"estimate is not unique. {hint}Use a fast-rate (e.g. multisine or random) "
                 "input, a lower order, or FIRGaussianProcess."
             )
@@ -530,7 +669,8 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
         noise_variance = float(residual @ residual / (M - P))
         root = Vt.T / s  # coef covariance = noise_variance * root @ root.T
         self.operator_ = operator
-        self.coef_ = coef
+        self.n_inputs_ = experiment.n_inputs
+        self.coef_ = self._shaped(coef)
         self.noise_variance_ = noise_variance
         self.coef_covariance_ = noise_variance * (root @ root.T)
         self.posterior_ = GaussianCoefficients(coef, self.coef_covariance_, np.zeros((0, P)))
@@ -551,14 +691,14 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
 
         Returns
         -------
-        mean : ndarray of shape (n,)
-        std : ndarray of shape (n,), only with ``return_std``
-        cov : ndarray of shape (n, n), only with ``return_cov``
+        mean : ndarray of shape (n,), or (n_inputs, n) for several inputs
+        std : ndarray of the shape of ``mean``, only with ``return_std``
+        cov : ndarray, only with ``return_cov`` (input-major for several inputs)
         """
         check_is_fitted(self, "coef_")
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
-        order = self.coef_.shape[0]
+        order = self._order
         if lags is None:
             index = np.arange(order)
         else:
@@ -568,13 +708,15 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
                 raise ValueError(
                     f"lags must be integers in 0..{order - 1} for a least-squares FIR model"
                 )
-        mean = self.coef_[index]
+        # the input-major positions of the lags of every input
+        index = (np.arange(self.n_inputs_)[:, None] * order + index[None, :]).reshape(-1)
+        mean = self.posterior_.coef[index]
         if not (return_std or return_cov):
-            return mean
+            return self._shaped(mean)
         cov = self.coef_covariance_[np.ix_(index, index)]
         if return_cov:
-            return mean, cov
-        return mean, np.sqrt(np.maximum(np.diag(cov), 0.0))
+            return self._shaped(mean), cov
+        return self._shaped(mean), self._shaped(np.sqrt(np.maximum(np.diag(cov), 0.0)))
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:

@@ -181,19 +181,19 @@ class DataSpacePosterior(GaussianCoefficients):
             y @ self.alpha, 2.0 * np.log(np.diag(self.L)).sum(), y.shape[0]
         )
 
-    def mean_at_lags(self, operator, kernel, lags: np.ndarray) -> np.ndarray:
-        """Posterior mean of ``g`` at real lags."""
-        return operator.cross_covariance(kernel, lags[:, None]) @ self.alpha
+    def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
+        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
+        return operator.cross_covariance(kernel, X) @ self.alpha
 
-    def at_lags(self, operator, kernel, lags: np.ndarray, full_cov: bool):
-        """Posterior mean and variance (or covariance) of ``g`` at real lags."""
-        cross = operator.cross_covariance(kernel, lags[:, None])
+    def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
+        """Posterior mean and variance (or covariance) of ``g`` at the kernel inputs ``X``."""
+        cross = operator.cross_covariance(kernel, X)
         mean = cross @ self.alpha
         V = linalg.solve_triangular(self.L, cross.T, lower=True, check_finite=False)
         if full_cov:
-            cov = kernel(lags[:, None]) - V.T @ V
+            cov = kernel(X) - V.T @ V
             return mean, 0.5 * (cov + cov.T)
-        var = kernel.diag(lags[:, None]) - np.einsum("ij,ij->j", V, V)
+        var = kernel.diag(X) - np.einsum("ij,ij->j", V, V)
         return mean, np.maximum(var, 0.0)
 
 
@@ -255,19 +255,19 @@ class ParameterSpacePosterior(GaussianCoefficients):
     def covariance(self) -> np.ndarray:
         return self.factor @ self.factor.T
 
-    def mean_at_lags(self, operator, kernel, lags: np.ndarray) -> np.ndarray:
-        """Posterior mean of ``g`` at real lags."""
-        return kernel(lags[:, None], operator.lags) @ (self.inv_root @ self.z)
+    def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
+        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
+        return kernel(X, operator.lags) @ (self.inv_root @ self.z)
 
-    def at_lags(self, operator, kernel, lags: np.ndarray, full_cov: bool):
-        """Posterior of ``g(lags)``: the prior conditional on ``g(0..P-1)``, averaged."""
-        J = kernel(lags[:, None], operator.lags) @ self.inv_root
+    def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
+        """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged."""
+        J = kernel(X, operator.lags) @ self.inv_root
         mean = J @ self.z
         JS = J @ linalg.solve_triangular(self.R, np.eye(self.R.shape[0]), check_finite=False)
         if full_cov:
-            cov = kernel(lags[:, None]) - J @ J.T + JS @ JS.T
+            cov = kernel(X) - J @ J.T + JS @ JS.T
             return mean, 0.5 * (cov + cov.T)
-        var = kernel.diag(lags[:, None]) - np.einsum("ij,ij->i", J, J) + np.einsum("ij,ij->i", JS, JS)
+        var = kernel.diag(X) - np.einsum("ij,ij->i", J, J) + np.einsum("ij,ij->i", JS, JS)
         return mean, np.maximum(var, 0.0)
 
 

@@ -24,6 +24,20 @@ An uncompressed ``.npz`` archive (:func:`numpy.savez`) with the members
 ``coef_covariance``
     Coefficient covariance (LeastSquaresFIR).
 
+File format, version 2
+----------------------
+Written for the data that version 1 cannot describe: several inputs,
+several records, slow samples at given instants or missing, and initial
+conditions other than ``"zero"``.  ``fitted`` holds ``layout`` (``"records"``),
+``n_records``, ``several_records`` and ``order``, and the arrays are, for
+every record ``r``, ``u_<r>`` (``(N,)`` or ``(N, n_inputs)``),
+``sample_indices_<r>`` (the used fast-sample instants, as float64) and
+``y_slow_<r>`` (the used slow samples), with ``coef`` (the input-major
+coefficient vector) and, for LeastSquaresFIR, ``coef_covariance``.  Both
+estimators are rebuilt by fitting the stored data again (least squares is
+deterministic; a Gaussian process is conditioned at the stored
+hyperparameters), and the coefficients are checked against ``coef``.
+
 A kernel is a JSON tree such as ``{"class": "Sum", "k1": {...}, "k2": {...}}``
 or ``{"class": "DC", "params": {"alpha": 0.9, ...}}`` whose classes must be
 in :data:`KERNEL_CLASSES`.  Values JSON cannot hold exactly are tagged
@@ -67,8 +81,8 @@ from sklearn.utils.validation import check_is_fitted
 from gpmultirate.inference import GaussianCoefficients
 from gpmultirate import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
-from gpmultirate.kernels import DC, PK, SS, TC
-from gpmultirate.observations import DownsampledConvolution
+from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
+from gpmultirate.observations import DownsampledConvolution, build_experiment
 
 __all__ = [
     "FORMAT_NAME",
@@ -84,7 +98,7 @@ __all__ = [
 PathOrFile = Union[str, os.PathLike, BinaryIO]
 
 FORMAT_NAME = "gpmultirate-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 #: The only kernel classes a model file may name, by class name.
 KERNEL_CLASSES = types.MappingProxyType(
@@ -92,12 +106,14 @@ KERNEL_CLASSES = types.MappingProxyType(
         cls.__name__: cls
         for cls in (
             ConstantKernel, WhiteKernel, RBF, Matern, RationalQuadratic, ExpSineSquared,
-            DotProduct, Sum, Product, Exponentiation, TC, DC, SS, PK,
+            DotProduct, Sum, Product, Exponentiation, TC, DC, SS, PK, PerInputKernel,
         )
     }
 )
 # constructor arguments of the composite kernels that are kernels themselves
 _KERNEL_SLOTS = {"Sum": ("k1", "k2"), "Product": ("k1", "k2"), "Exponentiation": ("kernel",)}
+# constructor arguments that are lists of kernels
+_KERNEL_LISTS = {"PerInputKernel": "kernels"}
 _ESTIMATORS = {cls.__name__: cls for cls in (FIRGaussianProcess, LeastSquaresFIR)}
 _ARRAYS = {
     "FIRGaussianProcess": ("u", "y_slow", "coef"),
@@ -182,14 +198,35 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
         )
     check_is_fitted(model, "coef_")
     operator = model.operator_
-    fitted: dict[str, Any] = {
-        "factor": int(operator.factor),
-        "order": int(operator.order),
-        "offset": int(operator.offset),
-    }
-    arrays = {"u": operator.u, "coef": model.coef_}
+    if isinstance(operator, DownsampledConvolution):  # the layout of version 1
+        version = 1
+        fitted: dict[str, Any] = {
+            "factor": int(operator.factor),
+            "order": int(operator.order),
+            "offset": int(operator.offset),
+        }
+        arrays = {"u": operator.u, "coef": model.coef_}
+        if isinstance(model, FIRGaussianProcess):
+            arrays["y_slow"] = model.y_slow_
+    else:
+        version = 2
+        records = operator.records
+        fitted = {
+            "layout": "records",
+            "n_records": len(records),
+            "several_records": _several(model),
+            "order": int(operator.order),
+        }
+        arrays = {"coef": model.posterior_.coef}
+        start = 0
+        for r, record in enumerate(records):
+            stop = start + record.n_outputs
+            arrays[f"u_{r}"] = record.u
+            arrays[f"sample_indices_{r}"] = record.sample_indices
+            if isinstance(model, FIRGaussianProcess):
+                arrays[f"y_slow_{r}"] = model.y_slow_[start:stop]
+            start = stop
     if isinstance(model, FIRGaussianProcess):
-        arrays["y_slow"] = model.y_slow_
         result = getattr(model, "optimizer_result_", None)
         fitted.update(
             kernel_=describe_kernel(model.kernel_),
@@ -204,7 +241,7 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
         fitted["noise_variance_"] = _encode(model.noise_variance_, "noise_variance_")
     header = {
         "format": FORMAT_NAME,
-        "format_version": FORMAT_VERSION,
+        "format_version": version,
         "library_version": __version__,
         "estimator": name,
         "params": {
@@ -267,6 +304,9 @@ def describe_kernel(kernel: Kernel) -> dict:
     tree: dict[str, Any] = {"class": name}
     for slot in _KERNEL_SLOTS.get(name, ()):
         tree[slot] = describe_kernel(params.pop(slot))
+    if name in _KERNEL_LISTS:
+        slot = _KERNEL_LISTS[name]
+        tree[slot] = [describe_kernel(k) for k in params.pop(slot)]
     if params:
         tree["params"] = {key: _encode(value, f"{name}.{key}") for key, value in params.items()}
     return tree
@@ -308,8 +348,9 @@ def kernel_from_description(tree: dict) -> Kernel:
             f"{', '.join(KERNEL_CLASSES)} can be loaded"
         )
     slots = _KERNEL_SLOTS.get(name, ())
-    unexpected = set(tree) - {"class", "params", *slots}
-    missing = [slot for slot in slots if slot not in tree]
+    lists = (_KERNEL_LISTS[name],) if name in _KERNEL_LISTS else ()
+    unexpected = set(tree) - {"class", "params", *slots, *lists}
+    missing = [slot for slot in (*slots, *lists) if slot not in tree]
     if unexpected or missing:
         raise ModelFileError(
             f"malformed {name} kernel description: unexpected entries {sorted(unexpected)}, "
@@ -320,6 +361,10 @@ def kernel_from_description(tree: dict) -> Kernel:
         raise ModelFileError(f"the params of a {name} kernel must be an object; got {params!r}")
     arguments = {key: _decode(value) for key, value in params.items()}
     arguments.update({slot: kernel_from_description(tree[slot]) for slot in slots})
+    for slot in lists:
+        if not isinstance(tree[slot], list) or not tree[slot]:
+            raise ModelFileError(f"the {slot} of a {name} kernel must be a non-empty list")
+        arguments[slot] = [kernel_from_description(item) for item in tree[slot]]
     try:
         return KERNEL_CLASSES[name](**arguments)
     except TypeError as exc:
@@ -399,12 +444,15 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
     name = header.get("estimator")
     if name not in _ESTIMATORS:
         raise ModelFileError(f"unknown estimator {name!r} in the model file")
-    if sorted(members) != sorted(_ARRAYS[name]):
+    expected = _ARRAYS[name] if header["format_version"] == 1 else _record_arrays(header, name)
+    if sorted(members) != sorted(expected):
         raise ModelFileError(
-            f"a {name} file must hold the arrays {sorted(_ARRAYS[name])}; got {sorted(members)}"
+            f"a {name} file must hold the arrays {sorted(expected)}; got {sorted(members)}"
         )
     try:
         arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
+        if header["format_version"] == 2:
+            return _load_records(header, arrays, _ESTIMATORS[name])
         if name == "FIRGaussianProcess":
             return _load_gaussian_process(header, arrays)
         return _load_least_squares(header, arrays)
@@ -490,12 +538,97 @@ def _checksum(header: dict, arrays: dict[str, np.ndarray]) -> str:
 
 
 def _float_vector_or_matrix(name: str, array: np.ndarray) -> np.ndarray:
-    ndim = 2 if name == "coef_covariance" else 1
-    if array.dtype.kind != "f" or array.ndim != ndim:
+    ndims = (2,) if name == "coef_covariance" else (1, 2) if name.startswith("u_") else (1,)
+    if array.dtype.kind != "f" or array.ndim not in ndims:
+        expected = " or ".join(f"{n}-D" for n in ndims)
         raise ModelFileError(
-            f"array {name!r} must be {ndim}-D float; got {array.dtype} of shape {array.shape}"
+            f"array {name!r} must be {expected} float; got {array.dtype} of shape {array.shape}"
         )
     return np.array(array, dtype=float)
+
+
+def _several(model) -> bool:
+    """Whether the model was fitted to a list of records (its predictions are lists then)."""
+    return len(model.operator_.records) > 1
+
+
+def _record_arrays(header: dict, name: str) -> tuple[str, ...]:
+    fitted = _section(header, "fitted")
+    n = _integer(fitted, "n_records")
+    if n < 1 or n > 100_000:
+        raise ModelFileError(f"header entry 'n_records' must be in 1..100000; got {n}")
+    if name == "LeastSquaresFIR":
+        keys, extra = ("u", "sample_indices"), ("coef_covariance",)
+    else:
+        keys, extra = ("u", "sample_indices", "y_slow"), ()
+    return ("coef", *[f"{key}_{r}" for r in range(n) for key in keys], *extra)
+
+
+def _load_records(header: dict, arrays: dict, estimator: type):
+    """Version 2: the stored records, fitted again or with the stored estimate.
+
+    A Gaussian process is conditioned on the stored data at the stored
+    hyperparameters; least squares keeps no slow output, so its observation
+    is rebuilt from the inputs and instants and its estimate restored.
+    """
+    params = _decode_params(header, estimator)
+    fitted = _section(header, "fitted")
+    n = _integer(fitted, "n_records")
+    us = [arrays[f"u_{r}"] for r in range(n)]
+    indices = [arrays[f"sample_indices_{r}"] for r in range(n)]
+    ys = (
+        [arrays[f"y_slow_{r}"] for r in range(n)] if estimator is FIRGaussianProcess
+        else [np.zeros(index.shape[0]) for index in indices]
+    )
+    if not fitted.get("several_records") and n == 1:
+        us, ys, indices = us[0], ys[0], indices[0]
+    order = _integer(fitted, "order")
+    if estimator is LeastSquaresFIR:
+        experiment = build_experiment(
+            us, ys, indices, order=order, initial_conditions=params.get("initial_conditions", "zero")
+        )
+        P = experiment.observation.n_coefficients
+        coef, covariance = arrays["coef"], arrays["coef_covariance"]
+        if coef.shape != (P,) or covariance.shape != (P, P):
+            raise ModelFileError(
+                f"coef and coef_covariance must have shapes ({P},) and ({P}, {P}); "
+                f"got {coef.shape} and {covariance.shape}"
+            )
+        model = LeastSquaresFIR(**params)
+        model.operator_ = experiment.observation
+        model.n_inputs_ = experiment.n_inputs
+        model.coef_ = coef.reshape(model.n_inputs_, -1) if model.n_inputs_ > 1 else coef
+        model.noise_variance_ = _number(fitted, "noise_variance_")
+        model.coef_covariance_ = covariance
+        model.posterior_ = GaussianCoefficients(coef, covariance, np.zeros((0, P)))
+        return model
+    arguments = dict(
+        params, kernel=kernel_from_description(fitted["kernel_"]),
+        noise_level=_number(fitted, "noise_level_"), optimizer=None,
+    )
+    model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
+    if model.operator_.order != order:
+        raise ModelFileError(
+            f"inconsistent model file: order is {order!r} in the header "
+            f"but {model.operator_.order} for the stored data"
+        )
+    _warn_if_not_reproduced(
+        model.posterior_.coef, arrays["coef"], model.log_marginal_likelihood_value_,
+        _number(fitted, "log_marginal_likelihood_value_"),
+    )
+    model.set_params(**params)
+    _restore_optimizer_result(model, fitted)
+    return model
+
+
+def _restore_optimizer_result(model, fitted: dict) -> None:
+    result = fitted.get("optimizer_result_")
+    if result is not None:
+        if not isinstance(result, dict) or set(result) - set(_OPTIMIZER_FIELDS):
+            raise ModelFileError(f"invalid optimizer_result_ in the model file: {result!r}")
+        model.optimizer_result_ = OptimizeResult(
+            {key: _decode(value) for key, value in result.items()}
+        )
 
 
 def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
@@ -515,13 +648,7 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
         model.log_marginal_likelihood_value_, _number(fitted, "log_marginal_likelihood_value_"),
     )
     model.set_params(**params)
-    result = fitted.get("optimizer_result_")
-    if result is not None:
-        if not isinstance(result, dict) or set(result) - set(_OPTIMIZER_FIELDS):
-            raise ModelFileError(f"invalid optimizer_result_ in the model file: {result!r}")
-        model.optimizer_result_ = OptimizeResult(
-            {key: _decode(value) for key, value in result.items()}
-        )
+    _restore_optimizer_result(model, fitted)
     return model
 
 
@@ -543,6 +670,7 @@ def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
             f"got {coef.shape} and {covariance.shape}"
         )
     model.operator_ = operator
+    model.n_inputs_ = 1
     model.coef_ = coef
     model.noise_variance_ = _number(fitted, "noise_variance_")
     model.coef_covariance_ = covariance

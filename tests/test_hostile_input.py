@@ -356,6 +356,49 @@ def bad_signals(n: int, *, none_is_bad: bool = True):
     )
 
 
+def bad_fit_inputs(n: int):
+    """Bad ``u`` for ``fit``: as :func:`bad_signals`, but a 2-D real array is several
+    inputs (valid), so only arrays of three or more dimensions stay bad shapes."""
+    return with_none(
+        st.one_of(
+            junk,
+            st.floats(allow_nan=True, allow_infinity=True),  # scalars
+            st.sampled_from([np.empty(0), [], np.empty((0, 3))]),
+            hnp.arrays(float, (2, 2, 2), elements=st.floats(-1, 1)),
+            vectors_with_non_finite(n),
+            complex_vectors(n),
+            st.just(["x"] * n),
+        ),
+        True,
+    )
+
+
+@st.composite
+def vectors_with_infinity(draw, n: int):
+    x = draw(finite_vectors(n))
+    x[draw(st.integers(0, n - 1))] = draw(st.sampled_from([np.inf, -np.inf]))
+    return x
+
+
+def bad_slow_outputs(n: int):
+    """Bad ``y_slow`` for ``fit``: NaN marks a missing sample (valid), inf does not,
+    and neither does a record without any finite sample."""
+    return with_none(
+        st.one_of(
+            junk,
+            st.floats(allow_nan=True, allow_infinity=True),  # scalars
+            st.sampled_from([np.empty(0), [], np.empty((0, 3)), np.full(n, np.nan)]),
+            hnp.arrays(float, st.tuples(st.integers(2, 4), st.integers(2, 4)),
+                       elements=st.floats(-1, 1)),
+            hnp.arrays(float, (2, 2, 2), elements=st.floats(-1, 1)),
+            vectors_with_infinity(n),
+            complex_vectors(n),
+            st.just(["x"] * n),
+        ),
+        True,
+    )
+
+
 def wrong_lengths(n: int):
     """Finite real vectors whose length is not ``n``."""
     return st.integers(1, n + 4).filter(lambda k: k != n).flatmap(finite_vectors)
@@ -549,9 +592,9 @@ def fit_cases(draw):
     ]))
     names = (slot,)
     if slot == "u":
-        data["u"] = draw(bad_signals(n))
+        data["u"] = draw(bad_fit_inputs(n))
     elif slot == "y_slow":
-        data["y_slow"] = draw(bad_signals(m) | wrong_lengths(m))
+        data["y_slow"] = draw(bad_slow_outputs(m) | wrong_lengths(m))
     elif slot == "factor":
         params["factor"] = draw(bad_ints(1))
     elif slot == "order":
@@ -586,6 +629,7 @@ def fit_cases(draw):
     return Case(label, lambda: FIRGaussianProcess(**params).fit(**data), names)
 
 
+@pytest.mark.slow
 def test_fit_rejects_bad_arguments():
     run_hostile(fit_cases(), BUDGET["fit"])
 
@@ -693,9 +737,9 @@ def least_squares_fit_cases(draw):
     slot = draw(st.sampled_from(["u", "y_slow", "factor", "order", "offset", "unidentifiable"]))
     names = (slot,)
     if slot == "u":
-        data["u"] = draw(bad_signals(n))
+        data["u"] = draw(bad_fit_inputs(n))
     elif slot == "y_slow":
-        data["y_slow"] = draw(bad_signals(m) | wrong_lengths(m))
+        data["y_slow"] = draw(bad_slow_outputs(m) | wrong_lengths(m))
     elif slot == "factor":
         params["factor"] = draw(bad_ints(1))
     elif slot == "order":

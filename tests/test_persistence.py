@@ -375,8 +375,9 @@ def test_same_major_version_accepted(saved, fitted, data):
 
 
 def test_newer_format_version_refused(saved):
-    rewrite(saved, lambda h, m: h.update(format_version=2))
-    with pytest.raises(ModelFileError, match="format version 2"):
+    newer = gpmultirate.persistence.FORMAT_VERSION + 1
+    rewrite(saved, lambda h, m: h.update(format_version=newer))
+    with pytest.raises(ModelFileError, match=f"format version {newer}"):
         load_model(saved)
 
 

@@ -66,6 +66,11 @@ class Observation:
         return (self.n_outputs, self.order)
 
     @property
+    def records(self) -> list:
+        """The records this observation stacks: itself, unless it is a stack."""
+        return [self]
+
+    @property
     def n_coefficients(self) -> int:
         """``n_inputs * P``, the number of columns of the regressor."""
         return self.n_inputs * self.order

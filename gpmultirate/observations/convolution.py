@@ -83,6 +83,11 @@ class DownsampledConvolution(Observation):
         return self.sample_indices.shape[0]
 
     @property
+    def slow_factor(self) -> int:
+        """The ratio of the fast to the slow sample rate, ``F``."""
+        return self.factor
+
+    @property
     def uniform_sampling(self) -> UniformSampling:
         """The input, factor and offset: the samples are uniformly spaced."""
         return UniformSampling(self.u, self.factor, self.offset, self.n_outputs)

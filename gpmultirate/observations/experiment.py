@@ -23,7 +23,7 @@ from gpmultirate.observations.sampled import (
 )
 from gpmultirate.validation import as_real_array, check_inputs, check_int, check_sample_indices
 
-__all__ = ["Experiment", "build_experiment", "check_records"]
+__all__ = ["Experiment", "build_experiment", "check_records", "is_record_list"]
 
 
 @dataclass
@@ -53,9 +53,17 @@ class Experiment:
     n_samples: list = field(default_factory=list)
 
 
+def is_record_list(x) -> bool:
+    """Whether ``x`` is a list of records: a list or tuple of arrays (not of numbers)."""
+    return (
+        isinstance(x, (list, tuple)) and len(x) > 0
+        and all(isinstance(e, (list, tuple, np.ndarray)) and np.ndim(e) >= 1 for e in x)
+    )
+
+
 def check_records(u, name: str = "u"):
     """``(inputs, several_records, several_inputs)``: each record's input as ``(N, n_inputs)``."""
-    several_records = isinstance(u, (list, tuple))
+    several_records = is_record_list(u)
     records = list(u) if several_records else [u]
     if not records:
         raise ValueError(f"{name} must hold at least one record; got an empty list")
@@ -118,7 +126,7 @@ def build_experiment(
     """
     inputs, several_records, several_inputs = check_records(u)
     if several_records:
-        if not isinstance(y_slow, (list, tuple)) or len(y_slow) != len(inputs):
+        if not is_record_list(y_slow) or len(y_slow) != len(inputs):
             raise ValueError(
                 f"y_slow must be a list with one entry per record of u ({len(inputs)}); "
                 f"got {type(y_slow).__name__}"
@@ -130,7 +138,7 @@ def build_experiment(
             raise ValueError(
                 f"sample_indices must be a list with one entry per record of u ({len(inputs)})"
             )
-    elif isinstance(y_slow, (list, tuple)) and y_slow and np.ndim(y_slow[0]) > 0:
+    elif is_record_list(y_slow) and len(y_slow) > 1:
         raise ValueError("y_slow is a list of records but u is not: give u as a list too")
     ys = list(y_slow) if several_records else [y_slow]
     indices = (

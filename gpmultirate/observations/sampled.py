@@ -117,6 +117,12 @@ class SampledConvolution(Observation):
         return self.sample_indices.shape[0]
 
     @property
+    def slow_factor(self) -> int:
+        """The median spacing of the instants: the ratio of the fast to the mean slow rate."""
+        spacing = np.diff(self.sample_indices)
+        return max(1, int(round(float(np.median(spacing))))) if spacing.size else 1
+
+    @property
     def uniform_sampling(self) -> UniformSampling | None:
         """The uniform sampling of a single input from rest, if the instants are uniform."""
         index = self.sample_indices
@@ -240,7 +246,7 @@ class RecordStack(Observation):
                     f"record {i} has order {record.order} and {record.n_inputs} inputs; "
                     f"record 0 has order {first.order} and {first.n_inputs} inputs"
                 )
-        self.records = records
+        self._records = records
         self.order = first.order
         self.n_inputs = first.n_inputs
         self.starts = np.cumsum([0] + [r.n_outputs for r in records])
@@ -251,15 +257,30 @@ class RecordStack(Observation):
     @property
     def matrix(self) -> np.ndarray:
         if self._matrix is None:
-            matrix = np.vstack([record.matrix for record in self.records])
+            matrix = np.vstack([record.matrix for record in self._records])
             matrix.setflags(write=False)
             self._matrix = matrix
         return self._matrix
 
+    @property
+    def records(self) -> list:
+        """The stacked records."""
+        return list(self._records)
+
+    @property
+    def n_samples(self) -> int:
+        """The length of the longest record."""
+        return max(record.n_samples for record in self._records)
+
+    @property
+    def slow_factor(self) -> int:
+        """The median over the records of their slow factors."""
+        return max(1, int(round(float(np.median([r.slow_factor for r in self._records])))))
+
     def regressor_rows(self, start: int, stop: int) -> np.ndarray:
         """Rows ``start..stop-1`` of the stacked regressor, read from the records."""
         parts = []
-        for record, first in zip(self.records, self.starts[:-1]):
+        for record, first in zip(self._records, self.starts[:-1]):
             low, high = max(start, first), min(stop, first + record.n_outputs)
             if low < high:
                 parts.append(record.regressor_rows(low - first, high - first))
@@ -272,14 +293,14 @@ class RecordStack(Observation):
         if self.n_inputs == 1:
             return self
         if k not in self._blocks:
-            self._blocks[k] = RecordStack([record.input_block(k) for record in self.records])
+            self._blocks[k] = RecordStack([record.input_block(k) for record in self._records])
         return self._blocks[k]
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, RecordStack):
             return NotImplemented
-        return len(self.records) == len(other.records) and all(
-            a == b for a, b in zip(self.records, other.records)
+        return len(self._records) == len(other.records) and all(
+            a == b for a, b in zip(self._records, other.records)
         )
 
     __hash__ = None
@@ -291,4 +312,4 @@ class RecordStack(Observation):
         return state
 
     def __repr__(self) -> str:
-        return f"RecordStack({len(self.records)} records, order={self.order}, M={self.n_outputs})"
+        return f"RecordStack({len(self._records)} records, order={self.order}, M={self.n_outputs})"
