@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits
 from gpmultirate import tuning
 from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
-from gpmultirate.kernels import DC, PerInputKernel, check_lags
+from gpmultirate.kernels import DC, PerInputKernel, check_lags, kernel_for_inputs
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observations import build_experiment, check_initial_conditions, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
@@ -254,24 +254,16 @@ def _blas_threads_for(operator):
 
 def _initial_kernel(kernel, experiment):
     """The prior of the fit: the user's kernel(s), one per input, or the default."""
-    inputs = np.vstack([obs_u for obs_u in _record_inputs(experiment)])
-    power_y = float(np.mean(experiment.y**2)) or 1.0
     n = experiment.n_inputs
-    if kernel is None:
-        kernels = []
-        for k in range(n):
-            # scale reference: output power per unit input power
-            reference = power_y / (float(np.mean(inputs[:, k] ** 2)) or 1.0)
-            kernels.append(ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC())
-    elif isinstance(kernel, (list, tuple)):
-        if len(kernel) != n:
-            raise ValueError(
-                f"kernel must be one kernel or a list with one kernel per input ({n}); "
-                f"got a list of {len(kernel)}"
-            )
-        kernels = [clone(check_kernel(k, f"kernel[{i}]")) for i, k in enumerate(kernel)]
-    else:
-        kernels = [clone(check_kernel(kernel)) for _ in range(n)]
+    if kernel is not None:
+        return kernel_for_inputs(kernel, n)
+    inputs = np.vstack(_record_inputs(experiment))
+    power_y = float(np.mean(experiment.y**2)) or 1.0
+    kernels = []
+    for k in range(n):
+        # scale reference: output power per unit input power, for each input
+        reference = power_y / (float(np.mean(inputs[:, k] ** 2)) or 1.0)
+        kernels.append(ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC())
     return kernels[0] if n == 1 else PerInputKernel(kernels)
 
 

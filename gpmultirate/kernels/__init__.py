@@ -14,7 +14,7 @@ returns a structured term from :meth:`StructuredKernel.observed`; see the
 "Adding a kernel" guide.
 """
 
-from gpmultirate.kernels.inputs import BlockTerm, PerInputKernel
+from gpmultirate.kernels.inputs import BlockTerm, PerInputKernel, kernel_for_inputs
 from gpmultirate.kernels.lag import DC, PK, SS, TC, LagKernel, check_lags
 from gpmultirate.kernels.structure import (
     LowRankTerm,
@@ -37,5 +37,6 @@ __all__ = [
     "Role",
     "StructuredKernel",
     "check_lags",
+    "kernel_for_inputs",
     "observe",
 ]

@@ -18,9 +18,9 @@ from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
 from gpmultirate.kernels.structure import ObservedTerm, StructuredKernel, observe
-from gpmultirate.validation import as_real_array
+from gpmultirate.validation import as_real_array, check_kernel
 
-__all__ = ["BlockTerm", "PerInputKernel"]
+__all__ = ["BlockTerm", "PerInputKernel", "kernel_for_inputs"]
 
 
 class PerInputKernel(StructuredKernel, Kernel):
@@ -165,9 +165,41 @@ class PerInputKernel(StructuredKernel, Kernel):
         )
 
 
-def clone_per_input(kernel, n_inputs: int) -> PerInputKernel:
-    """``n_inputs`` independent copies of ``kernel`` (tuned separately)."""
-    return PerInputKernel([clone(kernel) for _ in range(n_inputs)])
+def kernel_for_inputs(kernel, n_inputs: int) -> Kernel:
+    """The prior of ``n_inputs`` inputs from what a user gives.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel, list of them, or PerInputKernel
+        One kernel (copied for every input, each copy tuned separately), a
+        list with one kernel per input, or a :class:`PerInputKernel`.
+    n_inputs : int
+
+    Returns
+    -------
+    sklearn Kernel
+        A checked copy: the kernel itself for one input, else a
+        :class:`PerInputKernel`.
+
+    Examples
+    --------
+    >>> from gpmultirate.kernels import DC
+    >>> kernel_for_inputs(DC(0.8, 0.9), 2)
+    PerInputKernel([DC(alpha=0.8, beta=0.9), DC(alpha=0.8, beta=0.9)])
+    """
+    if isinstance(kernel, PerInputKernel):
+        kernels = list(kernel.kernels)
+    elif isinstance(kernel, (list, tuple)):
+        kernels = list(kernel)
+    else:
+        kernels = [check_kernel(kernel)] * n_inputs
+    if len(kernels) != n_inputs:
+        raise ValueError(
+            f"kernel must be one kernel or a list with one kernel per input ({n_inputs}); "
+            f"got a list of {len(kernels)}"
+        )
+    kernels = [clone(check_kernel(k, f"kernel[{i}]")) for i, k in enumerate(kernels)]
+    return kernels[0] if n_inputs == 1 else PerInputKernel(kernels)
 
 
 class BlockTerm(ObservedTerm):

@@ -133,7 +133,7 @@ def build_experiment(
                 + (f" of length {len(y_slow)}" if isinstance(y_slow, (list, tuple)) else "")
             )
         if sample_indices is not None and (
-            not isinstance(sample_indices, (list, tuple)) or len(sample_indices) != len(inputs)
+            not is_record_list(sample_indices) or len(sample_indices) != len(inputs)
         ):
             raise ValueError(
                 f"sample_indices must be a list with one entry per record of u ({len(inputs)})"
