@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 from scipy.stats import multivariate_normal, norm
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 from sklearn.gaussian_process.kernels import WhiteKernel
@@ -257,7 +258,10 @@ def test_two_inputs_are_identified_where_one_input_fails():
     y_fast = np.convolve(u[:, 0], g)[:n] + np.convolve(u[:, 1], 0.9 ** np.arange(n))[:n]
     y = y_fast[::F] + 0.01 * rng.standard_normal(n // F)
     two = gm.FIRGaussianProcess(factor=F, order=200).fit(u, y)
-    one = gm.FIRGaussianProcess(factor=F, order=200).fit(u[:, 0], y)
+    with warnings.catch_warnings():
+        # the input left out makes the data look like noise to a one-input model
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        one = gm.FIRGaussianProcess(factor=F, order=200).fit(u[:, 0], y)
     u_val = rng.standard_normal((n, 2))
     y_val = np.convolve(u_val[:, 0], g)[:n] + np.convolve(u_val[:, 1], 0.9 ** np.arange(n))[:n]
     assert two.score(u_val, y_val) > 95.0
