@@ -534,6 +534,16 @@ class LogEvidence:
         roles = term.roles()
         return [(i, roles[i].power) for i in positions]
 
+    def scale_groups(self, theta):
+        """``[(positions, powers, S_part)]`` of independently scaled parts of ``S`` at ``theta``, or None."""
+        kernel, _ = self.split(theta)
+        tree = observe(kernel, self.data)
+        groups = tree.scale_groups()
+        if groups is None:
+            return None
+        roles = tree.roles()
+        return [(positions, [roles[i].power for i in positions], S) for positions, S in groups]
+
     def split(self, theta, into=None):
         """The kernel and noise level of ``theta``.
 

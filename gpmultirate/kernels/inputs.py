@@ -263,6 +263,16 @@ class BlockTerm(ObservedTerm):
     def roles(self):
         return [role for block in self.blocks for role in block.roles()]
 
+    def scale_groups(self):
+        groups, start = [], 0
+        for block in self.blocks:
+            inner = block.scale_roles()
+            if inner is None:
+                return None
+            groups.append(([start + i for i in inner], block.covariance()))
+            start += len(block.roles())
+        return groups
+
     def scale_roles(self):
         positions, start = [], 0
         for block in self.blocks:

@@ -285,10 +285,15 @@ def observed_recursion(kernel, sampling, order: int, need_gradient: bool = True)
     >>> bool(np.allclose(S, Phi @ K @ Phi.T, rtol=1e-12, atol=0)), len(dS)
     (True, 2)
     """
-    return _observed(
+    S, derivatives = _observed(
         np.asarray(sampling.u, dtype=float), sampling.factor, sampling.offset, order,
         _Rows(kernel, order), need_gradient, sampling.n_outputs,
     )
+    if sampling.selection is None:
+        return S, derivatives
+    # the grid held samples that were not measured: keep the measured ones
+    keep = np.ix_(sampling.selection, sampling.selection)
+    return S[keep], [d[keep] for d in derivatives]
 
 
 class ShiftScaledTerm(ObservedTerm):
@@ -306,7 +311,7 @@ class ShiftScaledTerm(ObservedTerm):
     def _sampling(self, need_gradient: bool):
         sampling = self.observation.uniform_sampling
         if sampling is None or not prefer_recursion(
-            self.observation.n_outputs, sampling.u.shape[0], self.observation.order,
+            sampling.n_outputs, sampling.u.shape[0], self.observation.order,
             need_gradient=need_gradient,
         ):
             return None

@@ -218,6 +218,16 @@ class ObservedTerm:
             roles += [Role(self.path + h.name, kind, self.kernel, h.name, power)] * h.n_elements
         return roles
 
+    def scale_groups(self):
+        """Independent additive parts of ``S``, each with its own amplitudes, or None.
+
+        A list of ``(positions, S_part)`` with ``S = sum S_part``: scaling the
+        amplitudes at ``positions`` (in :meth:`roles`) scales ``S_part``
+        alone.  Only several inputs offer it; tuning then fits each input's
+        scale before the gradient steps.
+        """
+        return None
+
     def scale_roles(self) -> list[int] | None:
         """Positions (in :meth:`roles`) of amplitudes that together scale all of ``K``.
 

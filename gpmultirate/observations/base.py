@@ -33,12 +33,15 @@ class UniformSampling(NamedTuple):
     """Slow samples ``offset + m * factor``, ``m < n_outputs``, of the response to ``u`` from rest.
 
     ``offset < factor``: the sample before the first lies before the record.
+    With ``selection``, the observed samples are the grid's entries
+    ``selection`` (the others were not measured).
     """
 
     u: np.ndarray
     factor: int
     offset: int
     n_outputs: int
+    selection: np.ndarray | None = None
 
 
 class Observation:

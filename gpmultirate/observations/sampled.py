@@ -24,6 +24,9 @@ __all__ = ["INITIAL_CONDITIONS", "RecordStack", "SampledConvolution"]
 
 #: the accepted values of ``initial_conditions``
 INITIAL_CONDITIONS = ("zero", "discard", "periodic")
+#: how much longer than the instants a uniform grid holding them may be for the
+#: diagonal recursion to compute on it (the unmeasured samples are dropped after)
+GRID_SLACK = 1.5
 
 
 def check_initial_conditions(value) -> str:
@@ -124,14 +127,23 @@ class SampledConvolution(Observation):
 
     @property
     def uniform_sampling(self) -> UniformSampling | None:
-        """The uniform sampling of a single input from rest, if the instants are uniform."""
+        """The uniform grid of a single input from rest that holds the instants, if any.
+
+        The instants are the grid ``offset + m * F`` or most of it (samples
+        missing from a uniform sampling): a grid at most
+        ``GRID_SLACK`` times as long as the instants, starting before ``F``.
+        """
         index = self.sample_indices
         if self.n_inputs != 1 or self.initial_conditions != "zero" or index.shape[0] < 2:
             return None
-        step = int(index[1] - index[0])
-        if index[0] >= step or np.any(np.diff(index) != step):
+        step = int(np.gcd.reduce(np.diff(index)))
+        offset = int(index[0]) % step
+        n_grid = (int(index[-1]) - offset) // step + 1
+        if n_grid > GRID_SLACK * index.shape[0]:
             return None
-        return UniformSampling(self.u, step, int(index[0]), index.shape[0])
+        if n_grid == index.shape[0]:
+            return UniformSampling(self.u, step, offset, n_grid)
+        return UniformSampling(self.u, step, offset, n_grid, (index - offset) // step)
 
     def _rows(self, rows, k: int, view: bool = False) -> np.ndarray:
         return regressor_rows(
@@ -158,7 +170,7 @@ class SampledConvolution(Observation):
     def regressor_view(self) -> np.ndarray:
         """A strided view of the regressor when the instants are uniform, else the matrix."""
         sampling = self.uniform_sampling
-        if sampling is None:
+        if sampling is None or sampling.selection is not None or sampling.offset != self.sample_indices[0]:
             return self.matrix
         return self._rows(self.sample_indices, 0, view=True)
 
