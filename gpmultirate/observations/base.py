@@ -106,6 +106,16 @@ class Observation:
         """``Phi`` in its cheapest read-only form (a view where possible)."""
         return self.matrix
 
+    def __getstate__(self):
+        # the regressor and the per-input blocks are rebuilt on demand: a
+        # pickle holds only the data that define the observation
+        state = self.__dict__.copy()
+        if "_matrix" in state:
+            state["_matrix"] = None
+        if "_blocks" in state:
+            state["_blocks"] = {}
+        return state
+
     # ------------------------------------------------------------- products
     def matvec(self, coef) -> np.ndarray:
         """Return ``Phi @ coef``: the observed output of FIR coefficients ``coef``.

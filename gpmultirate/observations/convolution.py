@@ -123,11 +123,6 @@ class DownsampledConvolution(Observation):
 
     __hash__ = None
 
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_matrix"] = None
-        return state
-
     def __setstate__(self, state):
         self.__dict__.update(state)
         self.u = np.array(self.u)

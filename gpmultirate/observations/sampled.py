@@ -199,12 +199,6 @@ class SampledConvolution(Observation):
 
     __hash__ = None
 
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_matrix"] = None
-        state["_blocks"] = {}
-        return state
-
     def __setstate__(self, state):
         self.__dict__.update(state)
         for name in ("_inputs", "used", "sample_indices"):
@@ -316,12 +310,6 @@ class RecordStack(Observation):
         )
 
     __hash__ = None
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_matrix"] = None
-        state["_blocks"] = {}
-        return state
 
     def __repr__(self) -> str:
         return f"RecordStack({len(self._records)} records, order={self.order}, M={self.n_outputs})"
