@@ -32,10 +32,13 @@ from sklearn.exceptions import NotFittedError
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.validation import (
+    as_real_array,
     check_array,
+    check_inputs,
     check_int,
     check_level,
     check_positive,
+    check_sample_indices,
     check_signal,
 )
 
@@ -602,29 +605,35 @@ class OutputPrediction:
         offset: int | None = None,
         sample_time: float = 1.0,
         level: float = 0.95,
+        sample_indices=None,
     ) -> "OutputPrediction":
         """Fast-rate output of a fitted estimator for input ``u``, with its band.
 
         The mean and standard deviation of the noise-free output come from
         ``model.predict(u, return_std=True)``; the slow samples lie at the
-        fast indices ``offset + m factor``.
+        fast indices ``offset + m factor``, or at ``sample_indices``.
 
         Parameters
         ----------
         model : fitted FIRGaussianProcess or LeastSquaresFIR
-        u : array-like of shape (N,)
-            Fast-rate input.
+        u : array-like of shape (N,) or (N, n_inputs)
+            Fast-rate input(s), shaped as in the model's ``fit``.
         y_fast : array-like of shape (N,), optional
             True fast-rate output.
         y_slow : array-like of shape (M,), optional
-            Slow samples, ``M = len(range(offset, N, factor))``.
+            Slow samples, ``M = len(range(offset, N, factor))`` or
+            ``len(sample_indices)``; ``NaN`` marks one that was not measured
+            (it is not drawn).
         factor, offset : int, optional
             Placement of the slow samples; by default the model's
-            (``model.operator_.factor`` and ``model.operator_.offset``).
+            (``model.factor`` and ``model.offset``).
         sample_time : float, default=1.0
             Fast sample time ``T`` in seconds (``time`` is ``n T``).
         level : float, default=0.95
             Credible level of the band, in (0, 1).
+        sample_indices : array-like of int, optional
+            The fast index of each slow sample, instead of ``factor`` and
+            ``offset``.
 
         Returns
         -------
@@ -649,26 +658,32 @@ class OutputPrediction:
         (11.9, array([0. , 0.3, 0.6]))
         """
         _check_fitted(model)
-        u = check_signal(u, "u")
-        n = u.shape[0]
-        factor = model.operator_.factor if factor is None else factor
-        offset = model.operator_.offset if offset is None else offset
-        factor = check_int(factor, "factor", low=1)
-        offset = check_int(offset, "offset", low=0, high=factor - 1)
+        n = check_inputs(u, "u").shape[0]
+        if sample_indices is not None:
+            slow_index = check_sample_indices(sample_indices, n, "sample_indices")
+        else:
+            factor = model.factor if factor is None else factor
+            offset = model.offset if offset is None else offset
+            factor = check_int(factor, "factor", low=1)
+            offset = check_int(offset, "offset", low=0, high=factor - 1)
+            slow_index = np.arange(offset, n, factor)
         sample_time = check_positive(sample_time, "sample_time")
         level = check_level(level)
         if y_fast is not None:
             y_fast = check_signal(y_fast, "y_fast")
             if y_fast.shape[0] != n:
                 raise ValueError(f"y_fast must have len(u) = {n} samples; got {y_fast.shape[0]}")
-        slow_index = np.arange(offset, n, factor)
         if y_slow is not None:
-            y_slow = check_signal(y_slow, "y_slow")
+            y_slow = as_real_array(y_slow, "y_slow").reshape(-1)
+            if np.any(np.isinf(y_slow)):
+                raise ValueError("y_slow must not contain inf (NaN marks a missing sample)")
             if y_slow.shape[0] != slow_index.shape[0]:
                 raise ValueError(
-                    f"y_slow must have len(range(offset, len(u), factor)) = "
-                    f"{slow_index.shape[0]} samples; got {y_slow.shape[0]}"
+                    f"y_slow must have one sample per slow instant "
+                    f"({slow_index.shape[0]}); got {y_slow.shape[0]}"
                 )
+            measured = np.isfinite(y_slow)
+            slow_index, y_slow = slow_index[measured], y_slow[measured]
         mean, std = model.predict(u, return_std=True)
         return cls(time=np.arange(n) * sample_time, mean=mean, std=std, level=level,
                    slow_index=slow_index, y_fast=y_fast, y_slow=y_slow)

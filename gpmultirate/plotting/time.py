@@ -280,15 +280,17 @@ def plot_intersample(
     ----------
     prediction : OutputPrediction or fitted FIRGaussianProcess or LeastSquaresFIR
         What to draw.
-    u : array-like of shape (N,)
-        Only with a model: the fast-rate input.
+    u : array-like of shape (N,) or (N, n_inputs)
+        Only with a model: the fast-rate input(s).
     y_fast : array-like of shape (N,), optional
         Only with a model: true fast-rate output.
     y_slow : array-like of shape (M,), optional
         Only with a model: slow samples, ``M = len(range(offset, N, factor))``.
     factor, offset : int, optional
         Only with a model: placement of the slow samples; by default the
-        model's (``model.operator_``).
+        model's (``model.factor``, ``model.offset``).  For slow samples at
+        given instants build the prediction with
+        ``OutputPrediction.from_model(..., sample_indices=...)``.
     sample_time : float, default=1.0
         Only with a model: fast sample time ``T`` in seconds (the time axis
         is ``n T``).
