@@ -16,6 +16,8 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 import gpmultirate as gm
 from gpmultirate.kernels import DC, PK
 
+pytestmark = pytest.mark.slow
+
 N, FACTOR, ORDER, NOISE = 90, 3, 40, 0.05
 RUNS = 400
 OFF_GRID = np.array([0.5, 2.25, 6.7, 13.5])

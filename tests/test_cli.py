@@ -24,6 +24,7 @@ DEMO_OPTIONS = ("--runs", "--orders", "--methods", "--n-jobs", "--seed", "--outp
                 "--no-figures", "--quiet", "--n-samples", "--factor", "--snr", "--example-order")
 
 
+@pytest.mark.slow
 def test_demo_writes_tables_and_figures(tmp_path, capsys):
     out = tmp_path / "results"
     argv = ["demo", *TINY, "--methods", "LS", "DC", "--output", str(out), "--quiet",

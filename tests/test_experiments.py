@@ -121,6 +121,7 @@ def test_gof_is_least_squares_on_noise_free_validation_data(study):
         assert study.snr_db[run] == data.snr_db
 
 
+@pytest.mark.slow
 def test_same_results_for_n_jobs_2_other_orders_and_methods_subset(study):
     """Run i depends only on (random_state, i): not on n_jobs, the grid or the methods."""
     other = run_paper_study(2, (19,), ("DC", "LS"), random_state=SEED, n_jobs=2, **TINY)
@@ -364,6 +365,7 @@ def test_paper_example_arguments():
         paper_example(0, 20, methods=("XX",), n_samples=N)
 
 
+@pytest.mark.slow
 def test_rst_table_has_the_markdown_cells():
     from gpmultirate.experiments import run_paper_study
 

@@ -93,6 +93,7 @@ def test_fisher_information_equals_dense(kernel, noise_free):
     np.testing.assert_allclose(fisher, fisher.T, rtol=0, atol=0)
 
 
+@pytest.mark.slow
 def test_fisher_information_is_the_covariance_of_the_score():
     # data drawn from the model: Cov(gradient) = Fisher information
     kernel = KERNELS["DC+PK"]
@@ -155,6 +156,7 @@ def paper_like_problem(seed):
     return data.u, data.y_slow
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 @pytest.mark.parametrize("name", ["DC", "PK"])
 def test_fisher_scoring_reaches_the_lbfgs_optimum(name, seed, monkeypatch):

@@ -261,6 +261,7 @@ def assert_frequency_response(frf, what):
     assert np.all(np.abs(frf.real_imag_corr) <= 1)
 
 
+@pytest.mark.slow
 @examples(80)
 @given(problems(), kernel_specs(min_alpha=0.05, edges=True), log_uniform(-12, 1),
        st.lists(st.floats(0.0, 1000.0), min_size=1, max_size=6),
@@ -414,6 +415,7 @@ def presented(x: np.ndarray, how: str):
     return x.copy(), None
 
 
+@pytest.mark.slow
 @examples(40)
 @given(problems(max_samples=10), kernel_specs(),
        st.sampled_from(["contiguous", "strided", "float32", "list"]),
@@ -498,6 +500,7 @@ def test_caller_arrays_are_never_modified(problem, spec, how, optimizer):
 
 
 # ------------------------------------------------------- 9. determinism
+@pytest.mark.slow
 @examples(12)
 @given(identification_data(), st.integers(0, 2**16),
        st.sampled_from(["default", "TC", "DC+PK"]))

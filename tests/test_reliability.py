@@ -123,6 +123,7 @@ def test_hard_inputs(make_input):
     _assert_sound(model, u)
 
 
+@pytest.mark.slow
 def test_identical_inputs_give_bit_identical_results(experiment):
     data, _, _ = experiment
     kernel = C(1.0) * DC(alpha=0.9, beta=0.9) + PK.from_hz(2.0, 0.1, alpha=0.95)

@@ -6,7 +6,7 @@ and ``kernel_with_contractor`` must give the same numbers as the dense route:
 ``sum_ij (Phi^T W Phi)_ij dK_ij[:, :, j]`` from scikit-learn's
 ``kernel(X, eval_gradient=True)``.  The contraction is also checked against
 finite differences of ``tr(W Phi K(theta) Phi^T)``, and the log evidence of
-``_inference`` against ``scipy.stats.multivariate_normal``.
+:mod:`gpmultirate.inference` against ``scipy.stats.multivariate_normal``.
 """
 
 import numpy as np
