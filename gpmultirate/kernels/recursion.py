@@ -359,7 +359,9 @@ class ShiftScaledTerm(ObservedTerm):
 
 
 def prefer_recursion(M: int, N: int, P: int, *, need_gradient: bool = True) -> bool:
-    """Return True when the recursion is expected to beat the filter-and-BLAS route (:class:`~gpmultirate.kernels.filters.DCFilterTerm`).
+    """Return True when the recursion is expected to beat the filter-and-BLAS route.
+
+    That route is :class:`~gpmultirate.kernels.filters.DCFilterTerm` for DC.
 
     Both costs are modelled in seconds and compared.  With ``F = N / M``,
 
