@@ -15,7 +15,7 @@ from importlib import resources
 
 import numpy as np
 
-__all__ = ["Dataset", "load_robot_arm"]
+__all__ = ["Dataset", "load_cd_player_arm", "load_robot_arm"]
 
 _DAISY_CITATION = (
     'De Moor B.L.R. (ed.), "DaISy: Database for the Identification of Systems", '
@@ -26,14 +26,19 @@ _DAISY_CITATION = (
 
 @dataclass(frozen=True)
 class Dataset:
-    """A measured single-input single-output record.
+    """A measured input/output record.
+
+    A single-input single-output record has 1-D ``u`` and ``y``; with several
+    inputs or outputs they are 2-D and each column is one channel, in the
+    layout :meth:`FIRGaussianProcess.fit <gpmultirate.FIRGaussianProcess.fit>`
+    takes for ``u`` (an estimator models one output, ``y[:, j]``, at a time).
 
     Attributes
     ----------
-    u : ndarray of shape (N,)
-        Input, read-only.
-    y : ndarray of shape (N,)
-        Output at the same rate as ``u``, read-only.
+    u : ndarray of shape (N,) or (N, n_inputs)
+        Input, read-only; column ``k`` is input ``k``.
+    y : ndarray of shape (N,) or (N, n_outputs)
+        Output at the same rate as ``u``, read-only; column ``j`` is output ``j``.
     description : str
         What was measured, in the source's words.
     citation : str
@@ -122,5 +127,62 @@ def load_robot_arm() -> Dataset:
             "source. The record starts mid-experiment (the arm is not at rest)."
         ),
         citation=_DAISY_CITATION + 'Data set 96-009, "Data of a flexible robot arm".',
+        sample_time=None,
+    )
+
+
+def load_cd_player_arm() -> Dataset:
+    """CD-player arm (DaISy data set 96-007), 2048 samples, 2 inputs and 2 outputs.
+
+    The mechanical arm of a CD player, which positions the read head over
+    the track: a lightly damped mechanical system.  The inputs ``u[:, 0]``
+    and ``u[:, 1]`` are the forces of the two mechanical actuators, the
+    outputs ``y[:, 0]`` and ``y[:, 1]`` the tracking accuracy of the arm.
+    The source does not give the sample time, so ``sample_time`` is
+    ``None``.
+
+    Each output depends mainly on the input of the same index, but not only
+    on it: identify each output from both inputs (``u`` as it is).  The
+    signals do not have zero mean; subtract the means of the estimation
+    data before fitting an FIR model, which has no offset term.  As for
+    :func:`load_robot_arm`, the record starts in the middle of the
+    experiment, so the inputs before the first sample are unknown: fit with
+    ``initial_conditions="discard"`` or compare only outputs at index
+    ``P - 1`` and later.
+
+    Returns
+    -------
+    Dataset
+        ``u`` and ``y`` of shape ``(2048, 2)``, read-only; every call returns
+        new arrays.
+
+    Examples
+    --------
+    >>> from gpmultirate.datasets import load_cd_player_arm
+    >>> data = load_cd_player_arm()
+    >>> data.u.shape, data.y.shape, data.sample_time
+    ((2048, 2), (2048, 2), None)
+    >>> data.y.flags.writeable
+    False
+
+    A slow-rate measurement of the second output, every third sample, to be
+    explained by both inputs:
+
+    >>> y_slow = data.y[::3, 1]
+    >>> y_slow.shape
+    (683,)
+    """
+    table = _read_columns("CD_player_arm.dat", 4)
+    return Dataset(
+        u=_read_only(table[:, :2]),
+        y=_read_only(table[:, 2:]),
+        description=(
+            "Arm of a CD player, a lightly damped mechanical system with 2 inputs and "
+            "2 outputs. Inputs u[:, 0], u[:, 1]: forces of the two mechanical actuators; "
+            "outputs y[:, 0], y[:, 1]: tracking accuracy of the arm. 2048 samples, sample "
+            "time not given by the source. The record starts mid-experiment (the arm is "
+            "not at rest)."
+        ),
+        citation=_DAISY_CITATION + 'Data set 96-007, "CD-player arm".',
         sample_time=None,
     )

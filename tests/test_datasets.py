@@ -15,6 +15,8 @@ from gpmultirate import datasets
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PACKAGED = ROOT / "gpmultirate" / "data" / "robot_arm.dat"
 SHARED = pathlib.Path("/work/shared/data/daisy/robot_arm.dat")
+CD_PACKAGED = ROOT / "gpmultirate" / "data" / "CD_player_arm.dat"
+CD_SHARED = pathlib.Path("/work/shared/data/daisy/CD_player_arm.dat")
 
 
 def test_shape_and_finite():
@@ -81,5 +83,80 @@ def test_data_file_is_declared_as_package_data():
 
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())
     patterns = config["tool"]["setuptools"]["package-data"]["gpmultirate"]
-    relative = PACKAGED.relative_to(ROOT / "gpmultirate").as_posix()
-    assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns)
+    for path in (PACKAGED, CD_PACKAGED):
+        relative = path.relative_to(ROOT / "gpmultirate").as_posix()
+        assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns)
+
+
+# ------------------------------------------------------------- CD-player arm
+def test_cd_player_arm_shape_and_finite():
+    data = datasets.load_cd_player_arm()
+    assert data.u.shape == (2048, 2)
+    assert data.y.shape == (2048, 2)
+    assert data.u.dtype == np.float64 and data.y.dtype == np.float64
+    assert np.all(np.isfinite(data.u)) and np.all(np.isfinite(data.y))
+    # columns are channels: each output follows mainly the input of its index
+    # (with opposite sign), which a transposed or shuffled table would not
+    corr = np.corrcoef(np.column_stack([data.u, data.y]).T)
+    assert corr[0, 2] < -0.9 and corr[1, 3] < -0.9
+    assert abs(corr[0, 3]) < 0.3 and abs(corr[1, 2]) < 0.3
+
+
+def test_cd_player_arm_columns_match_packaged_file():
+    table = np.loadtxt(CD_PACKAGED)
+    data = datasets.load_cd_player_arm()
+    np.testing.assert_array_equal(data.u, table[:, :2])
+    np.testing.assert_array_equal(data.y, table[:, 2:])
+
+
+@pytest.mark.skipif(not CD_SHARED.exists(), reason="shared DaISy copy not available")
+def test_cd_player_arm_values_equal_shared_source_file():
+    table = np.loadtxt(CD_SHARED)
+    assert table.shape == (2048, 4)
+    data = datasets.load_cd_player_arm()
+    np.testing.assert_array_equal(data.u, table[:, :2])
+    np.testing.assert_array_equal(data.y, table[:, 2:])
+
+
+@pytest.mark.skipif(not CD_SHARED.exists(), reason="shared DaISy copy not available")
+def test_cd_player_arm_packaged_file_is_an_unmodified_copy():
+    assert CD_PACKAGED.read_bytes() == CD_SHARED.read_bytes()
+
+
+def test_cd_player_arm_arrays_are_read_only_and_new():
+    first, second = datasets.load_cd_player_arm(), datasets.load_cd_player_arm()
+    for x in (first.u, first.y):
+        assert not x.flags.writeable
+        with pytest.raises(ValueError):
+            x[0, 0] = 1.0
+        with pytest.raises(ValueError):
+            x[:, 1] = 1.0
+    assert not np.shares_memory(first.u, second.u)
+    assert not np.shares_memory(first.y, second.y)
+    assert not np.shares_memory(first.u, first.y)
+    # contiguous copies, not views of one table
+    assert first.u.flags.c_contiguous and first.y.flags.c_contiguous
+    u = first.u.copy()
+    u[:] = 0.0
+    np.testing.assert_array_equal(datasets.load_cd_player_arm().u, second.u)
+
+
+def test_cd_player_arm_metadata():
+    data = datasets.load_cd_player_arm()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        data.y = np.zeros((2048, 2))
+    assert data.sample_time is None
+    assert "DaISy" in data.citation and "96-007" in data.citation
+    assert "De Moor" in data.citation and "KU Leuven" in data.citation
+    assert "CD player" in data.description and "actuators" in data.description
+
+
+def test_cd_player_arm_fits_both_inputs_of_one_output():
+    # the layout the estimators take: u as it is, one output column at a time
+    import gpmultirate as gm
+
+    data = datasets.load_cd_player_arm()
+    u = data.u[:300] - data.u[:300].mean(axis=0)
+    y_slow = data.y[:300:3, 1]
+    model = gm.LeastSquaresFIR(factor=3, order=10).fit(u, y_slow - y_slow.mean())
+    assert model.coef_.shape == (2, 10)

@@ -19,6 +19,8 @@ OUTPUTS = {
     "intersample_prediction.py": ["intersample_prediction.png"],
     "sklearn_gpr_observed_kernel.py": ["sklearn_gpr_observed_kernel.png"],
     "robot_arm_real_data.py": ["robot_arm_real_data.png"],
+    "cd_player_arm.py": ["cd_player_arm.png"],
+    "dropped_frames.py": ["dropped_frames.png"],
     "paper_simulation.py": ["paper_study_gof.png", "paper_example_bode.png", "paper_systems_frf.png",
                             "paper_study.json"],
 }
@@ -30,6 +32,8 @@ KEY_OUTPUT = {
     "intersample_prediction.py": "empirical coverage",
     "sklearn_gpr_observed_kernel.py": "log marginal likelihood",
     "robot_arm_real_data.py": "validation GoF",
+    "cd_player_arm.py": "two-input fit",
+    "dropped_frames.py": "dropped frames",
     "paper_simulation.py": "| P |",
 }
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -40,6 +44,7 @@ def test_every_example_is_covered():
     assert scripts == set(OUTPUTS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("script", sorted(OUTPUTS))
 def test_example_runs_and_writes_figures(script, tmp_path):
     output = tmp_path / "figures"
