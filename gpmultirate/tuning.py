@@ -223,23 +223,25 @@ def _prefit_each_scale(evidence, theta, bounds, sweeps: int = 2) -> np.ndarray:
     With ``R`` the covariance of the rest of the data and ``R = L L^T``, the
     part ``c S_k`` enters through the eigenvalues ``s`` of ``L^{-1} S_k L^{-T}``:
     the evidence of ``c`` is ``-1/2 sum(z^2 / (1 + c s) + log(1 + c s))`` with
-    ``z = Q^T L^{-1} y``, a one-dimensional problem solved exactly enough at
-    negligible cost.  Two sweeps over the parts.
+    ``z = Q^T L^{-1} y``, a one-dimensional problem solved at negligible cost.
+    The parts are computed once and rescaled in place (scaling a part's
+    amplitudes scales it exactly); two sweeps over the parts.
     """
+    groups = evidence.scale_groups(theta)
+    if groups is None or len(groups) < 2:
+        return theta
     noise = float(np.exp(theta[-1])) if evidence.noise_is_free else evidence.noise_level
     y = evidence.z
+    parts = [S.copy() for _, _, S in groups]
     for _ in range(sweeps):
-        groups = evidence.scale_groups(theta)
-        if groups is None or len(groups) < 2:
-            return theta
-        for k, (positions, powers, S_k) in enumerate(groups):
-            R = sum(S for j, (_, _, S) in enumerate(groups) if j != k)
-            R = R + noise * np.eye(R.shape[0])
+        for k, (positions, powers, _) in enumerate(groups):
+            R = sum(S for j, S in enumerate(parts) if j != k)
+            R[np.diag_indices_from(R)] += noise
             try:
                 L = linalg.cholesky(R, lower=True, check_finite=False)
             except linalg.LinAlgError:
                 continue
-            A = linalg.solve_triangular(L, S_k, lower=True, check_finite=False)
+            A = linalg.solve_triangular(L, parts[k], lower=True, check_finite=False)
             A = linalg.solve_triangular(L, A.T, lower=True, check_finite=False)
             s, Q = linalg.eigh(0.5 * (A + A.T), check_finite=False)
             s = np.maximum(s, 0.0)
@@ -250,17 +252,17 @@ def _prefit_each_scale(evidence, theta, bounds, sweeps: int = 2) -> np.ndarray:
                 continue
 
             def objective(x):
-                d = 1.0 + np.exp(x[0]) * s
+                d = 1.0 + np.exp(x) * s
                 return 0.5 * np.sum(z2 / d + np.log(d))
 
             result = optimize.minimize_scalar(
-                lambda v: objective([v]), bounds=(max(low, -60.0), min(high, 60.0)),
-                method="bounded", options={"xatol": 1e-4},
+                objective, bounds=(max(low, -60.0), min(high, 60.0)), method="bounded",
+                options={"xatol": 1e-3},
             )
-            if result.success and result.fun < objective([0.0]):
+            if result.success and result.fun < objective(0.0):
                 for i, p in zip(positions, powers):
                     theta[i] = np.clip(theta[i] + p * result.x, *bounds[i])
-                groups = evidence.scale_groups(theta)
+                parts[k] *= np.exp(result.x)
     return theta
 
 

@@ -173,21 +173,43 @@ def _mirror_upper(S: np.ndarray, block: int = 64) -> None:
         diagonal_block[...] = np.triu(diagonal_block) + np.triu(diagonal_block, 1).T
 
 
+def _square(size: int) -> np.ndarray:
+    """An uninitialised ``size x size`` array whose buffer has ``size - 1`` entries of slack.
+
+    The slack lets :func:`_diagonals` view the array along its diagonals.
+    """
+    return np.empty(size * (size + 1))[: size * size].reshape(size, size)
+
+
+def _diagonals(X: np.ndarray) -> np.ndarray:
+    """View ``D[d, m] = X[m, m + d]`` of a C-ordered square array made by :func:`_square`.
+
+    Entries with ``m + d >= size`` alias the strict lower triangle of ``X``
+    (rows below), never the upper one.
+    """
+    size = X.shape[0]
+    step = X.strides[1]
+    return np.lib.stride_tricks.as_strided(X, shape=(size, size), strides=(step, (size + 1) * step))
+
+
 def _recurse_upper(left, right, scale, out, source=None, coupling=0.0):
     """Upper triangle of ``X[m, m'] = scale X[m-1, m'-1] + c X0[m-1, m'-1] + (left^T right)[m, m']``.
 
     ``X0`` is ``source`` (already computed) and ``c`` is ``coupling``; rows
-    start from ``X[-1, :] = 0``.  The lower triangle of ``out`` is left
-    undefined.  The product is one matrix multiplication (few, large BLAS
-    calls behave best when BLAS threads compete for cores).
+    start from ``X[-1, :] = 0``.  ``out`` (and ``source``) must come from
+    :func:`_square`; the lower triangle of ``out`` is left undefined.  Along
+    each diagonal the recursion is a first-order filter, run on all
+    diagonals at once; the product is one matrix multiplication (few, large
+    BLAS calls behave best when BLAS threads compete for cores).
     """
-    size = out.shape[0]
     np.matmul(left.T, right, out=out)
-    for m in range(1, size):
-        row = out[m, m:]
-        row += scale * out[m - 1, m - 1 : size - 1]
-        if coupling != 0.0:
-            row += coupling * source[m - 1, m - 1 : size - 1]
+    forcing = _diagonals(out)
+    if coupling != 0.0:
+        forcing = forcing.copy()
+        forcing[:, 1:] += coupling * _diagonals(source)[:, :-1]
+    # along diagonal d, the entries m >= size - d come last: garbage there
+    # (the lower triangle) never reaches the upper triangle through the filter
+    _diagonals(out)[...] = signal.lfilter([1.0], [1.0, -scale], forcing, axis=1)
 
 
 def _observed(u, factor, offset, order, rows: _Rows, need_gradient, n_out):
@@ -205,7 +227,7 @@ def _observed(u, factor, offset, order, rows: _Rows, need_gradient, n_out):
         left += [g_weight * base.ul, g_weight * base.sl]
         right += [base.T, base.ul]
     left, right = np.concatenate(left), np.concatenate(right)
-    S = np.empty((n_out, n_out))
+    S = _square(n_out)
     _recurse_upper(left, right, period, S)
     gradients = []
     for name in rows.free if need_gradient else []:
@@ -231,7 +253,7 @@ def _observed(u, factor, offset, order, rows: _Rows, need_gradient, n_out):
                 d_right.append(base.T)
             left_for_d_right.append(g_weight * base.ul)
             d_of_right.append(d.T)
-        dS = np.empty((n_out, n_out))
+        dS = _square(n_out)
         _recurse_upper(
             np.concatenate(d_left + left_for_d_right),
             np.concatenate(d_right + d_of_right),
