@@ -32,3 +32,12 @@ __all__ = [
     "load_model",
     "save_model",
 ]
+
+
+def __getattr__(name):
+    # gm.plotting without importing matplotlib with the package
+    if name == "plotting":
+        import importlib
+
+        return importlib.import_module("gpmultirate.plotting")
+    raise AttributeError(f"module 'gpmultirate' has no attribute {name!r}")

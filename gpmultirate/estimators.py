@@ -169,7 +169,7 @@ class _FIRModelMixin:
         return check_int(input, "input", low=0, high=self.n_inputs_ - 1)
 
     def frequency_response(
-        self, freqs=None, sample_time: float = 1.0, level: float = 0.95, input=None
+        self, freqs=None, sample_time: float | None = None, level: float = 0.95, input=None
     ) -> FrequencyResponse:
         """FRF of the identified model with a pointwise credible band.
 
@@ -180,8 +180,9 @@ class _FIRModelMixin:
         ----------
         freqs : array-like of shape (n,), optional
             Frequencies in Hz; by default the DFT bins of the training record.
-        sample_time : float, default=1.0
-            Fast sample time ``T`` in seconds.
+        sample_time : float, optional
+            Fast sample time ``T`` in seconds; by default the model's
+            ``sample_time``.
         level : float, default=0.95
             Credible level of the band, in (0, 1).
         input : int, optional
@@ -194,6 +195,8 @@ class _FIRModelMixin:
         check_is_fitted(self, "coef_")
         level = check_level(level)
         k = self._input(input)
+        if sample_time is None:
+            sample_time = self.sample_time
         if freqs is None:
             sample_time = check_positive(sample_time, "sample_time")
             freqs = default_frequencies(self.operator_.n_samples, sample_time)
@@ -295,11 +298,13 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
 
     Parameters
     ----------
-    kernel : sklearn Kernel or list of them, optional
+    kernel : sklearn Kernel, list of them, or "auto", optional
         Prior covariance over lag; a list gives one kernel per input, and
         one kernel for several inputs is copied for each (each copy tuned
         separately).  Default ``ConstantKernel(c) * DC(alpha=0.9, beta=0.9)``
-        per input, with ``c`` and its bounds set from the data.
+        per input, with ``c`` and its bounds set from the data.  ``"auto"``:
+        that default plus up to ``max_resonances`` PK terms whose frequencies
+        are found from the data (see :mod:`gpmultirate.resonances`).
     factor : int, default=1
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, optional
@@ -329,6 +334,12 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         only slow samples at fast index ``>= order - 1`` are used;
         ``"periodic"``: ``u`` is one period of a periodic input in steady
         state (the regressor is circular).
+    sample_time : float, default=1.0
+        Fast sample time ``T`` in seconds, used by :meth:`frequency_response`
+        (frequencies in Hz), the plots and the exports.  Left at 1.0,
+        frequencies are in cycles per sample.
+    max_resonances : int, default=4
+        With ``kernel="auto"``, the most PK terms the search may add.
 
     Attributes
     ----------
@@ -400,6 +411,8 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         n_restarts_optimizer: int = 0,
         random_state=None,
         initial_conditions: str = "zero",
+        sample_time: float = 1.0,
+        max_resonances: int = 4,
     ):
         self.kernel = kernel
         self.factor = factor
@@ -411,6 +424,8 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         self.n_restarts_optimizer = n_restarts_optimizer
         self.random_state = random_state
         self.initial_conditions = initial_conditions
+        self.sample_time = sample_time
+        self.max_resonances = max_resonances
 
     # ------------------------------------------------------------------ fit
     def fit(self, u, y_slow, sample_indices=None) -> "FIRGaussianProcess":
@@ -445,8 +460,14 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
             )
         n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
         check_rng(self.random_state)
+        check_positive(self.sample_time, "sample_time")
         noise = check_positive(self.noise_level, "noise_level")
-        kernel = _initial_kernel(self.kernel, experiment)
+        auto = isinstance(self.kernel, str) and self.kernel == "auto"
+        if isinstance(self.kernel, str) and not auto:
+            raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
+                             f"got {self.kernel!r}")
+        max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
+        kernel = _initial_kernel(None if auto else self.kernel, experiment)
         noise_bounds = self._resolve_noise_bounds(y)
         if self.optimizer is not None and not isinstance(noise_bounds, str):
             noise = float(np.clip(noise, *noise_bounds))
@@ -456,8 +477,18 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         self.optimizer_result_ = None
         self.n_inputs_ = experiment.n_inputs
         with _blas_threads_for(operator):
+            if auto:
+                from gpmultirate import resonances
+
+                search = resonances.search_resonances(
+                    operator, y, kernel, noise, noise_bounds, max_resonances=max_resonances,
+                    sample_time=self.sample_time, random_state=self.random_state,
+                )
+                kernel, noise = search.kernel, search.noise_level
+                self.optimizer_result_ = search.optimizer_result
+                self.resonances_ = search.resonances
             evidence = LogEvidence(operator, y, kernel, noise, noise_bounds)
-            if self.optimizer is not None:
+            if self.optimizer is not None and not auto:
                 result = tuning.maximize(evidence, n_restarts, self.random_state)
                 if result is not None:
                     self.optimizer_result_ = result
@@ -570,6 +601,8 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
         Fast index of the first slow sample, ``0..F-1``.
     initial_conditions : {"zero", "discard", "periodic"}, default="zero"
         As for :class:`FIRGaussianProcess`.
+    sample_time : float, default=1.0
+        Fast sample time in seconds, as for :class:`FIRGaussianProcess`.
 
     Attributes
     ----------
@@ -597,11 +630,12 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
     """
 
     def __init__(self, factor: int = 1, order: int | None = None, offset: int = 0,
-                 initial_conditions: str = "zero"):
+                 initial_conditions: str = "zero", sample_time: float = 1.0):
         self.factor = factor
         self.order = order
         self.offset = offset
         self.initial_conditions = initial_conditions
+        self.sample_time = sample_time
 
     def fit(self, u, y_slow, sample_indices=None) -> "LeastSquaresFIR":
         """Solve the least-squares problem of eq. (10)-(11).
@@ -626,6 +660,7 @@ class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
         """
         if self.order is None:
             raise ValueError("order must be given: an integer below the number of slow samples")
+        check_positive(self.sample_time, "sample_time")
         experiment = build_experiment(
             u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
             order=self.order, initial_conditions=self.initial_conditions,

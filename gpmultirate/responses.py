@@ -603,7 +603,7 @@ class OutputPrediction:
         y_slow=None,
         factor: int | None = None,
         offset: int | None = None,
-        sample_time: float = 1.0,
+        sample_time: float | None = None,
         level: float = 0.95,
         sample_indices=None,
     ) -> "OutputPrediction":
@@ -627,8 +627,9 @@ class OutputPrediction:
         factor, offset : int, optional
             Placement of the slow samples; by default the model's
             (``model.factor`` and ``model.offset``).
-        sample_time : float, default=1.0
-            Fast sample time ``T`` in seconds (``time`` is ``n T``).
+        sample_time : float, optional
+            Fast sample time ``T`` in seconds (``time`` is ``n T``); by
+            default the model's ``sample_time`` (1.0 if it has none).
         level : float, default=0.95
             Credible level of the band, in (0, 1).
         sample_indices : array-like of int, optional
@@ -667,6 +668,8 @@ class OutputPrediction:
             factor = check_int(factor, "factor", low=1)
             offset = check_int(offset, "offset", low=0, high=factor - 1)
             slow_index = np.arange(offset, n, factor)
+        if sample_time is None:
+            sample_time = getattr(model, "sample_time", 1.0)
         sample_time = check_positive(sample_time, "sample_time")
         level = check_level(level)
         if y_fast is not None:

@@ -345,7 +345,7 @@ def plot_intersample(
             raise ValueError("u must be given with a fitted model: the fast-rate input")
         prediction = OutputPrediction.from_model(
             prediction, u, y_fast=y_fast, y_slow=y_slow, factor=factor, offset=offset,
-            sample_time=1.0 if sample_time is None else sample_time,
+            sample_time=sample_time,
             level=0.95 if level is None else level)
     if window is not None:
         prediction = prediction.select(window)
