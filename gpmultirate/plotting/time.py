@@ -291,9 +291,9 @@ def plot_intersample(
         model's (``model.factor``, ``model.offset``).  For slow samples at
         given instants build the prediction with
         ``OutputPrediction.from_model(..., sample_indices=...)``.
-    sample_time : float, default=1.0
+    sample_time : float, optional
         Only with a model: fast sample time ``T`` in seconds (the time axis
-        is ``n T``).
+        is ``n T``); by default the model's ``sample_time``.
     ax : Axes, optional
         Axes to draw on; by default a new figure.
     level : float, default=0.95
