@@ -37,11 +37,14 @@ release = gpmultirate.__version__
 version = ".".join(release.split(".")[:2])
 
 # -- extensions ----------------------------------------------------------------
-# No intersphinx: the build must work without network access.
+# No intersphinx: the build must work without network access.  MathJax is
+# bundled (copied into _static/mathjax) instead of loaded from a CDN, so the
+# formulas render offline.
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
 ]
