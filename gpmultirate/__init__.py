@@ -6,12 +6,11 @@ through a downsampled convolution with the known fast-rate input.  See
 for the prior covariances.
 """
 
-__version__ = "0.1.0"
-
-from gpmultirate import datasets, kernels, simulation  # noqa: E402
+from gpmultirate import datasets, kernels, simulation
+from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
-from gpmultirate.frequency import FrequencyResponse
+from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observed import ObservedKernel
 from gpmultirate.observations import DownsampledConvolution, SampledConvolution

@@ -31,6 +31,7 @@ from sklearn.base import clone
 
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.kernels import observe
+from gpmultirate.observations import reduce_observation
 
 __all__ = [
     "DataSpacePosterior",
@@ -279,7 +280,7 @@ def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCo
     ``Phi``), whose least-squares form gives the same posterior; ``operator``
     may be such a reduction already (``y`` is then its ``z``).
     """
-    data, z = operator.reduced(y)
+    data, z = reduce_observation(operator, y)
     if data.n_discarded == 0:
         return DataSpacePosterior(data, kernel, noise_level, z)
     result = ParameterSpacePosterior(data, kernel, noise_level, z)
@@ -495,7 +496,7 @@ class LogEvidence:
     """
 
     def __init__(self, observation, y, kernel, noise_level: float, noise_bounds):
-        self.data, self.z = observation.reduced(y)
+        self.data, self.z = reduce_observation(observation, y)
         self.kernel = kernel
         self.noise_level = float(noise_level)
         self.noise_bounds = noise_bounds

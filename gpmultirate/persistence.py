@@ -79,7 +79,7 @@ from sklearn.gaussian_process.kernels import (
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.inference import GaussianCoefficients
-from gpmultirate import __version__
+from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
 from gpmultirate.observations import DownsampledConvolution, build_experiment

@@ -99,6 +99,7 @@ from gpmultirate import (
 )
 from gpmultirate import simulation as sim
 from gpmultirate.kernels import DC, PK, SS, TC
+from gpmultirate.observations.experiment import is_record_list
 
 ACCEPTED = (ValueError, TypeError)
 BUDGET = {
@@ -638,22 +639,25 @@ def fitted_model_slots(model: Callable, name: str) -> list[Slot]:
     """predict, score and frequency_response, shared by both estimators."""
     n = 12
     u, y_fast = U12, np.random.default_rng(5).standard_normal(n)
+    # a list of sequences is a list of records, which predict accepts
+    single_bad = bad_signals(n).filter(lambda v: not is_record_list(v))
     return [
-        Slot(name + ".predict(u={})", lambda v: model().predict(v), bad_signals(n), ("u",)),
+        Slot(name + ".predict(u={})", lambda v: model().predict(v), single_bad, ("u",)),
         Slot(name + ".predict(u={}, return_std=True)",
-             lambda v: model().predict(v, return_std=True), bad_signals(n), ("u",)),
+             lambda v: model().predict(v, return_std=True), single_bad, ("u",)),
         Slot(name + ".score(u={}, y_fast)", lambda v: model().score(v, y_fast),
              bad_signals(n), ("u",)),
         Slot(name + ".score(u, y_fast={})", lambda v: model().score(u, v),
              bad_signals(n) | wrong_lengths(n) | constant_signals(n), ("y_fast",)),
         Slot(name + ".frequency_response(freqs={})",
              lambda v: model().frequency_response(v), bad_frequencies(), ("freqs",)),
+        # sample_time=None means the model's own sample time
         Slot(name + ".frequency_response(sample_time={})",
-             lambda v: model().frequency_response(sample_time=v), bad_positive(),
-             ("sample_time",)),
+             lambda v: model().frequency_response(sample_time=v),
+             bad_positive(none_is_bad=False), ("sample_time",)),
         Slot(name + ".frequency_response([0.1, 0.2], sample_time={})",
              lambda v: model().frequency_response([0.1, 0.2], sample_time=v),
-             bad_positive(), ("sample_time",)),
+             bad_positive(none_is_bad=False), ("sample_time",)),
         Slot(name + ".frequency_response(level={})",
              lambda v: model().frequency_response(level=v), bad_levels(), ("level",)),
     ]

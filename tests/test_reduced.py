@@ -19,12 +19,12 @@ from gpmultirate.inference import (
     log_marginal_likelihood_fisher,
     posterior,
 )
-from gpmultirate.observations import ReducedObservation
+from gpmultirate.observations import ReducedObservation, reduce_observation
 
 
 def tuning_data(op, y):
     """The data the evidence is computed from: ``(op, y)``, or the reduction ``(R, z)``."""
-    return op.reduced(y)
+    return reduce_observation(op, y)
 from gpmultirate.kernels import DC, PK, TC
 
 

@@ -15,7 +15,7 @@ from gpmultirate.observations.convolution import (
     regressor_rows,
 )
 from gpmultirate.observations.experiment import Experiment, build_experiment
-from gpmultirate.observations.reduced import ReducedObservation
+from gpmultirate.observations.reduced import ReducedObservation, reduce_observation
 from gpmultirate.observations.sampled import (
     INITIAL_CONDITIONS,
     RecordStack,
@@ -35,6 +35,7 @@ __all__ = [
     "UniformSampling",
     "build_experiment",
     "check_initial_conditions",
+    "reduce_observation",
     "convolution_matrix",
     "regressor_rows",
 ]

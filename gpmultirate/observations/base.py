@@ -151,20 +151,6 @@ class Observation:
         return W @ G
 
     # ------------------------------------------------------------- reduction
-    def reduced(self, y: np.ndarray):
-        """``(observation, y)`` for the evidence and the posterior.
-
-        With more samples than coefficients (``M > P``), the long-record
-        reduction :class:`~gpmultirate.observations.reduced.ReducedObservation`
-        and its ``z``; otherwise ``(self, y)``.
-        """
-        if self.n_outputs <= self.n_coefficients:
-            return self, y
-        from gpmultirate.observations.reduced import ReducedObservation
-
-        reduction = ReducedObservation(self, y)
-        return reduction, reduction.z
-
     def regressor_rows(self, start: int, stop: int) -> np.ndarray:
         """Rows ``start..stop-1`` of ``Phi`` (the reduction reads them block by block)."""
         return self.matrix[start:stop]

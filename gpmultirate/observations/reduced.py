@@ -29,7 +29,29 @@ from scipy.linalg import blas
 
 from gpmultirate.observations.base import ColumnBlock, Observation
 
-__all__ = ["ReducedObservation"]
+__all__ = ["ReducedObservation", "reduce_observation"]
+
+
+def reduce_observation(observation: Observation, y: np.ndarray):
+    """``(observation, y)`` for the evidence and the posterior.
+
+    With more samples than coefficients (``M > P``), the long-record
+    reduction :class:`ReducedObservation` and its ``z``; otherwise, and for
+    an observation that is a reduction already, ``(observation, y)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> op = DownsampledConvolution(np.arange(1.0, 31.0), factor=1, order=4)
+    >>> data, z = reduce_observation(op, np.ones(30))
+    >>> type(data).__name__, z.shape
+    ('ReducedObservation', (4,))
+    """
+    if observation.n_discarded > 0 or observation.n_outputs <= observation.n_coefficients:
+        return observation, y
+    reduction = ReducedObservation(observation, y)
+    return reduction, reduction.z
 
 
 class ReducedObservation(Observation):
@@ -98,10 +120,6 @@ class ReducedObservation(Observation):
     def matrix(self) -> np.ndarray:
         """The upper-triangular factor ``R`` (read-only)."""
         return self._matrix
-
-    def reduced(self, y):
-        """Already reduced: ``(self, y)``."""
-        return self, y
 
     def input_block(self, k: int):
         """The columns of input ``k`` of ``R``: triangular only for a single input."""
