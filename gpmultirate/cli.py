@@ -1,18 +1,32 @@
-"""The ``gpmultirate`` command: the paper's simulation study and figures, no data needed.
+"""The ``gpmultirate`` command: fit measured data, predict, and the paper's study.
 
+``gpmultirate fit DATA --input COL --output COL`` identifies a fast-rate FIR
+model from a CSV, ``.npz`` or ``.mat`` file (read by :mod:`gpmultirate.io`)
+whose output column holds the slow samples, empty or ``NaN`` elsewhere, and
+writes the model, its Bode, impulse-response and intersample figures with
+credible bands and a summary to ``--out``.  ``gpmultirate predict MODEL DATA``
+writes the fast-rate prediction of a saved model with its standard deviation.
 ``gpmultirate demo`` runs a reduced version of the Monte Carlo study of the
 paper's Section 5 (``--runs 100 --orders 50 100 ... 600`` is the full one),
 prints the goodness-of-fit table and writes it, with the figures of one run,
 to ``--output``.  ``gpmultirate example1`` draws the non-identifiability
 example (the paper's Example 1, Fig. 2).  Figures are rendered with
 matplotlib's Agg canvas, without pyplot, so the command never opens a window.
+
+Errors in the arguments or the files end the command with exit status 2 and
+one line on stderr that names the option, file or column.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import io
+import json
+import math
 import os
 import sys
+import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -76,10 +90,112 @@ def _finite_float(text: str) -> float:
     return value
 
 
+class _OneLineErrorParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line: ``prog: error: message``."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(str(message).split())}\n")
+
+
 # ------------------------------------------------------------------- parser
 def _add_output(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument("--output", "-o", metavar="DIR", default=default,
                         help=f"directory for the results, created if needed (default: {default})")
+
+
+#: Kernels of ``gpmultirate fit --kernel``.
+FIT_KERNELS = ("dc", "tc", "ss", "auto")
+#: Data sets of ``gpmultirate fit --example``: file in ``gpmultirate/data``, inputs, output.
+EXAMPLES = {"robot-arm": ("robot_arm_multirate.csv", ("u",), "y_slow")}
+#: Files written by ``gpmultirate fit`` into ``--out``.
+FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "summary.json",
+             "summary.md", "state_space.npz")
+FIT_OUT = "gpmultirate-fit"
+PREDICT_OUT = "gpmultirate-prediction.csv"
+
+
+def _positive_float(text: str) -> float:
+    value = _finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def _add_fit_parser(commands) -> None:
+    fit = commands.add_parser(
+        "fit", help="identify a fast-rate FIR model from a data file (CSV, .npz, .mat)",
+        description="Identify a fast-rate FIR model (FIRGaussianProcess) from a data file "
+                    "whose rows are fast samples: a CSV with a header row, an .npz or a "
+                    "MATLAB .mat (v7 or older) file.  Name columns by header or variable "
+                    "name, or NAME:INDEX for a column of a 2-D array.  The output column "
+                    "holds the slow samples, empty or NaN where nothing was measured; the "
+                    "sampling instants are taken from that pattern, so irregular and "
+                    "missing samples need no option.  --factor/--offset instead downsample "
+                    "a fully measured output.  Writes model.npz (gpmultirate.load_model), "
+                    "bode.png, impulse.png and intersample.png with 95 % credible bands, "
+                    "summary.json, summary.md and, when the model supports it, "
+                    "state_space.npz to --out.  Errors are one line with exit status 2.",
+    )
+    fit.add_argument("data", metavar="DATA", nargs="?",
+                     help="data file: .csv (header row, comma-separated, UTF-8), .npz or .mat")
+    fit.add_argument("--example", choices=sorted(EXAMPLES), default=None,
+                     help="fit a data set shipped with the package instead of DATA; "
+                          "robot-arm is the DaISy flexible robot arm with every third output "
+                          "sample kept (columns u and y_slow, the defaults of --input and "
+                          "--output)")
+    fit.add_argument("--input", nargs="+", metavar="COL", dest="inputs", default=None,
+                     help="input column(s); several give a model of several inputs")
+    fit.add_argument("--output", metavar="COL", dest="output_column", default=None,
+                     help="output column: the slow samples, empty or NaN elsewhere")
+    fit.add_argument("--factor", type=_int_at_least(1), default=None, metavar="F",
+                     help="keep every F-th output sample (a fully measured output, for "
+                          "testing); by default the measured samples are used as they are")
+    fit.add_argument("--offset", type=_int_at_least(0), default=None, metavar="O",
+                     help="row of the first kept sample with --factor, 0..F-1 (default: 0)")
+    fit.add_argument("--sample-time", type=_positive_float, default=1.0, metavar="T",
+                     help="fast sample time in seconds; frequencies are in Hz (default: 1, "
+                          "cycles per sample)")
+    fit.add_argument("--order", type=_int_at_least(1), default=None, metavar="P",
+                     help="FIR order in 1..N, N the number of rows (default: N)")
+    fit.add_argument("--kernel", choices=FIT_KERNELS, default="dc",
+                     help="prior of the impulse response: dc, tc or ss with a data-scaled "
+                          "amplitude, or auto (resonances found from the data) "
+                          "(default: dc)")
+    fit.add_argument("--initial-conditions", choices=("zero", "discard", "periodic"),
+                     default="zero",
+                     help="zero: at rest before the record; discard: use only outputs that "
+                          "see recorded inputs; periodic: the record is one period "
+                          "(default: zero)")
+    fit.add_argument("--validate", metavar="DATA2", default=None,
+                     help="validation file with the same columns and the output measured at "
+                          "every row; its goodness of fit goes into the summary")
+    fit.add_argument("--out", metavar="DIR", default=FIT_OUT,
+                     help=f"directory of the results, created if needed (default: {FIT_OUT})")
+    fit.add_argument("--force", action="store_true", help="overwrite existing results")
+    fit.add_argument("--quiet", "-q", action="store_true",
+                     help="no progress or file messages on stderr")
+    fit.set_defaults(handler=_fit, command_parser=fit)
+
+
+def _add_predict_parser(commands) -> None:
+    predict = commands.add_parser(
+        "predict", help="fast-rate output of a saved model for the inputs of a data file",
+        description="Predict the fast-rate output of a model saved by gpmultirate fit "
+                    "(model.npz) for the input column(s) of a data file, from rest (or in "
+                    "periodic steady state for a periodic model).  Writes a CSV with the "
+                    "columns index, time, y and y_std (posterior standard deviation of the "
+                    "noise-free output).",
+    )
+    predict.add_argument("model", metavar="MODEL", help="model file written by gpmultirate fit")
+    predict.add_argument("data", metavar="DATA", help="data file: .csv, .npz or .mat")
+    predict.add_argument("--input", nargs="+", metavar="COL", dest="inputs", required=True,
+                         help="input column(s), as many as the model has inputs")
+    predict.add_argument("--out", metavar="FILE", default=PREDICT_OUT,
+                         help=f"CSV file of the prediction (default: {PREDICT_OUT})")
+    predict.add_argument("--force", action="store_true", help="overwrite an existing file")
+    predict.add_argument("--quiet", "-q", action="store_true",
+                         help="no file messages on stderr")
+    predict.set_defaults(handler=_predict, command_parser=predict)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -95,9 +211,12 @@ def build_parser() -> argparse.ArgumentParser:
     >>> args = build_parser().parse_args(["demo", "--runs", "3", "--orders", "100", "600"])
     >>> args.command, args.runs, args.orders
     ('demo', 3, [100, 600])
+    >>> args = build_parser().parse_args(["fit", "data.csv", "--input", "u", "--output", "y"])
+    >>> args.data, args.inputs, args.output_column, args.kernel
+    ('data.csv', ['u'], 'y', 'dc')
     """
     cpus = _available_cpus()
-    parser = argparse.ArgumentParser(
+    parser = _OneLineErrorParser(
         prog="gpmultirate",
         description=textwrap.fill(
             "Identify fast-rate FIR models from slow-rate output data with Gaussian-process "
@@ -106,7 +225,10 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                                     parser_class=_OneLineErrorParser)
+    _add_fit_parser(commands)
+    _add_predict_parser(commands)
 
     demo = commands.add_parser(
         "demo", help="Monte Carlo study of LS, DC and PK estimators (paper Section 5)",
@@ -363,6 +485,464 @@ def _example1(parser, args) -> int:
     fig = _figure(figsize=(9.0, 6.0))
     plot_nonidentifiable_example(example, axes=fig.subplots(2, 2))
     _save(args, fig, out / "example1.png")
+    return 0
+
+
+# ------------------------------------------------------------- fit, predict
+def _data_error(parser, error) -> None:
+    parser.error(str(error))
+
+
+def _example_path(name: str) -> Path:
+    from importlib import resources
+
+    return Path(str(resources.files("gpmultirate").joinpath("data", EXAMPLES[name][0])))
+
+
+def _fit_source(parser, args):
+    """The data file, input columns and output column of ``gpmultirate fit``."""
+    if args.example is not None:
+        if args.data is not None:
+            parser.error(f"argument --example: give either DATA or --example, not both "
+                         f"(got DATA {args.data!r})")
+        _, inputs, output = EXAMPLES[args.example]
+        path = _example_path(args.example)
+        return (path, list(args.inputs or inputs),
+                output if args.output_column is None else args.output_column)
+    if args.data is None:
+        parser.error("argument DATA: a data file is required (or --example robot-arm)")
+    if args.inputs is None:
+        parser.error("argument --input: the input column(s) are required")
+    if args.output_column is None:
+        parser.error("argument --output: the output column is required")
+    return Path(args.data), list(args.inputs), args.output_column
+
+
+def _check_columns(parser, inputs, output=None) -> None:
+    for k, name in enumerate(inputs):
+        if name in inputs[:k]:
+            parser.error(f"argument --input: column {name!r} is given twice")
+    if output is not None and output in inputs:
+        parser.error(f"argument --output: column {output!r} is also an --input column")
+
+
+def _read_inputs(parser, path, inputs, extra=()):
+    """Float columns of ``path``: the inputs as ``(N,)`` or ``(N, k)``, and the extra ones."""
+    from gpmultirate.io import DataFileError, read_columns
+
+    try:
+        columns = read_columns(path, [*inputs, *extra])
+    except DataFileError as error:
+        _data_error(parser, error)
+    for name in inputs:
+        missing = np.flatnonzero(np.isnan(columns[name]))
+        if missing.size:
+            parser.error(f"{path}: input column {name!r} has a missing value (empty or NaN) "
+                         f"at row {missing[0]}; inputs must be measured at every row")
+    u = np.column_stack([columns[name] for name in inputs])
+    return (u[:, 0] if u.shape[1] == 1 else u), [columns[name] for name in extra]
+
+
+def _slow_samples(parser, args, path, y):
+    """Measured instants and values of the output column, and the fit placement.
+
+    Returns ``(indices, values, placement)`` with ``placement`` the keyword
+    arguments of ``fit`` (``y_slow`` with NaN for samples missing from a
+    uniform grid, and ``factor``/``offset`` or ``sample_indices``) and
+    ``(factor, offset)`` of the grid (``offset`` None for irregular instants).
+    """
+    n = y.shape[0]
+    if args.factor is not None or args.offset is not None:
+        factor = 1 if args.factor is None else args.factor
+        offset = 0 if args.offset is None else args.offset
+        if offset >= factor:
+            parser.error(f"argument --offset: must lie in 0..F-1 = 0..{factor - 1} with "
+                         f"--factor {factor}; got {offset}")
+        if offset >= n:
+            parser.error(f"argument --offset: must be below the {n} rows of {path}; "
+                         f"got {offset}")
+        grid = np.arange(offset, n, factor)
+        measured = grid[np.isfinite(y[grid])]
+    else:
+        measured = np.flatnonzero(np.isfinite(y))
+        factor = (max(1, int(round(float(np.median(np.diff(measured))))))
+                  if measured.size > 1 else 1)
+        offset = int(measured[0] % factor) if measured.size else 0
+        grid = np.arange(offset, n, factor)
+    if measured.size == 0:
+        parser.error(f"{path}: output column {args.output_column!r} has no measured (finite) "
+                     "value" + (" at the kept rows" if args.factor is not None else ""))
+    values = y[measured]
+    if np.all((measured - offset) % factor == 0):
+        # on a uniform grid: factor and offset, NaN where a grid sample is missing
+        y_slow = np.full(grid.shape[0], np.nan)
+        y_slow[(measured - offset) // factor] = values
+        return measured, values, {"y_slow": y_slow, "factor": factor, "offset": offset}, \
+            (factor, offset)
+    return measured, values, {"y_slow": values, "sample_indices": measured}, (factor, None)
+
+
+def _fit_kernel(name: str, u: np.ndarray, y: np.ndarray):
+    """The ``kernel`` argument of the estimator for ``--kernel name``, and a note."""
+    from sklearn.gaussian_process.kernels import ConstantKernel
+
+    from gpmultirate.kernels import SS, TC
+
+    if name == "dc":
+        return None, None
+    if name == "auto":
+        if importlib.util.find_spec("gpmultirate.resonances") is not None:
+            return "auto", None
+        return None, ("--kernel auto is not available in this version; the default DC "
+                      "kernel was used")
+    shape = {"tc": TC, "ss": SS}[name]
+    x = u.reshape(u.shape[0], -1)
+    power_y = float(np.mean(y**2)) or 1.0
+    kernels = []
+    for k in range(x.shape[1]):
+        # the amplitude scale of the default kernel: output power per unit input power
+        reference = power_y / (float(np.mean(x[:, k] ** 2)) or 1.0)
+        kernels.append(ConstantKernel(reference, (reference * 1e-8, reference * 1e8))
+                       * shape())
+    return (kernels[0] if len(kernels) == 1 else kernels), None
+
+
+def _plain(value):
+    """``value`` as JSON-compatible plain Python data."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+def _hyperparameters(kernel) -> dict:
+    params = kernel.get_params(deep=True)
+    out = {}
+    for hyper in kernel.hyperparameters:
+        value = params.get(hyper.name)
+        if value is not None:
+            out[hyper.name] = _plain(value)
+    return out
+
+
+def _png(fig) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=150)
+    return buffer.getvalue()
+
+
+def _fit_figures(model, u, indices, values, names, frequency_kwargs) -> dict[str, bytes]:
+    from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
+    from gpmultirate.responses import ImpulseResponse, OutputPrediction
+
+    n_inputs = model.n_inputs_
+    prediction_length = np.shape(u)[0]
+    figures = {}
+    # Bode: one magnitude and phase pair per input
+    fig = _figure(figsize=(4.8 * n_inputs + 1.2, 5.6))
+    axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
+    for k in range(n_inputs):
+        frf = model.frequency_response(input=k if n_inputs > 1 else None, **frequency_kwargs)
+        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="estimate (95 % band)")
+        axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
+    figures["bode.png"] = _png(fig)
+
+    # impulse responses at 4 lags per sample, between the integer lags too
+    order = model.coef_.shape[-1]
+    shown = min(order, max(60, prediction_length // 4))
+    lags = np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1)
+    mean, std = model.impulse_response(lags, return_std=True)
+    mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
+    fig = _figure(figsize=(8.5, 2.6 * n_inputs + 0.4))
+    axes = fig.subplots(n_inputs, 1, sharex=True, squeeze=False)[:, 0]
+    for k, ax in enumerate(axes):
+        response = ImpulseResponse(lags=lags, mean=mean[k], std=std[k], level=0.95,
+                                   continuous=bool(model.continuous_lags))
+        plot_impulse_response(response, ax=ax, label="posterior mean (95 % band)")
+        ax.set_title(f"impulse response of input {names[k]}", fontsize="medium", loc="left")
+        ax.legend(fontsize="small")
+        if ax is not axes[-1]:
+            ax.set_xlabel("")
+    if shown < order:
+        axes[-1].set_xlabel(f"lag [samples] (the first {shown} of P = {order})")
+    figures["impulse.png"] = _png(fig)
+
+    # fast-rate output on the record, all of it and a zoom on 20 slow periods
+    prediction = OutputPrediction.from_model(
+        model, u, y_slow=values, sample_indices=indices,
+        sample_time=frequency_kwargs.get("sample_time"))
+    n = prediction.time.shape[0]
+    spacing = (max(1, int(round(float(np.median(np.diff(indices))))))
+               if indices.size > 1 else 1)
+    width = min(n, 20 * spacing)
+    start = max(0, (n - width) // 2)
+    fig = _figure(figsize=(8.5, 5.6))
+    full, zoom = fig.subplots(2, 1)
+    plot_intersample(prediction, ax=full, label="prediction (95 % band)")
+    full.set_title("fast-rate output predicted from the slow samples", fontsize="medium",
+                   loc="left")
+    plot_intersample(prediction, ax=zoom, window=(start, start + width),
+                     label="prediction (95 % band)")
+    zoom.set_title(f"fast samples {start}..{start + width - 1}", fontsize="medium", loc="left")
+    for ax in (full, zoom):
+        ax.legend(fontsize="small")
+    figures["intersample.png"] = _png(fig)
+    return figures
+
+
+def _cell_text(value) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _summary_markdown(summary: dict) -> str:
+    data, model = summary["data"], summary["model"]
+    lines = ["# gpmultirate fit", "",
+             f"- data: `{data['file']}`, inputs {', '.join(f'`{c}`' for c in data['inputs'])}, "
+             f"output `{data['output']}`",
+             f"- {data['n_samples']} fast samples, {data['n_slow_samples']} measured slow "
+             f"samples ({data['sampling']}), sample time {data['sample_time']:g} s",
+             f"- estimator: {model['estimator']}, order {model['order']}, initial "
+             f"conditions {model['initial_conditions']}",
+             f"- kernel: `{model['kernel']}`",
+             f"- log evidence: {model['log_evidence']:.6g}",
+             f"- noise level (variance): {model['noise_level']:.6g} "
+             f"(std {math.sqrt(model['noise_level']):.6g})", "",
+             "## Hyperparameters", "", "| name | value |", "|---|---|"]
+    lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
+    resonances = summary.get("resonances")
+    if resonances and isinstance(resonances, list) and all(isinstance(r, dict)
+                                                           for r in resonances):
+        keys = list(dict.fromkeys(k for r in resonances for k in r))
+        lines += ["", "## Resonances found", "", "| " + " | ".join(keys) + " |",
+                  "|" + "---|" * len(keys)]
+        lines += ["| " + " | ".join(_cell_text(r.get(k)) for k in keys) + " |"
+                  for r in resonances]
+    elif "resonances" in summary:
+        lines += ["", "## Resonances found", "", "```",
+                  json.dumps(summary["resonances"], indent=1), "```"]
+    if "state_space" in summary:
+        lines += ["", "## State-space model", "",
+                  f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
+    if "validation" in summary:
+        val = summary["validation"]
+        lines += ["", "## Validation", "",
+                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
+                  f"({val['n_samples']} fast samples)"]
+    if summary["notes"]:
+        lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
+    return "\n".join(lines) + "\n"
+
+
+def _check_out_dir(parser, out: Path, names, force: bool) -> None:
+    if out.exists() and not out.is_dir():
+        parser.error(f"argument --out: {str(out)!r} exists and is not a directory")
+    if not force:
+        existing = [name for name in names if (out / name).exists()]
+        if existing:
+            parser.error(f"argument --out: {out / existing[0]} exists; use --force to "
+                         "overwrite")
+
+
+def _write_files(parser, out: Path, files: dict, force: bool, stale=()) -> None:
+    """Write ``files`` (name to bytes) into ``out`` atomically: temporary files, then renames."""
+    created = not out.exists()
+    temps = {}
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for name, content in files.items():
+            handle, temp = tempfile.mkstemp(prefix=f".{name}.", suffix=".part", dir=out)
+            temps[name] = temp
+            with os.fdopen(handle, "wb") as stream:
+                stream.write(content)
+        if not force:
+            existing = [name for name in files if (out / name).exists()]
+            if existing:
+                raise FileExistsError(f"{out / existing[0]} appeared while writing")
+        for name, temp in temps.items():
+            os.replace(temp, out / name)
+        for name in stale:  # an older run's file that this run does not write
+            if name not in files and (out / name).exists():
+                (out / name).unlink()
+    except OSError as error:
+        for temp in temps.values():
+            if os.path.exists(temp):
+                os.unlink(temp)
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        parser.error(f"argument --out: cannot write to {str(out)!r} ({error})")
+    except BaseException:
+        for temp in temps.values():
+            if os.path.exists(temp):
+                os.unlink(temp)
+        raise
+
+
+def _fit(parser, args) -> int:
+    import warnings
+
+    from gpmultirate import FIRGaussianProcess, save_model
+
+    path, inputs, output = _fit_source(parser, args)
+    _check_columns(parser, inputs, output)
+    out = Path(args.out)
+    _check_out_dir(parser, out, FIT_FILES, args.force)
+    started = time.perf_counter()
+    u, (y,) = _read_inputs(parser, path, inputs, [output])
+    n = y.shape[0]
+    if args.order is not None and args.order > n:
+        parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
+                     f"got {args.order}")
+    indices, values, placement, (factor, offset) = _slow_samples(parser, args, path, y)
+    u_val = y_val = None
+    if args.validate is not None:
+        u_val, (y_val,) = _read_inputs(parser, args.validate, inputs, [output])
+        missing = np.flatnonzero(np.isnan(y_val))
+        if missing.size:
+            parser.error(f"{args.validate}: output column {output!r} must be measured at "
+                         f"every row for validation; row {missing[0]} is missing")
+        if np.ptp(y_val) == 0:
+            parser.error(f"{args.validate}: output column {output!r} is constant, so the "
+                         "goodness of fit is undefined")
+
+    kernel, note = _fit_kernel(args.kernel, u, values)
+    notes = [note] if note else []
+    params = {"kernel": kernel, "order": args.order,
+              "initial_conditions": args.initial_conditions}
+    frequency_kwargs = {}
+    if "sample_time" in FIRGaussianProcess().get_params():
+        params["sample_time"] = args.sample_time
+    else:  # pragma: no cover - older estimators
+        frequency_kwargs["sample_time"] = args.sample_time
+    y_slow = placement.pop("y_slow")
+    if "factor" in placement:
+        params.update(placement)
+        fit_kwargs = {}
+    else:
+        fit_kwargs = placement
+    sampling = (f"one sample in {factor}, from row {offset}" if offset is not None
+                else f"irregular instants, median spacing {factor}")
+    if offset is not None and values.shape[0] < len(range(offset, n, factor)):
+        sampling += f", {len(range(offset, n, factor)) - values.shape[0]} missing"
+    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {values.shape[0]} slow samples "
+               f"({sampling}), {len(inputs)} input(s) ...")
+    model = FIRGaussianProcess(**params)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            model.fit(u, y_slow, **fit_kwargs)
+        except ValueError as error:
+            parser.error(f"{path}: the model cannot be fitted: {error}")
+    messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
+    for message in messages:
+        _say(args, f"warning: {message}")
+    frequency_kwargs.setdefault("sample_time", args.sample_time)
+
+    summary = {
+        "data": {"file": str(path), "inputs": inputs, "output": output, "n_samples": n,
+                 "n_slow_samples": int(values.shape[0]), "sampling": sampling,
+                 "factor": factor, "offset": offset, "sample_time": args.sample_time},
+        "model": {"estimator": type(model).__name__, "order": int(model.coef_.shape[-1]),
+                  "n_inputs": int(model.n_inputs_),
+                  "initial_conditions": args.initial_conditions,
+                  "kernel_option": args.kernel, "kernel": str(model.kernel_),
+                  "hyperparameters": _hyperparameters(model.kernel_),
+                  "log_evidence": float(model.log_marginal_likelihood_value_),
+                  "noise_level": float(model.noise_level_)},
+        "notes": notes,
+        "warnings": messages,
+    }
+    if hasattr(model, "resonances_"):
+        summary["resonances"] = _plain(model.resonances_)
+    files = {}
+    buffer = io.BytesIO()
+    try:
+        save_model(model, buffer)
+    except (ValueError, TypeError) as error:
+        parser.error(f"{path}: the model cannot be saved: {error}")
+    files["model.npz"] = buffer.getvalue()
+    system = None
+    if hasattr(model, "to_state_space"):
+        try:
+            system = model.to_state_space()
+        except (ValueError, NotImplementedError) as error:
+            notes.append(f"state_space.npz was not written: {error}")
+    else:
+        notes.append("state_space.npz was not written: this version of FIRGaussianProcess "
+                     "has no to_state_space method")
+    if system is not None:
+        dt = getattr(system, "dt", None)
+        buffer = io.BytesIO()
+        np.savez(buffer, A=np.asarray(system.A, dtype=float),
+                 B=np.asarray(system.B, dtype=float), C=np.asarray(system.C, dtype=float),
+                 D=np.asarray(system.D, dtype=float),
+                 dt=np.asarray(args.sample_time if dt is None or dt is True else dt,
+                               dtype=float))
+        files["state_space.npz"] = buffer.getvalue()
+        summary["state_space"] = {"order": int(np.asarray(system.A).shape[0])}
+    if u_val is not None:
+        summary["validation"] = {"file": str(args.validate), "n_samples": int(y_val.shape[0]),
+                                 "gof_percent": float(model.score(u_val, y_val))}
+    files.update(_fit_figures(model, u, indices, values, inputs, frequency_kwargs))
+    summary_json = json.dumps(_plain(summary), indent=2) + "\n"
+    files["summary.json"] = summary_json.encode("utf-8")
+    files["summary.md"] = _summary_markdown(json.loads(summary_json)).encode("utf-8")
+    _write_files(parser, out, files, args.force, stale=FIT_FILES if args.force else ())
+    for name in files:
+        _say(args, f"wrote {out / name}")
+    line = (f"order {summary['model']['order']}, log evidence "
+            f"{summary['model']['log_evidence']:.6g}, noise std "
+            f"{math.sqrt(summary['model']['noise_level']):.4g}")
+    if "validation" in summary:
+        line += f", validation GoF {summary['validation']['gof_percent']:.2f} %"
+    print(line)
+    for note in notes:
+        _say(args, f"note: {note}")
+    _say(args, f"done in {time.perf_counter() - started:.1f} s")
+    return 0
+
+
+def _predict(parser, args) -> int:
+    import gpmultirate as gm
+
+    _check_columns(parser, args.inputs)
+    out = Path(args.out)
+    if out.exists() and (out.is_dir() or not args.force):
+        parser.error(f"argument --out: {str(out)!r} "
+                     + ("is a directory" if out.is_dir() else "exists; use --force to overwrite"))
+    try:
+        model = gm.load_model(args.model)
+    except (ValueError, OSError) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
+        parser.error(f"{args.model}: cannot load the model ({reason})")
+    if len(args.inputs) != model.n_inputs_:
+        parser.error(f"argument --input: the model of {args.model} has {model.n_inputs_} "
+                     f"input(s); got {len(args.inputs)} column(s)")
+    u, _ = _read_inputs(parser, args.data, args.inputs)
+    mean, std = model.predict(u, return_std=True)
+    sample_time = float(getattr(model, "sample_time", 1.0))
+    text = io.StringIO()
+    text.write("index,time,y,y_std\n")
+    for k, (m, s) in enumerate(zip(mean, std)):
+        text.write(f"{k},{k * sample_time:.17g},{m:.17g},{s:.17g}\n")
+    _write_files(parser, out.parent if str(out.parent) else Path("."),
+                 {out.name: text.getvalue().encode("utf-8")}, args.force)
+    _say(args, f"wrote {out} ({mean.shape[0]} fast samples)")
     return 0
 
 

@@ -15,7 +15,7 @@ from importlib import resources
 
 import numpy as np
 
-__all__ = ["Dataset", "load_cd_player_arm", "load_robot_arm"]
+__all__ = ["Dataset", "load_cd_player_arm", "load_robot_arm", "robot_arm_csv"]
 
 _DAISY_CITATION = (
     'De Moor B.L.R. (ed.), "DaISy: Database for the Identification of Systems", '
@@ -186,3 +186,28 @@ def load_cd_player_arm() -> Dataset:
         citation=_DAISY_CITATION + 'Data set 96-007, "CD-player arm".',
         sample_time=None,
     )
+
+
+def robot_arm_csv() -> str:
+    """Path of ``robot_arm_multirate.csv``: the robot arm as a slow-rate measurement.
+
+    The file holds the record of :func:`load_robot_arm` in the layout of
+    ``gpmultirate fit``: a header ``u,y_slow``, one row per fast sample, the
+    input ``u`` in every row and the output in every third row (rows 0, 3,
+    6, ...), empty elsewhere.  ``gpmultirate fit --example robot-arm`` fits
+    it; from a shell its path is
+    ``python -c "import gpmultirate.datasets as d; print(d.robot_arm_csv())"``.
+
+    Returns
+    -------
+    str
+        The path of the file in the installed package.
+
+    Examples
+    --------
+    >>> from gpmultirate.datasets import robot_arm_csv
+    >>> with open(robot_arm_csv()) as stream:
+    ...     [next(stream).strip() for _ in range(3)]
+    ['u,y_slow', '2.2183165e-01,-1.7703630e-01', '3.9027807e-02,']
+    """
+    return str(resources.files("gpmultirate").joinpath("data", "robot_arm_multirate.csv"))

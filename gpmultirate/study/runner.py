@@ -49,9 +49,11 @@ __all__ = [
     "check_n_jobs",
     "fit_and_score",
     "fit_method",
+    "format_duration",
     "make_estimator",
     "run_paper_study",
     "run_trial",
+    "time_left",
     "unordered_parallel",
 ]
 
@@ -223,6 +225,40 @@ def run_trial(
                        seconds=time.perf_counter() - start)
 
 
+# ----------------------------------------------------------------- progress
+def time_left(elapsed: float, done: int, total: int) -> float:
+    """Estimated seconds until ``total`` tasks are done, from ``done`` in ``elapsed`` s.
+
+    The tasks finished so far set the rate: ``elapsed / done * (total - done)``.
+
+    Examples
+    --------
+    >>> time_left(30.0, 3, 10)
+    70.0
+    """
+    if done <= 0:
+        return math.inf
+    return max(0.0, elapsed / done * (total - done))
+
+
+def format_duration(seconds: float) -> str:
+    """``seconds`` as a short duration: ``"42 s"``, ``"3 min 5 s"``, ``"2 h 10 min"``.
+
+    Examples
+    --------
+    >>> format_duration(42.4), format_duration(185), format_duration(7800)
+    ('42 s', '3 min 5 s', '2 h 10 min')
+    """
+    if not math.isfinite(seconds):
+        return "unknown time"
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60} min"
+
+
 # -------------------------------------------------------------------- study
 def check_n_jobs(n_jobs) -> int:
     """Validate a joblib process count: a non-zero integer.
@@ -300,7 +336,9 @@ def run_paper_study(
         ``SeedSequence(random_state)`` (``SeedSequence(random_state).spawn(n_runs)[i]``).
         With None fresh entropy is drawn and stored in the result.
     progress : bool, default=True
-        Print ``run k/n done (t s)`` to stderr as runs finish.
+        Print ``run k/n done (about ... left; this run t s)`` to stderr as
+        runs finish, the time left estimated from the mean wall time per
+        finished run.
 
     Returns
     -------
@@ -334,7 +372,9 @@ def run_paper_study(
     for done, trial in enumerate(unordered_parallel(n_jobs, tasks), start=1):
         trials[trial.run] = trial
         if progress:
-            print(f"run {done}/{n_runs} done ({trial.seconds:.1f} s)", file=sys.stderr,
+            left = time_left(time.perf_counter() - start, done, n_runs)
+            eta = "" if done == n_runs else f"about {format_duration(left)} left; this run "
+            print(f"run {done}/{n_runs} done ({eta}{trial.seconds:.1f} s)", file=sys.stderr,
                   flush=True)
 
     def stack(name):
