@@ -25,6 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from gpmultirate import tuning
 from gpmultirate.exceptions import IdentifiabilityError
+from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
 from gpmultirate.kernels import DC, PerInputKernel, check_lags, kernel_for_inputs
 from gpmultirate.metrics import goodness_of_fit
@@ -279,7 +280,7 @@ def _record_inputs(experiment):
     return out
 
 
-class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
+class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     """Fast-rate FIR model as a Gaussian process over lag, from slow-rate data.
 
     The impulse response ``g(t)``, ``t >= 0`` real, has a zero-mean Gaussian
@@ -582,7 +583,7 @@ class FIRGaussianProcess(_FIRModelMixin, BaseEstimator):
         return np.column_stack([inputs, np.tile(lags, self.n_inputs_)])
 
 
-class LeastSquaresFIR(_FIRModelMixin, BaseEstimator):
+class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     """Least-squares FIR model from slow-rate data (paper eq. 11).
 
     The estimate is unique only when the order is below the number of slow
