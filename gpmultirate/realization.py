@@ -227,7 +227,8 @@ def block_hankel(markov, n_block_rows: int | None = None, n_block_cols: int | No
     return blocks.transpose(0, 2, 1, 3).reshape(rows * p, cols * m)
 
 
-def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD) -> int:
+def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD,
+                 zero_after: bool = True) -> int:
     """The order at the largest gap of the Hankel singular values.
 
     The order ``n`` maximises ``sigma_n / sigma_(n+1)`` over the orders
@@ -246,6 +247,11 @@ def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD) -
         non-zero (a zero after the last is implied).
     threshold : float, default=1e-3
         Relative size, in (0, 1], of the smallest singular value an order may keep.
+    zero_after : bool, default=True
+        Whether the values after the last are zero (a Hankel matrix of lower
+        rank than its size: an exactly low-order response).  When False (a
+        full-rank Hankel matrix of an estimated response, whose last values
+        are noise), the drop after the last value is no candidate.
 
     Returns
     -------
@@ -260,6 +266,8 @@ def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD) -
     3
     >>> select_order([1.0, 0.5, 0.25], threshold=0.4)
     1
+    >>> select_order([1.0, 0.98, 0.5, 0.48, 0.16, 0.159, 0.095], zero_after=False)
+    4
     """
     s = as_real_array(hankel_singular_values, "hankel_singular_values").reshape(-1)
     if s.size == 0 or not np.all(np.isfinite(s)) or np.any(s < 0) or s[0] <= 0:
@@ -273,6 +281,8 @@ def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD) -
     if threshold > 1:
         raise ValueError(f"threshold must be in (0, 1]; got {threshold!r}")
     n_kept = int(np.sum(s >= threshold * s[0]))  # at least 1: s[0] >= threshold * s[0]
+    if not zero_after and n_kept == s.size and s.size > 1:
+        n_kept -= 1  # no drop to zero after the last value to choose
     following = np.append(s, 0.0)[1 : n_kept + 1]
     with np.errstate(divide="ignore"):
         gaps = np.where(following > 0, s[:n_kept] / np.where(following > 0, following, 1.0),
@@ -295,7 +305,8 @@ def _svd(matrix: np.ndarray):
 
 def _check_order(n_states, rank: int, singular_values: np.ndarray, threshold: float) -> int:
     if n_states is None:
-        return select_order(singular_values[:rank], threshold)
+        return select_order(singular_values[:rank], threshold,
+                            zero_after=rank < singular_values.size)
     return check_int(n_states, "n_states", low=1, high=rank)
 
 
