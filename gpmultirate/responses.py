@@ -4,7 +4,8 @@ The classes here hold what a figure shows and nothing about how it is drawn
 (the functions of :mod:`gpmultirate.plotting` draw them):
 
 * :class:`FrequencyResponse`: the FRF with pointwise credible bands on
-  magnitude and phase (paper eq. 6).
+  magnitude and phase, projections of the credible ellipse of
+  ``(Re G, Im G)`` (paper eq. 6).
 * :class:`ImpulseResponse`: the impulse response at given lags with its
   posterior standard deviation and posterior draws.
 * :class:`OutputPrediction`: the fast-rate (intersample) output predicted from
@@ -16,9 +17,10 @@ fitted estimator.
 The FRF ``G(f) = sum_i g_i exp(-j 2 pi f T i)`` is linear in the
 coefficients, so a Gaussian posterior on ``g`` gives, at each frequency, a
 bivariate Gaussian for ``(Re G, Im G)``.  The bands on magnitude and phase
-are pointwise quantiles of that exact distribution, evaluated with a fixed
-set of draws (magnitude and phase are non-linear functions of the Gaussian,
-so their quantiles have no closed form).
+are the exact projections of its credible ellipse (chi-square with two
+degrees of freedom), so that wherever the ellipse holds the true FRF both
+bands hold its magnitude and its phase; where the ellipse contains 0 the
+magnitude band reaches 0 and the phase is undefined.
 """
 
 from __future__ import annotations
@@ -52,38 +54,55 @@ __all__ = [
     "normal_quantile",
 ]
 
-# Draws per frequency for the band quantiles; the quantile of a 95 % band is
-# then accurate to about 0.3 % in probability.  Fixed seed: bands are
-# deterministic.
-_BAND_DRAWS = 8192
-_BAND_SEED = 20250425
-_CHUNK = 128
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class FrequencyResponse:
-    """Frequency response of an identified FIR model with a pointwise band.
+    """Frequency response of an identified FIR model with pointwise credible bands.
+
+    At each frequency the posterior of ``(Re G, Im G)`` is an exact bivariate
+    Gaussian (:attr:`real_std`, :attr:`imag_std`, :attr:`real_imag_corr`).  Its
+    credible region at :attr:`level` is the ellipse
+    ``(z - mean)^T Sigma^{-1} (z - mean) <= chi2_2(level)`` (chi-square with two
+    degrees of freedom), and the two bands are the projections of that
+    ellipse:
+
+    * magnitude band ``[magnitude_lower, magnitude_upper]``: the smallest and the
+      largest ``|z|`` over the ellipse (``magnitude_lower`` is 0 where the
+      ellipse contains 0);
+    * phase band ``[phase_lower, phase_upper]``: the range of the angle of ``z``
+      over the ellipse, around :attr:`phase`; where the ellipse contains 0 the
+      phase is not defined (:attr:`phase_defined` is False) and the band is the
+      whole circle, ``phase +- pi``.
+
+    Wherever the ellipse contains the true FRF, both bands contain its
+    magnitude and its phase (modulo a full turn), so each band holds the truth
+    at least as often as the ellipse does: a band is a statement about the
+    region, not an equal-tailed quantile of ``|G|``, which would exclude
+    magnitudes near 0 whenever the mean is small.
 
     Attributes
     ----------
     freqs : ndarray of shape (n,)
-        Frequencies in Hz.
+        Frequencies in :attr:`frequency_unit` (Hz, or cycles per sample when
+        ``sample_time`` is 1).
     mean : ndarray of shape (n,), complex
         FRF of the posterior-mean impulse response (equal to the posterior
         mean of the FRF).
     magnitude_lower, magnitude_upper : ndarray of shape (n,)
-        Pointwise credible band of ``|G|`` at ``level``.
+        Projection of the credible ellipse on ``|G|``.
     phase_lower, phase_upper : ndarray of shape (n,)
-        Pointwise credible band of the phase in radians, around
-        :attr:`phase`.
+        Projection of the credible ellipse on the phase in radians, on the
+        branch of :attr:`phase`.
     real_std, imag_std, real_imag_corr : ndarray of shape (n,)
         The exact bivariate Gaussian of ``(Re G, Im G)`` at each frequency.
     level : float
-        Credible level of the bands.
+        Credible level of the ellipse.
     sample_time : float
-        Fast sample time in seconds.
+        Fast sample time in seconds (1.0: none was given, frequencies are in
+        cycles per sample).
     factor : int
         Downsampling factor of the data the model was identified from.
+    phase_defined : bool ndarray of shape (n,)
+        False where the credible ellipse contains 0.
 
     Examples
     --------
@@ -93,10 +112,24 @@ class FrequencyResponse:
     ...     np.array([0.0, 1.0]), np.array([1.0 + 0j, 0.5j]),
     ...     np.array([0.01, 0.01]), np.array([0.01, 0.01]), np.zeros(2),
     ...     sample_time=0.5, factor=2)
+    >>> frf
+    FrequencyResponse(2 frequencies in [0, 1] Hz, level=0.95, factor=2, sample_time=0.5, phase defined at 2 of 2)
     >>> frf.fast_nyquist, frf.slow_nyquist
     (1.0, 0.5)
-    >>> bool(np.all(frf.magnitude_lower < frf.magnitude) and np.all(frf.magnitude < frf.magnitude_upper))
-    True
+
+    Uncorrelated, equal variances: the ellipse is a circle of radius
+    ``sqrt(chi2_2(0.95) 0.01) = 0.245``, so the magnitude band is ``|mean| +- 0.245``.
+
+    >>> (frf.magnitude_upper - frf.magnitude).round(3)
+    array([0.245, 0.245])
+    >>> np.degrees(frf.phase_upper - frf.phase).round(1)  # asin(0.245 / |mean|)
+    array([14.2, 29.3])
+
+    A mean close to 0: the ellipse contains 0, the phase is undefined.
+
+    >>> small = FrequencyResponse.from_gaussian([0.1], [0.1 + 0j], [0.01], [0.01], [0.0])
+    >>> small.phase_defined, small.magnitude_lower, small.frequency_unit
+    (array([False]), array([0.]), 'cycles/sample')
     """
 
     freqs: np.ndarray
@@ -111,6 +144,48 @@ class FrequencyResponse:
     level: float
     sample_time: float
     factor: int
+    phase_defined: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.phase_defined is None:
+            # built without it: recompute it from the Gaussian, the one definition
+            cov = self.real_imag_corr * self.real_std * self.imag_std
+            defined = ~_region_contains_zero(self.mean, self.real_std ** 2,
+                                             self.imag_std ** 2, cov, _chi2_2(self.level))
+            object.__setattr__(self, "phase_defined", defined)
+        else:
+            object.__setattr__(self, "phase_defined",
+                               np.asarray(self.phase_defined, dtype=bool))
+
+    def __repr__(self) -> str:
+        n = self.freqs.shape[0]
+        return (f"FrequencyResponse({n} frequenc{'y' if n == 1 else 'ies'} in "
+                f"{_span(self.freqs)} {self.frequency_unit}, level={self.level:g}, "
+                f"factor={self.factor}, sample_time={self.sample_time:g}, "
+                f"phase defined at {int(np.sum(self.phase_defined))} of {n})")
+
+    @property
+    def frequency_unit(self) -> str:
+        """Unit of :attr:`freqs`: ``"Hz"``, or ``"cycles/sample"`` when ``sample_time == 1``.
+
+        A sample time of exactly 1 is the estimators' default, used when no
+        sample time was given: frequencies are then in cycles per sample.
+        """
+        return "cycles/sample" if self.sample_time == 1.0 else "Hz"
+
+    def to_control(self):
+        """This response as a ``control.FrequencyResponseData`` (python-control).
+
+        Needs the optional extra: ``pip install "gpmultirate[control]"``.
+        The frequencies are converted to radians per second.
+
+        Returns
+        -------
+        control.FrequencyResponseData
+        """
+        from gpmultirate.export import frequency_response_to_control
+
+        return frequency_response_to_control(self)
 
     @property
     def magnitude(self) -> np.ndarray:
@@ -119,17 +194,27 @@ class FrequencyResponse:
 
     @property
     def phase(self) -> np.ndarray:
-        """Unwrapped phase of the posterior mean in radians."""
-        return np.unwrap(np.angle(self.mean))
+        """Phase of the posterior mean in radians, unwrapped only where it is defined.
+
+        Unwrapping runs along each stretch of frequencies where
+        :attr:`phase_defined` is True and restarts after every stretch where
+        it is not: the first value of a stretch is put on the branch nearest
+        the last defined value before it (the principal value for the first
+        stretch), so that wraps of a phase lost in noise never accumulate.
+        Where the phase is undefined the value is the mean's angle continued
+        from the last defined value; it is the centre of the whole-circle
+        band there and has no meaning of its own.
+        """
+        return _unwrap_where_defined(np.angle(self.mean), self.phase_defined)
 
     @property
     def fast_nyquist(self) -> float:
-        """Nyquist frequency of the fast rate, ``1 / (2 T)`` in Hz."""
+        """Nyquist frequency of the fast rate, ``1 / (2 T)``, in :attr:`frequency_unit`."""
         return 0.5 / self.sample_time
 
     @property
     def slow_nyquist(self) -> float:
-        """Nyquist frequency of the slow rate, ``1 / (2 F T)`` in Hz."""
+        """Nyquist frequency of the slow rate, ``1 / (2 F T)``, in :attr:`frequency_unit`."""
         return 0.5 / (self.sample_time * self.factor)
 
     @classmethod
@@ -147,6 +232,11 @@ class FrequencyResponse:
     ) -> "FrequencyResponse":
         """Build the bands from the bivariate Gaussian of ``(Re G, Im G)``.
 
+        The bands are the exact projections of the ``level`` credible ellipse
+        on magnitude and phase (see :class:`FrequencyResponse`), computed per
+        frequency in closed form (phase) and from the stationary points of the
+        distance to the origin along the ellipse (magnitude).
+
         Parameters
         ----------
         freqs : ndarray of shape (n,)
@@ -160,36 +250,37 @@ class FrequencyResponse:
         Returns
         -------
         FrequencyResponse
+
+        Examples
+        --------
+        >>> from gpmultirate.responses import FrequencyResponse
+        >>> frf = FrequencyResponse.from_gaussian([0.2], [3.0 + 0j], [1.0], [0.25], [0.0],
+        ...                                       level=0.5)
+        >>> c = -2 * np.log(1 - 0.5)  # chi-square quantile, two degrees of freedom
+        >>> bool(np.isclose(frf.magnitude_upper[0], 3 + np.sqrt(c)))
+        True
         """
         level = check_level(level)
-        mean = np.asarray(mean, dtype=complex)
-        var_real = np.maximum(var_real, 0.0)
-        var_imag = np.maximum(var_imag, 0.0)
+        mean = np.array(mean, dtype=complex).reshape(-1)
+        var_real = np.maximum(np.asarray(var_real, dtype=float).reshape(-1), 0.0)
+        var_imag = np.maximum(np.asarray(var_imag, dtype=float).reshape(-1), 0.0)
+        cov = np.asarray(cov_real_imag, dtype=float).reshape(-1)
         std_r, std_i = np.sqrt(var_real), np.sqrt(var_imag)
         denom = std_r * std_i
-        corr = np.divide(cov_real_imag, denom, out=np.zeros_like(denom), where=denom > 0)
+        corr = np.divide(cov, denom, out=np.zeros_like(denom), where=denom > 0)
         corr = np.clip(corr, -1.0, 1.0)
-
-        tails = [(1.0 - level) / 2.0, (1.0 + level) / 2.0]
-        z = np.random.default_rng(_BAND_SEED).standard_normal((2, _BAND_DRAWS))
-        n = mean.shape[0]
-        mag_lo, mag_hi, ph_lo, ph_hi = (np.empty(n) for _ in range(4))
-        for start in range(0, n, _CHUNK):
-            part = slice(start, min(start + _CHUNK, n))
-            # draws of (Re, Im) through the 2x2 Cholesky factor at each frequency
-            re = mean[part].real[:, None] + std_r[part, None] * z[0]
-            im = mean[part].imag[:, None] + std_i[part, None] * (
-                corr[part, None] * z[0] + np.sqrt(1.0 - corr[part] ** 2)[:, None] * z[1]
-            )
-            draws = re + 1j * im
-            mag_lo[part], mag_hi[part] = np.quantile(np.abs(draws), tails, axis=1)
-            # phase relative to the mean's phase, so that the band never wraps
-            relative = np.angle(draws * np.exp(-1j * np.angle(mean[part]))[:, None])
-            ph_lo[part], ph_hi[part] = np.quantile(relative, tails, axis=1)
-        phase = np.unwrap(np.angle(mean))
+        cov = corr * denom  # a positive semi-definite covariance
+        c = _chi2_2(level)
+        contains_zero = _region_contains_zero(mean, var_real, var_imag, cov, c)
+        mag_lo, mag_hi = _magnitude_range(mean, var_real, var_imag, cov, c)
+        mag_lo[contains_zero] = 0.0
+        ph_lo, ph_hi = _relative_phase_range(mean, var_real, var_imag, cov, c)
+        ph_lo[contains_zero], ph_hi[contains_zero] = -np.pi, np.pi
+        defined = ~contains_zero
+        phase = _unwrap_where_defined(np.angle(mean), defined)
         return cls(
-            freqs=np.asarray(freqs, dtype=float),
-            mean=np.asarray(mean, dtype=complex),
+            freqs=np.array(freqs, dtype=float).reshape(-1),
+            mean=mean,
             magnitude_lower=mag_lo,
             magnitude_upper=mag_hi,
             phase_lower=phase + ph_lo,
@@ -200,7 +291,151 @@ class FrequencyResponse:
             level=level,
             sample_time=float(sample_time),
             factor=int(factor),
+            phase_defined=defined,
         )
+
+
+# ------------------------------------------------- projections of the ellipse
+def _chi2_2(level: float) -> float:
+    """Quantile of the chi-square distribution with 2 degrees of freedom."""
+    return float(-2.0 * np.log1p(-level))
+
+
+def _region_contains_zero(mean, var_real, var_imag, cov, c) -> np.ndarray:
+    """Whether ``0`` lies in ``{z : (z - m)^T S^{-1} (z - m) <= c}``, also for singular ``S``.
+
+    ``0`` is inside exactly when ``(n . m)^2 <= c n^T S n`` for every direction
+    ``n``, that is when ``Q = m m^T - c S`` is negative semi-definite: trace
+    ``<= 0`` and determinant ``>= 0``.
+    """
+    mean = np.asarray(mean, dtype=complex)
+    q11 = mean.real ** 2 - c * var_real
+    q22 = mean.imag ** 2 - c * var_imag
+    q12 = mean.real * mean.imag - c * cov
+    return (q11 + q22 <= 0.0) & (q11 * q22 - q12 ** 2 >= 0.0)
+
+
+def _ellipse_axes(var_real, var_imag, cov, c):
+    """Principal axes of the ellipse: angle of the major axis and semi-axes ``a >= b``."""
+    angle = 0.5 * np.arctan2(2.0 * cov, var_real - var_imag)
+    half_trace = 0.5 * (var_real + var_imag)
+    radius = np.hypot(0.5 * (var_real - var_imag), cov)
+    a = np.sqrt(c * (half_trace + radius))
+    b = np.sqrt(c * np.maximum(half_trace - radius, 0.0))
+    return angle, a, b
+
+
+def _magnitude_range(mean, var_real, var_imag, cov, c) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest and largest ``|z|`` on the boundary of the ellipse, per frequency.
+
+    In the principal axes the boundary is ``p + (a cos t, b sin t)`` with ``p``
+    the mean, and ``|z|^2 = f(t)`` is stationary where
+    ``h(t) = -a p1 sin t + b p2 cos t + (b^2 - a^2) sin t cos t = 0``.  With
+    ``w = exp(j t)`` that is the quartic
+    ``(b^2 - a^2) (w^4 - 1) - 2 a p1 (w^3 - w) + 2j b p2 (w^3 + w) = 0``, solved
+    for all frequencies at once through the eigenvalues of its companion
+    matrices.  The stationary points of the circle (``a = b``), the ends of
+    the axes and a few Newton steps on ``h`` make it exact also when the
+    quartic degenerates; the extremes are taken over all these candidates,
+    each a point of the boundary.  (The smallest value is the answer only when
+    the ellipse does not contain 0.)
+    """
+    mean = np.asarray(mean, dtype=complex)
+    angle, a, b = _ellipse_axes(var_real, var_imag, cov, c)
+    rotated = mean * np.exp(-1j * angle)
+    p1, p2 = rotated.real, rotated.imag
+    n = mean.shape[0]
+    lead = b ** 2 - a ** 2
+    scale = np.maximum(a ** 2 + np.abs(a * p1) + np.abs(b * p2), np.finfo(float).tiny)
+    quartic = np.abs(lead) > 1e-10 * scale
+    safe = np.where(quartic, lead, 1.0)
+    # monic quartic w^4 + c3 w^3 + c2 w^2 + c1 w + c0
+    c3 = (-2.0 * a * p1 + 2j * b * p2) / safe
+    c1 = (2.0 * a * p1 + 2j * b * p2) / safe
+    companion = np.zeros((n, 4, 4), dtype=complex)
+    companion[:, 0, 0], companion[:, 0, 2], companion[:, 0, 3] = -c3, -c1, 1.0
+    companion[:, 1, 0] = companion[:, 2, 1] = companion[:, 3, 2] = 1.0
+    roots = np.linalg.eigvals(companion) if n else np.empty((0, 4), dtype=complex)
+    root_angles = np.where(quartic[:, None], np.angle(roots), 0.0)
+    circle = np.arctan2(p2, p1)[:, None] + np.array([0.0, np.pi])
+    axis_ends = np.broadcast_to(np.arange(4) * (np.pi / 2), (n, 4))
+    t = np.concatenate([root_angles, circle, axis_ends], axis=1)
+    a_, b_, p1_, p2_, lead_ = (v[:, None] for v in (a, b, p1, p2, lead))
+    candidates = [t]
+    for _ in range(4):
+        s, co = np.sin(t), np.cos(t)
+        h = -a_ * p1_ * s + b_ * p2_ * co + lead_ * s * co
+        dh = -a_ * p1_ * co - b_ * p2_ * s + lead_ * (co ** 2 - s ** 2)
+        step = np.divide(h, dh, out=np.zeros_like(h), where=np.abs(dh) > 1e-300)
+        t = t - np.clip(step, -0.5, 0.5)
+        candidates.append(t)
+    t = np.concatenate(candidates, axis=1)
+    squared = (p1_ + a_ * np.cos(t)) ** 2 + (p2_ + b_ * np.sin(t)) ** 2
+    return np.sqrt(squared.min(axis=1)), np.sqrt(squared.max(axis=1))
+
+
+def _relative_phase_range(mean, var_real, var_imag, cov, c) -> tuple[np.ndarray, np.ndarray]:
+    """Range of ``angle(z) - angle(mean)`` over the ellipse, where it does not contain 0.
+
+    The extreme angles are those of the two tangent lines through the origin:
+    a line with unit normal ``n`` is tangent when ``n^T (m m^T - c S) n = 0``
+    (the null directions of that indefinite 2x2 matrix), and it touches the
+    ellipse at ``m - (n . m) S n / (n^T S n)``.  The angles of the two points,
+    relative to the mean's, lie in ``(-pi, pi)`` since the ellipse is convex
+    and does not contain 0.  (Meaningless where it contains 0.)
+    """
+    mean = np.asarray(mean, dtype=complex)
+    mr, mi = mean.real, mean.imag
+    q11 = mr ** 2 - c * var_real
+    q22 = mi ** 2 - c * var_imag
+    q12 = mr * mi - c * cov
+    phi = 0.5 * np.arctan2(2.0 * q12, q11 - q22)
+    half_trace = 0.5 * (q11 + q22)
+    radius = np.hypot(0.5 * (q11 - q22), q12)
+    big, small = half_trace + radius, half_trace - radius
+    e1 = np.stack([np.cos(phi), np.sin(phi)])
+    e2 = np.stack([-np.sin(phi), np.cos(phi)])
+    rotate_back = np.exp(-1j * np.angle(mean))
+    angles = []
+    for sign in (1.0, -1.0):
+        normal = (np.sqrt(np.maximum(-small, 0.0)) * e1
+                  + sign * np.sqrt(np.maximum(big, 0.0)) * e2)
+        sn_r = var_real * normal[0] + cov * normal[1]
+        sn_i = cov * normal[0] + var_imag * normal[1]
+        nsn = normal[0] * sn_r + normal[1] * sn_i
+        nm = normal[0] * mr + normal[1] * mi
+        weight = np.divide(nm, nsn, out=np.zeros_like(nm), where=nsn > 1e-300)
+        touch = (mr - weight * sn_r) + 1j * (mi - weight * sn_i)
+        angles.append(np.angle(touch * rotate_back))
+    lower = np.minimum(angles[0], angles[1])
+    upper = np.maximum(angles[0], angles[1])
+    return np.minimum(lower, 0.0), np.maximum(upper, 0.0)
+
+
+def _unwrap_where_defined(angle: np.ndarray, defined: np.ndarray) -> np.ndarray:
+    """Unwrap ``angle`` along each run of ``defined``, restarting after undefined runs.
+
+    A defined run starts on the branch nearest the last defined value before
+    it (the principal value for the first one); an undefined run continues
+    from the last defined value.
+    """
+    angle = np.asarray(angle, dtype=float)
+    out = np.empty_like(angle)
+    n = angle.shape[0]
+    if n == 0:
+        return out
+    edges = np.flatnonzero(np.diff(defined.astype(np.int8))) + 1
+    starts = np.concatenate([[0], edges])
+    stops = np.concatenate([edges, [n]])
+    last = None  # the last defined value
+    for start, stop in zip(starts, stops):
+        run = np.unwrap(angle[start:stop])
+        if last is not None:
+            run = run + 2.0 * np.pi * np.round((last - run[0]) / (2.0 * np.pi))
+        out[start:stop] = run
+        if defined[start]:
+            last = run[-1]
+    return out
 
 
 def default_frequencies(n_samples: int, sample_time: float) -> np.ndarray:

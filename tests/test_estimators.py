@@ -157,20 +157,36 @@ def test_frequency_response_mean_and_covariance(problem):
     assert np.all(frf.phase_lower <= frf.phase_upper)
 
 
-def test_frequency_band_quantiles_match_monte_carlo(problem):
-    """Band of |G| against quantiles of |E g| over exact posterior draws of g."""
+def test_frequency_bands_are_projections_of_the_credible_region(problem):
+    """Monte Carlo over exact posterior draws of g: the 2-D region holds ``level`` of the
+    draws of G, the bands hold |G| and the phase of every draw in the region, and the
+    draws in the region reach the edges of the bands."""
     model = problem["model"]
     freqs = np.array([0.7, 2.4])
-    frf = model.frequency_response(freqs, sample_time=0.1, level=0.8)
+    level = 0.8
+    frf = model.frequency_response(freqs, sample_time=0.1, level=level)
     Sigma = coef_covariance(problem["kernel"], problem["Phi"], NOISE)
     rng = np.random.default_rng(11)
     draws = rng.multivariate_normal(model.coef_, Sigma, size=40000, method="eigh")
     E = np.exp(-2j * np.pi * 0.1 * np.outer(freqs, np.arange(ORDER)))
-    mags = np.abs(draws @ E.T)
-    low, high = np.quantile(mags, [0.1, 0.9], axis=0)
-    width = frf.magnitude_upper - frf.magnitude_lower
-    np.testing.assert_allclose(frf.magnitude_lower, low, atol=0.03 * width.max())
-    np.testing.assert_allclose(frf.magnitude_upper, high, atol=0.03 * width.max())
+    G = draws @ E.T
+    d = G - frf.mean
+    var_r, var_i = frf.real_std ** 2, frf.imag_std ** 2
+    cov = frf.real_imag_corr * frf.real_std * frf.imag_std
+    distance = (var_i * d.real ** 2 - 2 * cov * d.real * d.imag + var_r * d.imag ** 2) / (
+        var_r * var_i - cov ** 2)
+    inside = distance <= stats.chi2.ppf(level, df=2)
+    assert np.all(np.abs(inside.mean(axis=0) - level) < 0.01)
+    assert np.all(frf.phase_defined)
+    for k in range(freqs.size):
+        mag = np.abs(G[inside[:, k], k])
+        angle = np.angle(G[inside[:, k], k] * np.exp(-1j * frf.phase[k]))
+        for values, low, high in ((mag, frf.magnitude_lower[k], frf.magnitude_upper[k]),
+                                  (angle, frf.phase_lower[k] - frf.phase[k],
+                                   frf.phase_upper[k] - frf.phase[k])):
+            width = high - low
+            assert low <= values.min() < low + 0.05 * width
+            assert high - 0.05 * width < values.max() <= high
 
 
 def test_default_frequencies_are_dft_bins(problem):

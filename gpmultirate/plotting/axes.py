@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
+from matplotlib.colors import to_rgba
 from matplotlib.text import Text
 
 __all__ = [
@@ -94,8 +95,13 @@ def to_db(magnitude: np.ndarray) -> np.ndarray:
     return out
 
 
-def draw_band(ax: Axes, x, lower, upper, color) -> PolyCollection:
-    """Shade ``lower <= y <= upper`` over ``x``, without a legend entry.
+def draw_band(ax: Axes, x, lower, upper, color, *, label: str = "_nolegend_",
+              where=None, edge: bool = False) -> PolyCollection:
+    """Shade ``lower <= y <= upper`` over ``x``, by default without a legend entry.
+
+    ``label`` gives it a legend entry, ``where`` (bool array over ``x``) shades
+    only the runs where it is True, and ``edge=True`` outlines the band with a
+    thin line in its colour, so that overlapping bands stay apart.
 
     Examples
     --------
@@ -107,8 +113,12 @@ def draw_band(ax: Axes, x, lower, upper, color) -> PolyCollection:
     >>> band in ax.collections, band.get_label()
     (True, '_nolegend_')
     """
+    if edge:
+        return ax.fill_between(x, lower, upper, where=where,
+                               facecolor=to_rgba(color, BAND_ALPHA),
+                               edgecolor=to_rgba(color, 0.7), linewidth=0.6, label=label)
     return ax.fill_between(
-        x, lower, upper, color=color, alpha=BAND_ALPHA, linewidth=0, label="_nolegend_"
+        x, lower, upper, where=where, color=color, alpha=BAND_ALPHA, linewidth=0, label=label
     )
 
 

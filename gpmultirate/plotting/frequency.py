@@ -1,9 +1,11 @@
 """Bode plot of a :class:`~gpmultirate.responses.FrequencyResponse` (Fig. 6, 10, 11).
 
 :func:`plot_bode` draws the FRF magnitude and phase with their credible
-bands, the true FRF, the FRF error and the slow and fast Nyquist
-frequencies; it draws the data it is given and computes nothing about the
-model.
+bands (the projections of the credible ellipse of ``(Re G, Im G)``, see
+:class:`~gpmultirate.responses.FrequencyResponse`), hatches the frequencies
+where the phase is undefined, and adds the true FRF, the FRF error and the
+slow and fast Nyquist frequencies; it draws the data it is given and
+computes nothing about the model.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
+from matplotlib.colors import to_rgba
 from matplotlib.lines import Line2D
 
 from gpmultirate.plotting.axes import (
@@ -31,6 +34,9 @@ from gpmultirate.validation import check_positive
 __all__ = ["BodePlot", "plot_bode"]
 
 _TRUE_GID = "gpmultirate-true-frf"
+_BAND_GID = "gpmultirate-magnitude-band"
+_UNDEFINED_GID = "gpmultirate-phase-undefined"
+_HATCHES = ("////", "\\\\\\\\", "xxxx", "----")
 
 
 @dataclass
@@ -45,7 +51,10 @@ class BodePlot:
         Magnitude and phase of the posterior-mean FRF (``phase_line`` is
         ``None`` with ``phase=False``).
     magnitude_band, phase_band : PolyCollection or None
-        Shaded credible bands (``None`` with ``show_band=False``).
+        Shaded credible bands (``None`` with ``show_band=False``); the
+        magnitude band has the legend entry ``"<label>, <level> % band"``.
+        The phase band leaves out the frequencies where the phase is
+        undefined.
     true_magnitude_line, true_phase_line : Line2D or None
         The true FRF, if ``true_frf`` was given.
     error_line : Line2D or None
@@ -55,6 +64,11 @@ class BodePlot:
         axes; markers already drawn by an earlier call are reused.
     nyquist_labels : list of Text
         Their labels on the magnitude axes.
+    phase_undefined_spans : list of Polygon
+        Hatched spans over the whole phase axes, one per stretch of
+        frequencies where the credible region contains 0 (the phase is
+        undefined); the first has the legend entry
+        ``"<label>: phase undefined"``.  Empty without a phase axes.
 
     Examples
     --------
@@ -83,6 +97,7 @@ class BodePlot:
     error_line: Line2D | None = None
     nyquist_lines: list | None = None
     nyquist_labels: list | None = None
+    phase_undefined_spans: list | None = None
 
 
 def _nyquist_markers(axes: list, frf: FrequencyResponse, xscale: str) -> tuple[list, list]:
@@ -123,15 +138,25 @@ def plot_bode(
     xscale: str = "linear",
     legend: bool = True,
 ) -> BodePlot:
-    """Bode plot of an identified FRF with its credible band.
+    """Bode plot of an identified FRF with its credible bands.
 
-    Draws ``|G|`` of ``frf.mean`` (in dB by default) and its unwrapped phase
-    in degrees, the pointwise credible bands of :class:`FrequencyResponse`
-    shaded, optionally the true FRF (dashed black) and the FRF error
+    Draws ``|G|`` of ``frf.mean`` (in dB by default) and its phase in
+    degrees, the pointwise credible bands of :class:`FrequencyResponse`
+    shaded and outlined (both are projections of the credible ellipse of
+    ``(Re G, Im G)``, so they hold the truth wherever the ellipse does),
+    optionally the true FRF (dashed black) and the FRF error
     ``error_scale * |G0 - G|`` (dotted, in the estimate's colour; the paper
     uses ``error_scale=0.1``), and vertical markers at the slow and fast
-    Nyquist frequencies.  Calling it again with the returned axes overlays
-    another estimate.
+    Nyquist frequencies.
+
+    Where the ellipse contains 0 the magnitude band runs down to the bottom
+    of the axes (20 dB below the lowest curve) and the phase is undefined:
+    the phase axes are hatched over those frequencies in the estimate's
+    colour, with no phase curve and no phase band there.  The legend holds
+    the estimate, its band with its level (``"PK, 95 % band"``) and the
+    hatching (``"PK: phase undefined"``).  Calling it again with the
+    returned axes overlays another estimate in the next colour of the axes'
+    cycle and with another hatch.
 
     Parameters
     ----------
@@ -141,15 +166,19 @@ def plot_bode(
         ``(magnitude, phase)`` axes, or a single magnitude Axes with
         ``phase=False``.  By default a new figure with two stacked axes.
     label : str, optional
-        Legend entry of the estimate.
+        Legend entry of the estimate; ``"estimate"`` by default.
     color : matplotlib colour, optional
         Colour of the estimate and its band; default the next colour of the
         magnitude axes' cycle.
     true_frf : complex array-like of shape (n,), optional
         True FRF at ``frf.freqs``.  Its phase is shifted by a multiple of 360
-        degrees to start on the estimate's branch.
+        degrees onto the estimate's branch at the start of every stretch
+        where the estimate's phase is defined (the estimate's phase restarts
+        after each stretch where it is not), and the line is broken where
+        the shift changes.
     show_band : bool, default=True
-        Shade the credible bands.
+        Shade the credible bands (the hatching of an undefined phase is
+        drawn either way).
     show_error : bool, default=False
         Plot ``error_scale * |true_frf - frf.mean|`` (needs ``true_frf``).
     error_scale : float, default=1.0
@@ -160,13 +189,16 @@ def plot_bode(
     db : bool, default=True
         Magnitude in dB on a linear axis; otherwise ``|G|`` on a log axis.
     phase : bool, default=True
-        Draw the phase axes.
+        Draw the phase axes (below the magnitude axes of a new figure).
     xscale : {"linear", "log"}, default="linear"
         Frequency axis; the paper uses a linear axis up to the fast Nyquist
         frequency.  With ``"log"`` the zero frequency is left out.
     legend : bool, default=True
-        Draw (or redraw) the legend of the magnitude axes when it has
-        labelled artists.
+        Draw (or redraw) the legend of the magnitude axes, with the labelled
+        artists of both axes.
+
+    The frequency axis is labelled in ``frf.frequency_unit`` (Hz, or
+    cycles/sample when the sample time is 1).
 
     Returns
     -------
@@ -193,6 +225,8 @@ def plot_bode(
     >>> bode = plot_bode(frf, label="DC", true_frf=true, show_error=True, error_scale=0.1)
     >>> bode.axes[0].get_ylabel(), len(bode.nyquist_lines)
     ('magnitude [dB]', 4)
+    >>> [t.get_text() for t in bode.axes[0].get_legend().get_texts()][:3]
+    ['DC', 'DC, 95 % band', 'true']
     >>> again = plot_bode(frf, axes=bode.axes, label="again")  # overlays
     >>> again.axes == bode.axes
     True
@@ -203,6 +237,8 @@ def plot_bode(
         raise ValueError(f"frf must be a FrequencyResponse; got {type(frf).__name__}")
     xscale = check_choice(xscale, "xscale", ("linear", "log"))
     error_scale = check_positive(error_scale, "error_scale")
+    if label is not None and not isinstance(label, str):
+        raise ValueError(f"label must be a string or None; got {type(label).__name__}")
     freqs = frf.freqs
     if true_frf is not None:
         true_frf = np.asarray(true_frf)
@@ -238,17 +274,32 @@ def plot_bode(
     if not np.any(keep):
         raise ValueError("frf must have positive frequencies for xscale='log'")
     f = freqs[keep]
+    defined = frf.phase_defined[keep]
+    name = "estimate" if label is None else label
+    band_label = f"{name}, {100 * frf.level:g} % band"
 
     def magnitude(values):
         return to_db(values) if db else values
 
-    (mag_line,) = ax_mag.plot(f, magnitude(frf.magnitude[keep]), color=color, label=label)
+    (mag_line,) = ax_mag.plot(f, magnitude(frf.magnitude[keep]), color=color, label=name)
     color = mag_line.get_color()
     result = BodePlot(axes=(ax_mag, ax_phase), magnitude_line=mag_line,
-                      nyquist_lines=[], nyquist_labels=[])
+                      nyquist_lines=[], nyquist_labels=[], phase_undefined_spans=[])
     if show_band:
-        result.magnitude_band = draw_band(ax_mag, f, magnitude(frf.magnitude_lower[keep]),
-                                      magnitude(frf.magnitude_upper[keep]), color)
+        upper = magnitude(frf.magnitude_upper[keep])
+        floor = _magnitude_floor(ax_mag, [magnitude(frf.magnitude[keep]), upper]
+                                 + ([] if true_frf is None
+                                    else [magnitude(np.abs(true_frf[keep]))]), db)
+        # a band that reaches 0 (or nearly) is drawn down to the floor
+        low = frf.magnitude_lower[keep]
+        clipped = ~(magnitude(low) > floor)
+        lower = np.where(clipped, floor, magnitude(np.maximum(low, np.finfo(float).tiny)))
+        result.magnitude_band = draw_band(ax_mag, f, lower, upper, color, label=band_label,
+                                          edge=True)
+        result.magnitude_band.set_gid(_BAND_GID)
+        if np.any(clipped):
+            # autoscaling stops at the floor: the band runs to the bottom of the axes
+            result.magnitude_band.sticky_edges.y.append(floor)
     if true_frf is not None:
         already = any(ln.get_gid() == _TRUE_GID for ln in ax_mag.get_lines())
         (result.true_magnitude_line,) = ax_mag.plot(
@@ -261,16 +312,30 @@ def plot_bode(
             linestyle=":", label=error_label if label is None else f"{label}: {error_label}")
 
     if ax_phase is not None:
-        phase_deg = np.degrees(frf.phase)
-        (result.phase_line,) = ax_phase.plot(f, phase_deg[keep], color=color, label=label)
+        phase_deg = np.degrees(frf.phase)[keep]
+        (result.phase_line,) = ax_phase.plot(f, np.where(defined, phase_deg, np.nan),
+                                             color=color, label="_nolegend_")
         if show_band:
-            result.phase_band = draw_band(ax_phase, f, np.degrees(frf.phase_lower[keep]),
-                                      np.degrees(frf.phase_upper[keep]), color)
+            result.phase_band = draw_band(
+                ax_phase, f, np.degrees(frf.phase_lower[keep]),
+                np.degrees(frf.phase_upper[keep]), color, where=defined, edge=True)
+        # a different hatch for each estimate overlaid on the axes
+        earlier = {a.get_gid() for a in ax_phase.patches
+                   if (a.get_gid() or "").startswith(_UNDEFINED_GID)}
+        hatch = _HATCHES[len(earlier) % len(_HATCHES)]
+        gid = f"{_UNDEFINED_GID}-{len(earlier)}"
+        for left, right in _undefined_spans(f, defined, xscale):
+            result.phase_undefined_spans.append(ax_phase.axvspan(
+                left, right, facecolor="none", edgecolor=to_rgba(color, 0.6), hatch=hatch,
+                gid=gid,
+                linewidth=0.0, zorder=0.5,
+                label="_nolegend_" if result.phase_undefined_spans
+                else f"{name}: phase undefined"))
         if true_frf is not None:
-            true_deg = np.degrees(np.unwrap(np.angle(true_frf)))
-            true_deg += 360.0 * np.round((phase_deg[0] - true_deg[0]) / 360.0)
+            true_deg = np.degrees(np.unwrap(np.angle(true_frf)))[keep]
+            x, y = _aligned_true_phase(f, true_deg, phase_deg, defined)
             (result.true_phase_line,) = ax_phase.plot(
-                f, true_deg[keep], color="k", linestyle="--", linewidth=1.0, zorder=2.5)
+                x, y, color="k", linestyle="--", linewidth=1.0, zorder=2.5)
 
     used = [a for a in (ax_mag, ax_phase) if a is not None]
     if show_nyquist:
@@ -283,9 +348,81 @@ def plot_bode(
     ax_mag.set_ylabel("magnitude [dB]" if db else "magnitude")
     if ax_phase is not None:
         ax_phase.set_ylabel("phase [deg]")
-    used[-1].set_xlabel("frequency [Hz]")
-    if legend and ax_mag.get_legend_handles_labels()[0]:
-        ax_mag.legend(fontsize="small", loc="best")
+    used[-1].set_xlabel(f"frequency [{frf.frequency_unit}]")
+    if legend:
+        handles, labels = ax_mag.get_legend_handles_labels()
+        if ax_phase is not None:
+            more, more_labels = ax_phase.get_legend_handles_labels()
+            handles, labels = handles + more, labels + more_labels
+        if handles:
+            ax_mag.legend(handles, labels, fontsize="small", loc="best")
     return result
 
 
+def _magnitude_floor(ax: Axes, curves: list, db: bool) -> float:
+    """Where a band that reaches ``|G| = 0`` stops: 20 dB below the curves on ``ax``.
+
+    The lowest finite (positive) value of ``curves``, 20 dB lower, or the
+    floor of a band drawn earlier on ``ax`` if that is lower (overlaid bands
+    share their floor).
+    """
+    values = np.concatenate([np.ravel(c) for c in curves])
+    values = values[np.isfinite(values) & (True if db else values > 0)]
+    earlier = [y for band in ax.collections if band.get_gid() == _BAND_GID
+               for y in band.sticky_edges.y]
+    if db:
+        lowest = values.min() - 20.0 if values.size else -100.0
+    else:
+        lowest = values.min() / 10.0 if values.size else 1e-5
+    return float(min([lowest] + earlier))
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` of every run of True in ``mask``."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def _undefined_spans(f: np.ndarray, defined: np.ndarray, xscale: str) -> list:
+    """Frequency intervals of the runs where the phase is undefined, to mid-bin."""
+    def middle(x0, x1):
+        return float(np.sqrt(x0 * x1) if xscale == "log" else 0.5 * (x0 + x1))
+
+    spans = []
+    for start, stop in _runs(~defined):
+        left = f[start] if start == 0 else middle(f[start - 1], f[start])
+        right = f[stop - 1] if stop == f.shape[0] else middle(f[stop - 1], f[stop])
+        if right <= left:  # a single undefined frequency at an end of the axis
+            width = (f[-1] - f[0]) / max(2 * (f.shape[0] - 1), 1) or 0.5
+            left, right = (left - width, right) if start else (left, right + width)
+        spans.append((float(left), float(right)))
+    return spans
+
+
+def _aligned_true_phase(f, true_deg, phase_deg, defined) -> tuple[np.ndarray, np.ndarray]:
+    """The true phase shifted by whole turns to the estimate's branch, per defined run.
+
+    The estimate's phase restarts after every stretch where it is undefined,
+    so the true phase is put on the estimate's branch at the start of each
+    defined run (and keeps that shift through the undefined stretch after it);
+    the line is broken where the shift changes.
+    """
+    n = f.shape[0]
+    shift = np.zeros(n)
+    runs = _runs(defined)
+    if not runs:
+        runs = [(0, n)]
+    current = None
+    for start, _ in runs:
+        k = 360.0 * np.round((phase_deg[start] - true_deg[start]) / 360.0)
+        if current is None:
+            shift[:start] = k
+        shift[start:] = k
+        current = k
+    y = true_deg + shift
+    breaks = np.flatnonzero(np.diff(shift) != 0) + 1
+    if breaks.size == 0:
+        return f, y
+    return (np.insert(np.asarray(f, dtype=float), breaks, np.nan),
+            np.insert(y, breaks, np.nan))
