@@ -659,7 +659,7 @@ def _fit_figures(model, u, indices, values, names, frequency_kwargs) -> dict[str
     axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
     for k in range(n_inputs):
         frf = model.frequency_response(input=k if n_inputs > 1 else None, **frequency_kwargs)
-        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="estimate (95 % band)")
+        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean")
         axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
     figures["bode.png"] = _png(fig)
 
