@@ -2,7 +2,7 @@
 
 Run ``python benchmarks/run.py`` (all cases) or ``--cases paper_dc paper_pk``.
 The cases: the paper's size (N = P = 600, factor 3) with the DC and the
-DC + 2 PK kernels, the paper's 100-run study (LS over the orders 50..600, DC
+DC + 2 PK kernels and ``kernel="auto"`` (timed against the DC fit), the paper's 100-run study (LS over the orders 50..600, DC
 and PK at P = N), a long record (N = 50,000, P = 2,000) and P = N = 6,000;
 and the experiments beyond the paper's, each against the uniform one-input
 fit of the same size in the same run: two inputs at paper size, the paper
@@ -97,6 +97,8 @@ def wide_problem(kind, n_samples=600, factor=3, seed=0):
 
 
 def paper_kernel(name, T=0.1):
+    if name == "auto":  # DC plus the resonances found from the data
+        return "auto"
     from sklearn.gaussian_process.kernels import ConstantKernel as C
 
     from gpmultirate.kernels import DC, PK
@@ -227,6 +229,7 @@ def wide_case(kind, implementation, n_samples=600, order=None):
 CASES = {
     "paper_dc": ("paper size N = P = 600, F = 3, DC", ["ours", "reference", "sklearn"]),
     "paper_pk": ("paper size, DC + 2 PK", ["ours", "reference"]),
+    "paper_auto": ("paper size, kernel='auto' (vs paper_dc)", ["ours"]),
     "study_100": ("100-run Monte Carlo study", ["ours"]),
     "long_record": ("long record N = 50,000, P = 2,000, DC", ["ours"]),
     "p_equals_n_6000": ("P = N = 6000 (M = 2000), DC", ["ours"]),
@@ -239,13 +242,15 @@ CASES = {
 # each experiment beyond the paper's and its uniform one-input reference of the same size
 WIDE_REFERENCES = {
     "two_inputs": "paper_dc", "missing_20": "paper_dc", "four_records": "uniform_2400",
-    "long_irregular": "long_record",
+    "long_irregular": "long_record", "paper_auto": "paper_dc",
 }
 
 
 def run_case(name, implementation, n_samples=None, order=None):
     if name == "paper_dc":
         return paper_case("DC", implementation, n_samples or 600)
+    if name == "paper_auto":
+        return paper_case("auto", implementation, n_samples or 600)
     if name == "paper_pk":
         return paper_case("PK", implementation, n_samples or 600)
     if name == "p_equals_n_6000":

@@ -1,0 +1,693 @@
+"""Resonances found from the data: the search behind ``kernel="auto"``.
+
+:func:`search_resonances` starts from the base kernel (``C * DC`` per input)
+tuned by marginal likelihood and adds :class:`~gpmultirate.kernels.PK`
+terms one at a time, greedily:
+
+1. **scan** (:func:`resonance_scan`): with the current kernel and noise
+   level fixed, the log evidence gain of one more PK term is computed for
+   every frequency of a grid over ``(0, pi]`` radians per fast sample (the
+   whole band up to the fast Nyquist frequency, so resonances above the
+   slow Nyquist frequency, which the slow samples alias, are found too),
+   for a few decay rates and, for each, the best amplitude.  The current
+   data covariance is factored once; a candidate enters as a rank-two
+   update (matrix determinant lemma, Woodbury identity);
+2. **joint refinement**: the best candidate is added and all PK terms, the
+   overall scale of the base kernel and the noise level are tuned together
+   on a diagonal-plus-low-rank form of the data covariance, ``O(M P r)``
+   per evaluation for ``r`` terms; the term is kept when the log evidence
+   grew by more than :data:`SEARCH_THRESHOLD` nats and the term is
+   resonant (damping ratio below :data:`MAX_DAMPING`), otherwise the
+   search stops; it also stops after ``max_resonances`` terms;
+3. **tuning and pruning**: everything is tuned
+   (:func:`gpmultirate.tuning.maximize`); each term's evidence gain is the
+   tuned log evidence minus that of the model without it (scale and noise
+   refitted); while a term gains at most :data:`EVIDENCE_THRESHOLD` nats
+   or is not resonant, the weakest is removed and the rest tuned again.
+
+The threshold is an approximate Bayes factor: a PK term brings four
+hyperparameters and its frequency is chosen among a few hundred
+candidates.  Without a resonance the best gain over the grid is the largest
+of many ``chi^2_2 / 2`` draws, about ``log(n_candidates) ~ 7`` nats; 12
+nats is an evidence ratio of ``e^12 ~ 1.6e5``, which also pays a BIC-like
+Occam penalty ``2 log M`` for the four hyperparameters up to ``M ~ 400``
+slow samples.  The search stage, where the base kernel's shape is still
+the one tuned without resonances, asks for twice as much: there, terms that
+only make up for that shape gain 15-18 nats, which the full tuning takes
+away.
+
+Cost: one tuning of the base kernel; per found resonance one scan
+(``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
+refinement; the last, unsuccessful scan and refinement; one tuning of the
+final kernel.  Without resonances, one tuning of the base kernel, a scan
+and a refinement.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import numbers
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg, optimize
+from sklearn.base import clone
+from sklearn.gaussian_process.kernels import Kernel, Sum
+from threadpoolctl import threadpool_limits
+
+from gpmultirate import tuning
+from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.inference import LOG_2PI, LogEvidence, robust_cholesky
+from gpmultirate.kernels import PK, PerInputKernel, observe
+from gpmultirate.validation import check_positive
+
+__all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "SEARCH_THRESHOLD", "Resonance",
+           "ResonanceSearch", "damping_ratio", "resonance_scan", "search_resonances"]
+
+#: log evidence gain (nats) a PK term must bring to be kept
+EVIDENCE_THRESHOLD = 12.0
+#: gain (nats) a new term must bring in the search, with the base kernel's shape fixed
+SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
+#: damping ratio above which a tuned PK term is not a resonance (no peak)
+MAX_DAMPING = 0.5
+# decay rates of the scan's candidates, in units of 1 / P (the envelope
+# alpha^(t/2) falls by e^-r at lag P), and the amplitude grid (standard
+# deviations relative to the data's scale)
+_SCAN_DECAYS = (2.0, 6.0, 20.0, 60.0)
+_SCAN_AMPLITUDES = np.geomspace(1e-4, 1e2, 31)
+
+
+@dataclass(frozen=True)
+class Resonance:
+    """One resonance found from the data.
+
+    Attributes
+    ----------
+    frequency_hz : float
+        Frequency of the PK term, ``omega / (2 pi T)`` with ``T`` the
+        model's ``sample_time`` (cycles per fast sample when ``T = 1``).
+    damping : float
+        Damping ratio of the resonance: with the decay rate
+        ``r = -log(alpha) / 2`` per fast sample of the response envelope,
+        ``r / sqrt(r^2 + omega^2)``.
+    evidence_gain : float
+        Gain of the tuned log evidence (nats) when the term was added.
+    input : int
+        The input whose kernel holds the term.
+    """
+
+    frequency_hz: float
+    damping: float
+    evidence_gain: float
+    input: int = 0
+
+
+@dataclass
+class ResonanceSearch:
+    """The outcome of :func:`search_resonances`.
+
+    Attributes
+    ----------
+    kernel : sklearn Kernel
+        The tuned kernel: the base kernel plus one PK term per resonance.
+    noise_level : float
+        The tuned noise variance.
+    optimizer_result : scipy.optimize.OptimizeResult or None
+        The optimizer run of the kept kernel (None when nothing is free).
+    resonances : list of Resonance
+        The resonances in the order they were found, with their tuned
+        frequencies and damping ratios.
+    log_marginal_likelihood : float
+        The log evidence of the kept kernel.
+    history : list of float
+        The log evidence of the tuned base kernel, after each term the
+        search added (before the final tuning) and, when a term was added,
+        of the tuned final kernel.
+    """
+
+    kernel: Kernel
+    noise_level: float
+    optimizer_result: object
+    resonances: list = field(default_factory=list)
+    log_marginal_likelihood: float = float("nan")
+    history: list = field(default_factory=list)
+
+
+def _check_max_resonances(value) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise ValueError(f"max_resonances must be a non-negative integer; got {value!r}")
+    return int(value)
+
+
+def _input_kernels(kernel):
+    return list(kernel.kernels) if isinstance(kernel, PerInputKernel) else [kernel]
+
+
+def _joined(kernels, several: bool):
+    return PerInputKernel(kernels) if several else kernels[0]
+
+
+def _pk_terms(kernel):
+    """The PK summands of a kernel (through sums), in order."""
+    if isinstance(kernel, PK):
+        return [kernel]
+    if isinstance(kernel, Sum):
+        return _pk_terms(kernel.k1) + _pk_terms(kernel.k2)
+    return []
+
+
+def damping_ratio(alpha: float, omega: float) -> float:
+    """Damping ratio of a PK term: ``r / sqrt(r^2 + omega^2)``, ``r = -log(alpha) / 2``.
+
+    Examples
+    --------
+    >>> round(damping_ratio(1.0, 0.5), 3)
+    0.0
+    >>> r = 0.05
+    >>> bool(np.isclose(damping_ratio(np.exp(-2 * r), 0.5), r / np.hypot(r, 0.5)))
+    True
+    """
+    rate = abs(0.5 * np.log(alpha))  # alpha in (0, 1]
+    return float(rate / np.hypot(rate, omega))
+
+
+def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
+                   omegas=None, alphas=None, amplitudes=None):
+    """Log evidence gain of one more PK term, for each frequency and decay of a grid.
+
+    With the data covariance ``Ky = Phi K Phi^T + gamma I = L L^T`` of the
+    current ``kernel`` factored once, a PK term of frequency ``omega``,
+    decay ``alpha`` and standard deviations ``sigma1 = sigma2 = s`` on input
+    ``input`` adds ``s^2 U U^T`` with ``U = Phi_k [c, s]`` (the observed
+    basis of :meth:`~gpmultirate.kernels.PK.basis`).  With
+    ``G = U^T Ky^{-1} U = Q diag(lambda) Q^T`` and ``beta = Q^T U^T Ky^{-1} y``,
+    the determinant lemma and the Woodbury identity give the gain
+
+        ``1/2 sum_j (s^2 beta_j^2 / (1 + s^2 lambda_j) - log(1 + s^2 lambda_j))``,
+
+    maximised here over ``s`` on a grid.
+
+    Parameters
+    ----------
+    observation : Observation
+        The (reduced) observation the evidence is computed from.
+    y : ndarray of shape (M,)
+        Its outputs.
+    kernel : sklearn Kernel
+        The current kernel (a :class:`~gpmultirate.kernels.PerInputKernel`
+        for several inputs).
+    noise_level : float
+        The current noise variance.
+    input : int, default=0
+        The input whose impulse response gets the term.
+    omegas : array-like, optional
+        Frequencies in radians per fast sample; default a uniform grid over
+        ``(0, pi]`` with spacing about ``pi / max(P, 256)``, at least two
+        periods within the ``P`` lags.
+    alphas : array-like, optional
+        Decays per fast sample in (0, 1]; default four decays whose
+        envelope falls by ``e^-2`` to ``e^-60`` over ``P`` lags.
+    amplitudes : array-like, optional
+        Candidate ``s``; default a geometric grid scaled by the data.
+
+    Returns
+    -------
+    gain : ndarray of shape (n_alphas, n_omegas)
+        The best gain (nats) over the amplitudes, at least 0.
+    sigma : ndarray of shape (n_alphas, n_omegas)
+        The amplitude of the best gain.
+    omegas, alphas : ndarray
+        The grid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(300), factor=3, order=100)
+    >>> g = 0.97 ** np.arange(100) * np.cos(2.0 * np.arange(100))
+    >>> y = op.matvec(g) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> gain, _, omegas, _ = resonance_scan(op, y, C(0.1) * DC(), 1e-4)
+    >>> round(float(omegas[np.argmax(gain.max(axis=0))]), 1)
+    2.0
+    """
+    Phi = observation.input_block(input).matrix
+    P = Phi.shape[1]
+    lags = np.arange(P, dtype=float)
+    n_fft = None
+    if omegas is None:
+        # the grid pi j / n, j = 1..n: the products of every row with the
+        # bases are then one real FFT of length 2 n
+        n_fft = max(P, 256)
+        index = np.arange(1, n_fft + 1)
+        index = index[index * P >= 4 * n_fft]  # at least two periods over the lags
+        omegas = np.pi * index / n_fft
+    if alphas is None:
+        alphas = np.exp(-2.0 * np.asarray(_SCAN_DECAYS) / P)
+    omegas = np.asarray(omegas, dtype=float)
+    alphas = np.asarray(alphas, dtype=float)
+    S = observe(kernel, observation).covariance().copy()
+    S[np.diag_indices_from(S)] += noise_level
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        L, _ = robust_cholesky(S)
+    w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
+    white = linalg.solve_triangular(L, Phi, lower=True, check_finite=False)  # L^{-1} Phi
+    if amplitudes is None:
+        # the size of an impulse response that explains the data's power
+        power_u = float(np.mean(Phi**2)) * P or 1.0
+        amplitudes = _SCAN_AMPLITUDES * np.sqrt(float(np.mean(y**2)) / power_u)
+    s2 = np.asarray(amplitudes, dtype=float) ** 2
+    if n_fft is None:
+        phase = np.outer(lags, omegas)
+        cos, sin = np.cos(phase), np.sin(phase)
+    gain = np.empty((alphas.size, omegas.size))
+    sigma = np.empty_like(gain)
+    for a, alpha in enumerate(alphas):
+        envelope = alpha ** (0.5 * lags)
+        if n_fft is None:
+            Ac = white @ (envelope[:, None] * cos)
+            As = white @ (envelope[:, None] * sin)
+        else:
+            # sum_t x_t e^{-i omega t}: real part the cosine, minus imaginary the sine
+            spectrum = np.fft.rfft(white * envelope, n=2 * n_fft, axis=1)[:, index]
+            Ac, As = spectrum.real, -spectrum.imag
+        g11 = np.einsum("ij,ij->j", Ac, Ac)
+        g22 = np.einsum("ij,ij->j", As, As)
+        g12 = np.einsum("ij,ij->j", Ac, As)
+        b1, b2 = Ac.T @ w, As.T @ w
+        # eigen-decomposition of each 2 x 2 G
+        mean, half = 0.5 * (g11 + g22), np.hypot(0.5 * (g11 - g22), g12)
+        lam = np.stack([mean + half, np.maximum(mean - half, 0.0)], axis=1)
+        angle = 0.5 * np.arctan2(2.0 * g12, g11 - g22)
+        q1 = np.cos(angle) * b1 + np.sin(angle) * b2
+        q2 = -np.sin(angle) * b1 + np.cos(angle) * b2
+        beta2 = np.stack([q1**2, q2**2], axis=1)
+        x = s2[None, :, None] * lam[:, None, :]  # (omega, amplitude, 2)
+        values = 0.5 * np.sum(s2[None, :, None] * beta2[:, None, :] / (1.0 + x)
+                              - np.log1p(x), axis=2)
+        best = np.argmax(values, axis=1)
+        gain[a] = np.maximum(values[np.arange(omegas.size), best], 0.0)
+        sigma[a] = np.sqrt(s2[best])
+    return gain, sigma, omegas, alphas
+
+
+def search_resonances(observation, y, base_kernel, noise_level: float, noise_bounds, *,
+                      max_resonances: int = 4, sample_time: float = 1.0,
+                      random_state=None) -> ResonanceSearch:
+    """Add PK terms to ``base_kernel`` by marginal likelihood, with no frequency guesses.
+
+    The greedy forward search of the module docstring: tune the base
+    kernel; repeatedly scan one more PK term over the whole band on every
+    input, refine it jointly with the terms found so far, and keep it when
+    the log evidence grows by more than :data:`SEARCH_THRESHOLD` nats and
+    it is resonant; then tune everything and prune the terms whose
+    evidence gain is at most :data:`EVIDENCE_THRESHOLD` nats.  With several
+    inputs the terms go into the input kernels of the
+    :class:`~gpmultirate.kernels.PerInputKernel`, each to the input whose
+    scan gains most.
+
+    Parameters
+    ----------
+    observation : Observation
+        How the slow samples observe the coefficients.
+    y : ndarray of shape (M,)
+        The slow samples.
+    base_kernel : sklearn Kernel
+        The kernel to start from (``C * DC``, or a
+        :class:`~gpmultirate.kernels.PerInputKernel` of them); not modified.
+    noise_level : float
+        The initial noise variance.
+    noise_bounds : pair of floats or "fixed"
+        Its tuning bounds.
+    max_resonances : int, default=4
+        The most PK terms to add (in all); 0 gives the tuned base kernel.
+    sample_time : float, default=1.0
+        Fast sample time in seconds, for :attr:`Resonance.frequency_hz`.
+    random_state : int, RandomState, Generator or None
+        Passed to the tuning.
+
+    Returns
+    -------
+    ResonanceSearch
+
+    Raises
+    ------
+    ValueError
+        If ``max_resonances`` is not a non-negative integer or
+        ``sample_time`` is not positive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC
+    >>> rng = np.random.default_rng(1)
+    >>> op = DownsampledConvolution(rng.standard_normal(600), factor=3, order=200)
+    >>> t = np.arange(200)
+    >>> g = 0.9 ** t + 0.98 ** t * np.sin(2.4 * t)
+    >>> y = op.matvec(g) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> found = search_resonances(op, y, C(1.0) * DC(), 1e-4, (1e-8, 1.0))
+    >>> [round(r.frequency_hz * 2 * np.pi, 2) for r in found.resonances]
+    [2.4]
+    """
+    max_resonances = _check_max_resonances(max_resonances)
+    sample_time = check_positive(sample_time, "sample_time")
+    with _blas_threads(observation):
+        return _search(observation, y, base_kernel, noise_level, noise_bounds,
+                       max_resonances, sample_time, random_state)
+
+
+# Below this size threaded BLAS does not pay off on the search's small
+# matrices, and on a busy machine its threads spin against each other.
+_SINGLE_THREAD_SIZE = 1500
+
+
+def _blas_threads(observation):
+    """One BLAS thread for small problems; no limit otherwise."""
+    if max(observation.n_outputs, observation.n_coefficients) <= _SINGLE_THREAD_SIZE:
+        return threadpool_limits(limits=1, user_api="blas")
+    return contextlib.nullcontext()
+
+
+def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonances,
+            sample_time, random_state) -> ResonanceSearch:
+    evidence = LogEvidence(observation, y, base_kernel, noise_level, noise_bounds)
+    base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
+    model_noise0, result0 = noise, result
+    history = [value]
+    model = _ResonantModel(evidence.moved_to(base, noise))
+    n_inputs = len(_input_kernels(base_kernel))
+    kernel = base
+    for _ in range(max_resonances):
+        best = None
+        for k in range(n_inputs):
+            gain, sigma, omegas, alphas = resonance_scan(
+                evidence.data, evidence.z, kernel, model.noise_level, input=k
+            )
+            a, j = np.unravel_index(np.argmax(gain), gain.shape)
+            if best is None or gain[a, j] > best[0]:
+                best = (gain[a, j], k, alphas[a], omegas[j], sigma[a, j])
+        _, k, alpha, omega, sigma = best
+        trial = model.with_term(k, PK(
+            alpha=alpha, omega=omega, sigma1=sigma, sigma2=sigma,
+            sigma1_bounds=(sigma * 1e-4, sigma * 1e4), sigma2_bounds=(sigma * 1e-4, sigma * 1e4),
+        ))
+        gain = trial.value - model.value
+        if gain <= SEARCH_THRESHOLD or trial.terms[-1][1] is None:
+            break
+        model = trial
+        kernel = model.kernel()
+        history.append(model.value)
+    gains = []
+    if model.terms:
+        kernel, noise, result, value, gains = _tune_and_prune(
+            evidence, model.kernel(), model.noise_level, [k for k, _ in model.terms],
+            random_state,
+        )
+        if not gains:  # every term pruned: the tuned base kernel
+            kernel, noise, result, value = base, model_noise0, result0, history[0]
+        history.append(value)
+    terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
+    return ResonanceSearch(
+        kernel=kernel, noise_level=noise, optimizer_result=result,
+        resonances=[
+            Resonance(
+                frequency_hz=float(term.omega) / (2.0 * np.pi * sample_time),
+                damping=damping_ratio(term.alpha, term.omega),
+                evidence_gain=float(gain.value), input=k,
+            )
+            for (k, term), gain in zip(terms, gains)
+        ],
+        log_marginal_likelihood=value, history=history,
+    )
+
+
+@dataclass
+class _Gain:
+    input: int
+    value: float
+
+
+def _terms_of(kernel, inputs):
+    """``[(input, PK)]`` of ``kernel``'s PK terms, for terms added to ``inputs`` in order."""
+    per_input = [_pk_terms(each) for each in _input_kernels(kernel)]
+    seen = [0] * len(per_input)
+    terms = []
+    for k in inputs:
+        terms.append((k, per_input[k][seen[k]]))
+        seen[k] += 1
+    return terms
+
+
+def _assembled(kernel, terms):
+    """The non-PK part of each input kernel of ``kernel`` plus ``terms``, in order."""
+    kernels = _input_kernels(_without_pk(kernel))
+    kernels = [clone(each) for each in kernels]
+    for k, term in terms:
+        kernels[k] = kernels[k] + clone(term)
+    return _joined(kernels, isinstance(kernel, PerInputKernel))
+
+
+def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
+    """Tune everything; drop the weakest term while one is not worth keeping, and retune.
+
+    A term is kept when the tuned log evidence exceeds that of the same
+    model without it (scale and noise re-fitted) by more than
+    :data:`EVIDENCE_THRESHOLD` nats, and it is resonant.  Returns the tuned
+    kernel, noise level, optimizer result, log evidence and the gains
+    (empty when no term is left).
+    """
+    while inputs:
+        kernel, noise, result, value = _tune(
+            evidence.moved_to(kernel, noise), kernel, noise, random_state
+        )
+        terms = _terms_of(kernel, inputs)
+        gains = []
+        for r in range(len(terms)):
+            rest = _ResonantModel(evidence.moved_to(
+                _assembled(kernel, terms[:r] + terms[r + 1:]), noise
+            )).optimized()
+            gains.append(value - rest.value)
+        weak = [r for r, (_, term) in enumerate(terms)
+                if gains[r] <= EVIDENCE_THRESHOLD
+                or damping_ratio(term.alpha, term.omega) >= MAX_DAMPING]
+        if not weak:
+            return kernel, noise, result, value, [_Gain(k, g) for k, g in zip(inputs, gains)]
+        drop = min(weak, key=lambda r: gains[r])
+        del terms[drop]
+        inputs = inputs[:drop] + inputs[drop + 1:]
+        kernel = _assembled(kernel, terms)
+    return kernel, noise, None, None, []
+
+
+class _ResonantModel:
+    """The tuned base kernel, scaled by ``c``, plus PK terms: the state of the search.
+
+    With the base kernel's data covariance decomposed once,
+    ``S = Q diag(s) Q^T``, the model's data covariance
+    ``c S + gamma I + sum_r U_r D_r U_r^T`` (``U_r`` the observed basis of
+    PK term ``r``, ``D_r = diag(sigma1^2, sigma2^2)``) is
+    ``Q (diag(c s + gamma) + V D V^T) Q^T`` with ``V = Q^T U``: a diagonal
+    plus a rank-``2 n_terms`` update, so the log evidence costs
+    ``O(M P n_terms)`` for any values of the terms, ``c`` and ``gamma``, and
+    all of them are tuned jointly (L-BFGS-B) each time a term is added.
+    """
+
+    def __init__(self, evidence):
+        self.evidence = evidence
+        self.base = evidence.kernel
+        self.noise_level = evidence.noise_level
+        self.log_scale = 0.0
+        self.terms = []  # (input, PK) in the order added
+        data = evidence.data
+        s, Q = linalg.eigh(observe(self.base, data).covariance(), check_finite=False)
+        self._s = np.maximum(s, 0.0)
+        self._y = Q.T @ evidence.z
+        self._Q = Q
+        self._blocks = {}
+        self.value = self._log_evidence(self._pack())
+
+    # ---------------------------------------------------------- parameters
+    def _pack(self):
+        x = [self.log_scale, np.log(self.noise_level)]
+        for _, term in self.terms:
+            x += [np.log(max(-0.5 * np.log(term.alpha), 1e-10)), term.omega,
+                  np.log(term.sigma1), np.log(term.sigma2)]
+        return np.array(x)
+
+    def _bounds(self):
+        evidence = self.evidence
+        log_noise = np.log(self.noise_level)
+        bounds = [(-np.log(1e3), np.log(1e3)),
+                  tuple(np.log(evidence.noise_bounds)) if evidence.noise_is_free
+                  else (log_noise, log_noise)]
+        for _, term in self.terms:
+            rates = sorted(-0.5 * np.log(b) for b in term.alpha_bounds)
+            bounds += [(np.log(max(rates[0], 1e-10)), np.log(max(rates[1], 1e-10))),
+                       tuple(term.omega_bounds), tuple(np.log(term.sigma1_bounds)),
+                       tuple(np.log(term.sigma2_bounds))]
+        return np.array(bounds, dtype=float)
+
+    def _rotated_regressor(self, k):
+        if k not in self._blocks:
+            self._blocks[k] = self._Q.T @ self.evidence.data.input_block(k).matrix
+        return self._blocks[k]
+
+    def _log_evidence(self, x, eval_gradient: bool = False):
+        """The log evidence at ``x`` and, with ``eval_gradient``, its gradient.
+
+        With ``K = diag(d) + W W^T`` (``W`` the observed, rotated bases
+        times the standard deviations), ``A = K^{-1}`` (Woodbury) and
+        ``a = A y``: ``d f = 1/2 a^T dK a - 1/2 tr(A dK)``, where
+        ``dK = dW W^T + W dW^T`` for the parameters of a term.
+        """
+        c, gamma = np.exp(x[0]), np.exp(x[1])
+        d = c * self._s + gamma
+        inv_d = 1.0 / d
+        y = self._y
+        quad, log_det = y @ (inv_d * y), np.sum(np.log(d))
+        r_terms = len(self.terms)
+        lags = np.arange(self.evidence.data.order, dtype=float)
+        W = np.empty((y.shape[0], 2 * r_terms))
+        raw = []  # per term: rotated [e cos, e sin, t e cos, t e sin] and parameters
+        for r, (k, _) in enumerate(self.terms):
+            rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
+            s1, s2 = np.exp(x[4 + 4 * r]), np.exp(x[5 + 4 * r])
+            envelope = np.exp(-rate * lags)
+            ec, es = envelope * np.cos(omega * lags), envelope * np.sin(omega * lags)
+            columns = [ec, es, lags * ec, lags * es] if eval_gradient else [ec, es]
+            rotated = self._rotated_regressor(k) @ np.column_stack(columns)
+            W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
+            raw.append((rotated, rate, s1, s2))
+        if r_terms:
+            DW = inv_d[:, None] * W
+            chol = np.linalg.cholesky(np.eye(2 * r_terms) + W.T @ DW)
+            v = linalg.solve_triangular(chol, DW.T @ y, lower=True, check_finite=False)
+            quad -= v @ v
+            log_det += 2.0 * np.log(np.diag(chol)).sum()
+        rest, rest_grad, _ = self.evidence.data.discarded_log_likelihood(float(gamma))
+        value = float(-0.5 * (quad + log_det + y.shape[0] * LOG_2PI) + rest)
+        if not eval_gradient:
+            return value
+        if r_terms:
+            # A W = D^{-1} W C^{-1}; a = D^{-1} y - D^{-1} W C^{-1} W^T D^{-1} y
+            E = linalg.solve_triangular(chol, DW.T, lower=True, check_finite=False).T
+            a = inv_d * y - E @ v
+            diag_A = inv_d - np.einsum("ij,ij->i", E, E)
+            AW = linalg.cho_solve((chol, True), DW.T, check_finite=False).T
+        else:
+            a, diag_A = inv_d * y, inv_d
+        grad = np.empty_like(x, dtype=float)
+        grad[0] = 0.5 * np.sum((a**2 - diag_A) * c * self._s)
+        grad[1] = 0.5 * np.sum(a**2 - diag_A) * gamma + rest_grad
+        for r, (rotated, rate, s1, s2) in enumerate(raw):
+            wa = W[:, 2 * r : 2 * r + 2].T @ a  # W^T a for the term's two columns
+            aw = AW[:, 2 * r : 2 * r + 2]
+
+            def contribution(dW):
+                # d f = (W^T a) . (dW^T a) - sum(A W * dW), over the two columns
+                return float(wa @ (dW.T @ a) - np.sum(aw * dW))
+
+            c_, s_, tc, ts = rotated.T
+            grad[2 + 4 * r] = contribution(np.column_stack([-rate * s1 * tc, -rate * s2 * ts]))
+            grad[3 + 4 * r] = contribution(np.column_stack([-s1 * ts, s2 * tc]))
+            grad[4 + 4 * r] = contribution(np.column_stack([s1 * c_, np.zeros_like(c_)]))
+            grad[5 + 4 * r] = contribution(np.column_stack([np.zeros_like(s_), s2 * s_]))
+        return value, grad
+
+    def _unpack(self, x):
+        self.log_scale, self.noise_level = float(x[0]), float(np.exp(x[1]))
+        terms = []
+        for r, (k, term) in enumerate(self.terms):
+            rate, omega, log_s1, log_s2 = x[2 + 4 * r : 6 + 4 * r]
+            terms.append((k, clone(term).set_params(
+                alpha=float(np.exp(-2.0 * np.exp(rate))), omega=float(omega),
+                sigma1=float(np.exp(log_s1)), sigma2=float(np.exp(log_s2)),
+            )))
+        self.terms = terms
+
+    def _copy(self):
+        copy = _ResonantModel.__new__(_ResonantModel)
+        copy.__dict__.update(self.__dict__)
+        copy.terms = list(self.terms)
+        return copy
+
+    # ------------------------------------------------------------- search
+    def optimized(self):
+        """A copy with the terms, ``c`` and ``gamma`` tuned jointly (L-BFGS-B)."""
+        trial = self._copy()
+        bounds = trial._bounds()
+        x0 = np.clip(trial._pack(), bounds[:, 0], bounds[:, 1])
+
+        def objective(x):
+            try:
+                value, grad = trial._log_evidence(x, eval_gradient=True)
+            except (np.linalg.LinAlgError, ValueError):
+                return np.inf, np.zeros_like(x)
+            return -value, -grad
+
+        best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds)
+        x = best.x if np.isfinite(best.fun) and best.fun <= objective(x0)[0] else x0
+        trial._unpack(x)
+        trial.value = -objective(x)[0]
+        return trial
+
+    def with_term(self, k, term):
+        """A copy with ``term`` added to input ``k`` and everything re-tuned jointly.
+
+        The new term is replaced by None when it ends not resonant.
+        """
+        trial = self._copy()
+        trial.terms.append((k, term))
+        trial = trial.optimized()
+        added = trial.terms[-1][1]
+        if damping_ratio(added.alpha, added.omega) >= MAX_DAMPING:
+            trial.terms[-1] = (k, None)
+        return trial
+
+    def kernel(self):
+        """The base kernel scaled by ``c`` plus the terms, one input kernel each."""
+        kernels = [clone(each) for each in _input_kernels(_scaled(self.evidence, self.log_scale))]
+        for k, term in self.terms:
+            kernels[k] = kernels[k] + term
+        return _joined(kernels, isinstance(self.base, PerInputKernel))
+
+
+def _without_pk(kernel):
+    """The kernel with its PK summands removed (each input's base part)."""
+    def strip(each):
+        if isinstance(each, Sum):
+            if isinstance(each.k2, PK):
+                return strip(each.k1)
+            if isinstance(each.k1, PK):
+                return strip(each.k2)
+        return each
+    kernels = [strip(each) for each in _input_kernels(kernel)]
+    return _joined(kernels, isinstance(kernel, PerInputKernel))
+
+
+def _tune(evidence, kernel, noise, random_state):
+    """Tuned ``(kernel, noise, optimizer result, log evidence)`` from ``evidence``'s start."""
+    result = tuning.maximize(evidence, 0, random_state)
+    if result is None:
+        return kernel, noise, None, float(evidence(evidence.theta))
+    kernel, noise = evidence.split(result.x)
+    return kernel, noise, result, float(-result.fun)
+
+
+def _scaled(evidence, log_scale: float):
+    """The kernel of ``evidence`` scaled by ``exp(log_scale)`` through its amplitudes."""
+    kernel = evidence.kernel
+    positions = evidence.scale_positions()
+    if positions is None or log_scale == 0.0:
+        return clone(kernel)
+    theta = kernel.theta.copy()
+    bounds = kernel.bounds.reshape(-1, 2)
+    for i, power in positions:
+        theta[i] = np.clip(theta[i] + power * log_scale, *bounds[i])
+    return kernel.clone_with_theta(theta)

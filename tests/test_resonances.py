@@ -1,0 +1,312 @@
+"""Resonances found from the data: ``kernel="auto"`` and :mod:`gpmultirate.resonances`."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import optimize, signal
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+from threadpoolctl import threadpool_limits
+
+import gpmultirate as gm
+from gpmultirate import simulation as sim
+from gpmultirate.inference import LogEvidence, log_marginal_likelihood
+from gpmultirate.kernels import DC, PK, PerInputKernel
+from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.resonances import (
+    EVIDENCE_THRESHOLD,
+    Resonance,
+    _ResonantModel,
+    damping_ratio,
+    resonance_scan,
+    search_resonances,
+)
+
+T, FACTOR = 0.1, 3
+
+
+def _paper_kernel(name, frequencies=()):
+    a, b = np.exp(-0.5 * T), np.exp(-0.1 * T)
+    kernel = C(1.0, (1e-12, 1e5)) * DC(alpha=a, beta=b)
+    for f in frequencies:
+        kernel = kernel + PK.from_hz(f, T, alpha=a)
+    return kernel
+
+
+def _experiment(system, n, rng, snr_db=None):
+    u = sim.multisine(n, random_state=rng)
+    u_val = sim.multisine(n, random_state=rng)
+    snr = rng.uniform(40, 60) if snr_db is None else snr_db
+    data = sim.simulate_experiment(system, u, FACTOR, snr_db=snr, random_state=rng)
+    return u, data.y_slow, u_val, system.simulate(u_val)
+
+
+def random_two_mass(rng, n=600):
+    """A two-mass-spring-damper with one mode above the slow Nyquist frequency.
+
+    Masses, stiffnesses and dampers are drawn at random until the faster
+    mode lies between the slow Nyquist frequency and 90 % of the fast one,
+    the slower above 0.1 Hz, and the response has decayed within ``n`` lags.
+    """
+    slow_nyquist, fast_nyquist = 0.5 / (FACTOR * T), 0.5 / T
+    while True:
+        params = dict(k1=rng.uniform(2, 200), k2=rng.uniform(2, 800), m1=rng.uniform(0.5, 2),
+                      m2=rng.uniform(0.5, 2), d1=rng.uniform(0.05, 1.0), d2=rng.uniform(0.01, 0.3))
+        A, B, Cm, D = sim.two_mass_spring_damper(**params)
+        Ad, Bd, Cd, Dd, _ = signal.cont2discrete((A, B, Cm, D), T, method="zoh")
+        system = sim.DiscreteSystem(Ad, Bd, Cd, Dd, T)
+        f = system.natural_frequencies
+        if (len(f) == 2 and 1.05 * slow_nyquist < f[1] < 0.9 * fast_nyquist and f[0] > 0.1
+                and np.abs(system.poles).max() ** n < 1e-3):
+            return system
+
+
+def _fit(kernel, u, y, n, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return gm.FIRGaussianProcess(kernel, factor=FACTOR, order=n, noise_level=1e-5,
+                                     sample_time=T, **kwargs).fit(u, y)
+
+
+def _gofs(system, n, seed):
+    """Validation GoF of DC, PK at the true frequencies and auto, and the auto model."""
+    rng = np.random.default_rng(seed)
+    u, y, u_val, y_val = _experiment(system, n, rng)
+    out = {}
+    for name, kernel in (("DC", _paper_kernel("DC")),
+                         ("PK", _paper_kernel("PK", system.natural_frequencies)),
+                         ("auto", "auto")):
+        model = _fit(kernel, u, y, n)
+        out[name] = goodness_of_fit(y_val, model.predict(u_val))
+    return out, model
+
+
+# ---------------------------------------------------------------- the parts
+def _small_problem(seed=0, n=240, order=120):
+    rng = np.random.default_rng(seed)
+    op = gm.DownsampledConvolution(rng.standard_normal(n), factor=FACTOR, order=order)
+    t = np.arange(order)
+    g = 0.9**t + 0.97**t * np.sin(2.3 * t)
+    y = op.matvec(g) + 0.01 * rng.standard_normal(op.n_outputs)
+    return op, y
+
+
+def test_scan_gain_is_the_dense_evidence_difference():
+    op, y = _small_problem()
+    kernel, noise = C(0.3) * DC(alpha=0.8, beta=0.9), 1e-3
+    omegas, alphas, amplitudes = np.array([0.7, 2.3]), np.array([0.95, 0.99]), np.array([0.2, 1.0])
+    gain, sigma, _, _ = resonance_scan(op, y, kernel, noise, omegas=omegas, alphas=alphas,
+                                       amplitudes=amplitudes)
+    base = log_marginal_likelihood(op, kernel, noise, y, False, True)
+    for a, alpha in enumerate(alphas):
+        for j, omega in enumerate(omegas):
+            dense = [
+                log_marginal_likelihood(
+                    op, kernel + PK(alpha=alpha, omega=omega, sigma1=s, sigma2=s), noise, y,
+                    False, True,
+                ) - base
+                for s in amplitudes
+            ]
+            assert gain[a, j] == pytest.approx(max(max(dense), 0.0), rel=1e-8, abs=1e-8)
+            assert sigma[a, j] == amplitudes[int(np.argmax(dense))]
+    # the default (FFT) grid gives the same gains as the dense products
+    gain_fft, _, grid, _ = resonance_scan(op, y, kernel, noise)
+    gain_dense, _, _, _ = resonance_scan(op, y, kernel, noise, omegas=grid)
+    np.testing.assert_allclose(gain_fft, gain_dense, rtol=1e-9, atol=1e-9)
+    assert grid.max() == pytest.approx(np.pi)
+    best = grid[np.argmax(gain_fft.max(axis=0))]
+    assert best == pytest.approx(2.3, abs=0.03)
+
+
+def test_joint_model_evidence_and_gradient():
+    op, y = _small_problem(1)
+    evidence = LogEvidence(op, y, C(0.3) * DC(alpha=0.8, beta=0.9), 1e-3, (1e-8, 1.0))
+    model = _ResonantModel(evidence)
+    model.terms = [(0, PK(alpha=0.97, omega=2.2, sigma1=0.5, sigma2=0.8)),
+                   (0, PK(alpha=0.9, omega=0.6, sigma1=0.1, sigma2=0.2))]
+    x = model._pack() + 0.05
+    value, grad = model._log_evidence(x, eval_gradient=True)
+    step = 1e-6
+    numeric = [(model._log_evidence(x + h) - model._log_evidence(x - h)) / (2 * step)
+               for h in step * np.eye(x.size)]
+    np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-5)
+    model._unpack(x)
+    dense = log_marginal_likelihood(op, model.kernel(), model.noise_level, y, False, True)
+    assert value == pytest.approx(dense, rel=1e-10)
+
+
+def test_damping_ratio_of_a_sampled_continuous_mode():
+    zeta, wn = 0.05, 2 * np.pi * 1.3
+    s = -zeta * wn + 1j * wn * np.sqrt(1 - zeta**2)
+    z = np.exp(s * T)
+    alpha = np.abs(z) ** 2  # the variance decays as |z|^(2t), alpha^(t/2) = |z|^t
+    assert damping_ratio(alpha, np.angle(z)) == pytest.approx(zeta, rel=1e-12)
+
+
+# ------------------------------------------------------------ the contract
+@pytest.mark.parametrize("bad", [-1, 1.5, "2", True, None])
+def test_bad_max_resonances(bad):
+    op, y = _small_problem()
+    with pytest.raises(ValueError, match="max_resonances"):
+        search_resonances(op, y, C(1.0) * DC(), 1e-3, (1e-8, 1.0), max_resonances=bad)
+    model = gm.FIRGaussianProcess("auto", factor=FACTOR, order=60, max_resonances=bad)
+    with pytest.raises(ValueError, match="max_resonances"):
+        model.fit(np.random.default_rng(0).standard_normal(120), np.ones(40))
+
+
+def test_max_resonances_zero_is_the_default_dc_fit():
+    rng = np.random.default_rng(3)
+    u, y, _, _ = _experiment(sim.paper_system(T), 240, rng)
+    auto = _fit("auto", u, y, 120, max_resonances=0)
+    plain = _fit(None, u, y, 120)
+    assert auto.resonances_ == []
+    assert repr(auto.kernel_) == repr(plain.kernel_)
+    np.testing.assert_allclose(auto.coef_, plain.coef_, rtol=1e-10, atol=1e-14)
+    assert auto.log_marginal_likelihood_value_ == pytest.approx(
+        plain.log_marginal_likelihood_value_, rel=1e-12
+    )
+
+
+def _single_mode(frequency_hz, zeta):
+    wn = 2 * np.pi * frequency_hz
+    A = np.array([[0.0, 1.0], [-wn**2, -2 * zeta * wn]])
+    Ad, Bd, Cd, Dd, _ = signal.cont2discrete(
+        (A, np.array([[0.0], [wn**2]]), np.array([[1.0, 0.0]]), np.zeros((1, 1))), T, "zoh"
+    )
+    return sim.DiscreteSystem(Ad, Bd, Cd, Dd, T)
+
+
+def test_mode_above_the_slow_nyquist_frequency_is_found():
+    system = _single_mode(2.3, 0.02)  # slow Nyquist 1.67 Hz, fast 5 Hz
+    rng = np.random.default_rng(0)
+    u, y, u_val, y_val = _experiment(system, 300, rng, snr_db=40)
+    model = _fit("auto", u, y, 300)
+    assert len(model.resonances_) == 1
+    found = model.resonances_[0]
+    assert isinstance(found, Resonance)
+    assert found.frequency_hz == pytest.approx(system.natural_frequencies[0], rel=0.02)
+    assert found.damping == pytest.approx(0.02, abs=0.01)
+    assert found.evidence_gain > EVIDENCE_THRESHOLD
+    assert found.input == 0
+    # the reported values are those of the fitted kernel's PK term
+    term = model.kernel_.k2
+    assert isinstance(term, PK)
+    assert found.frequency_hz == pytest.approx(term.omega / (2 * np.pi * T), rel=1e-12)
+    assert found.damping == pytest.approx(damping_ratio(term.alpha, term.omega), rel=1e-12)
+    assert goodness_of_fit(y_val, model.predict(u_val)) > 99.9
+
+
+def test_evidence_gain_is_the_evidence_without_the_term_refitted():
+    """The gain against a dense refit of the scale and noise without the term."""
+    system = _single_mode(2.3, 0.02)
+    rng = np.random.default_rng(1)
+    u, y, _, _ = _experiment(system, 240, rng, snr_db=40)
+    model = _fit("auto", u, y, 240)
+    (found,) = model.resonances_
+    rest = model.kernel_.k1  # C * DC, tuned with the term
+    op, z = model.operator_, model.y_slow_
+
+    def negative(x):
+        kernel = C(np.exp(x[0]), (1e-300, 1e300)) * rest
+        value, grad = log_marginal_likelihood(op, kernel, np.exp(x[1]), z, True, True)
+        return -value, -grad[[0, -1]]  # d/d log c is first, d/d log gamma last
+
+    with threadpool_limits(limits=1, user_api="blas"):  # small matrices
+        best = optimize.minimize(negative, [0.0, np.log(model.noise_level_)], jac=True,
+                                 method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-9})
+    expected = model.log_marginal_likelihood_value_ + best.fun
+    assert found.evidence_gain == pytest.approx(expected, rel=1e-4)
+
+
+def test_long_record_and_missing_samples():
+    """More slow samples than coefficients (the reduced evidence) and NaN samples."""
+    system = _single_mode(2.3, 0.02)
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(1800)
+    y = sim.simulate_experiment(system, u, FACTOR, snr_db=40, random_state=rng).y_slow
+    y[::7] = np.nan
+    model = _fit("auto", u, y, 150)
+    assert model.operator_.n_outputs > 150  # the evidence is that of the reduction
+    (found,) = model.resonances_
+    assert found.frequency_hz == pytest.approx(system.natural_frequencies[0], rel=0.02)
+    assert model.log_marginal_likelihood_value_ == pytest.approx(
+        log_marginal_likelihood(model.operator_, model.kernel_, model.noise_level_,
+                                model.y_slow_, False, True), rel=1e-9
+    )
+
+
+@pytest.mark.parametrize("kind", ["first_order", "overdamped"])
+def test_no_resonance_in_a_system_without_one(kind):
+    if kind == "first_order":
+        system = sim.DiscreteSystem([[0.95]], [1.0], [1.0], 0.0, T)
+    else:
+        system = sim.DiscreteSystem([[0.9, 1.0], [0.0, 0.97]], [0.0, 1.0], [1.0, 0.0], 0.0, T)
+    for seed in range(2):
+        rng = np.random.default_rng(seed)
+        u, y, _, _ = _experiment(system, 300, rng)
+        model = _fit("auto", u, y, 300)
+        assert model.resonances_ == []
+        assert not any(isinstance(p, PK) for p in model.kernel_.get_params().values())
+
+
+def test_several_inputs_get_their_own_resonances():
+    rng = np.random.default_rng(2)
+    n = 300
+    u = np.column_stack([sim.multisine(n, random_state=rng) for _ in range(2)])
+    resonant = _single_mode(2.3, 0.02)
+    y_fast = 0.5 * 0.9 ** np.arange(n)
+    y = np.convolve(u[:, 0], y_fast)[:n] + resonant.simulate(u[:, 1])
+    y_slow = (y + 1e-3 * np.std(y) * rng.standard_normal(n))[::FACTOR]
+    model = _fit("auto", u, y_slow, n)
+    assert isinstance(model.kernel_, PerInputKernel)
+    assert [r.input for r in model.resonances_] == [1]
+    assert model.resonances_[0].frequency_hz == pytest.approx(
+        resonant.natural_frequencies[0], rel=0.02
+    )
+
+
+def test_search_does_not_modify_its_inputs():
+    op, y = _small_problem()
+    y0 = y.copy()
+    base = C(1.0) * DC()
+    before = repr(base), base.theta.copy()
+    search = search_resonances(op, y, base, 1e-3, (1e-8, 1.0), max_resonances=1)
+    np.testing.assert_array_equal(y, y0)
+    assert (repr(base), base.theta.tolist()) == (before[0], before[1].tolist())
+    assert len(search.resonances) == 1
+    assert search.log_marginal_likelihood == pytest.approx(
+        log_marginal_likelihood(op, search.kernel, search.noise_level, y, False, True), rel=1e-9
+    )
+
+
+# ---------------------------------------------------------------- targets
+def test_paper_system_quick():
+    scores, model = _gofs(sim.paper_system(T, perturbation=0.1, random_state=0), 300, 0)
+    assert scores["auto"] > scores["DC"]
+    assert scores["auto"] >= scores["PK"] - 0.05
+    assert len(model.resonances_) == 2
+
+
+@pytest.mark.slow
+def test_targets_on_paper_and_random_two_mass_systems():
+    """Mean GoF of auto within 0.05 of PK at the true frequencies and above DC."""
+    for systems in (
+        [sim.paper_system(T, perturbation=0.1, random_state=s) for s in range(5)],
+        [random_two_mass(np.random.default_rng(100 + s)) for s in range(5)],
+    ):
+        scores = [_gofs(system, 600, seed)[0] for seed, system in enumerate(systems)]
+        mean = {k: np.mean([s[k] for s in scores]) for k in ("DC", "PK", "auto")}
+        assert mean["auto"] >= mean["PK"] - 0.05, mean
+        assert mean["auto"] > mean["DC"], mean
+
+
+@pytest.mark.slow
+def test_modes_of_random_two_mass_systems_are_found():
+    for seed in range(4):
+        system = random_two_mass(np.random.default_rng(200 + seed))
+        _, model = _gofs(system, 600, seed)
+        found = sorted(r.frequency_hz for r in model.resonances_)
+        assert len(found) == 2, (system.natural_frequencies, found)
+        np.testing.assert_allclose(found, system.natural_frequencies, rtol=0.03)
