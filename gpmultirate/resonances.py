@@ -53,13 +53,20 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, optimize
 from sklearn.base import clone
-from sklearn.gaussian_process.kernels import Kernel, Sum
+from sklearn.gaussian_process.kernels import Kernel
 from threadpoolctl import threadpool_limits
 
 from gpmultirate import tuning
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LOG_2PI, LogEvidence, robust_cholesky
-from gpmultirate.kernels import PK, PerInputKernel, observe
+from gpmultirate.kernels import (
+    PK,
+    input_kernels,
+    like_inputs,
+    observe,
+    resonance_summands,
+    without_resonances,
+)
 from gpmultirate.validation import check_positive
 
 __all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "SEARCH_THRESHOLD", "Resonance",
@@ -138,23 +145,6 @@ def _check_max_resonances(value) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
         raise ValueError(f"max_resonances must be a non-negative integer; got {value!r}")
     return int(value)
-
-
-def _input_kernels(kernel):
-    return list(kernel.kernels) if isinstance(kernel, PerInputKernel) else [kernel]
-
-
-def _joined(kernels, several: bool):
-    return PerInputKernel(kernels) if several else kernels[0]
-
-
-def _pk_terms(kernel):
-    """The PK summands of a kernel (through sums), in order."""
-    if isinstance(kernel, PK):
-        return [kernel]
-    if isinstance(kernel, Sum):
-        return _pk_terms(kernel.k1) + _pk_terms(kernel.k2)
-    return []
 
 
 def damping_ratio(alpha: float, omega: float) -> float:
@@ -381,7 +371,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
     model_noise0, result0 = noise, result
     history = [value]
     model = _ResonantModel(evidence.moved_to(base, noise))
-    n_inputs = len(_input_kernels(base_kernel))
+    n_inputs = len(input_kernels(base_kernel))
     kernel = base
     for _ in range(max_resonances):
         best = None
@@ -435,7 +425,7 @@ class _Gain:
 
 def _terms_of(kernel, inputs):
     """``[(input, PK)]`` of ``kernel``'s PK terms, for terms added to ``inputs`` in order."""
-    per_input = [_pk_terms(each) for each in _input_kernels(kernel)]
+    per_input = [resonance_summands(each) for each in input_kernels(kernel)]
     seen = [0] * len(per_input)
     terms = []
     for k in inputs:
@@ -446,11 +436,11 @@ def _terms_of(kernel, inputs):
 
 def _assembled(kernel, terms):
     """The non-PK part of each input kernel of ``kernel`` plus ``terms``, in order."""
-    kernels = _input_kernels(_without_pk(kernel))
+    kernels = input_kernels(_without_pk(kernel))
     kernels = [clone(each) for each in kernels]
     for k, term in terms:
         kernels[k] = kernels[k] + clone(term)
-    return _joined(kernels, isinstance(kernel, PerInputKernel))
+    return like_inputs(kernels, kernel)
 
 
 def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
@@ -652,23 +642,15 @@ class _ResonantModel:
 
     def kernel(self):
         """The base kernel scaled by ``c`` plus the terms, one input kernel each."""
-        kernels = [clone(each) for each in _input_kernels(_scaled(self.evidence, self.log_scale))]
+        kernels = [clone(each) for each in input_kernels(_scaled(self.evidence, self.log_scale))]
         for k, term in self.terms:
             kernels[k] = kernels[k] + term
-        return _joined(kernels, isinstance(self.base, PerInputKernel))
+        return like_inputs(kernels, self.base)
 
 
 def _without_pk(kernel):
     """The kernel with its PK summands removed (each input's base part)."""
-    def strip(each):
-        if isinstance(each, Sum):
-            if isinstance(each.k2, PK):
-                return strip(each.k1)
-            if isinstance(each.k1, PK):
-                return strip(each.k2)
-        return each
-    kernels = [strip(each) for each in _input_kernels(kernel)]
-    return _joined(kernels, isinstance(kernel, PerInputKernel))
+    return like_inputs([without_resonances(each) for each in input_kernels(kernel)], kernel)
 
 
 def _tune(evidence, kernel, noise, random_state):

@@ -14,8 +14,23 @@ returns a structured term from :meth:`StructuredKernel.observed`; see the
 "Adding a kernel" guide.
 """
 
-from gpmultirate.kernels.inputs import BlockTerm, PerInputKernel, kernel_for_inputs
-from gpmultirate.kernels.lag import DC, PK, SS, TC, LagKernel, check_lags
+from gpmultirate.kernels.inputs import (
+    BlockTerm,
+    PerInputKernel,
+    input_kernels,
+    kernel_for_inputs,
+    like_inputs,
+)
+from gpmultirate.kernels.lag import (
+    DC,
+    PK,
+    SS,
+    TC,
+    LagKernel,
+    check_lags,
+    resonance_summands,
+    without_resonances,
+)
 from gpmultirate.kernels.structure import (
     LowRankTerm,
     ObservedTerm,
@@ -37,6 +52,10 @@ __all__ = [
     "Role",
     "StructuredKernel",
     "check_lags",
+    "input_kernels",
     "kernel_for_inputs",
+    "like_inputs",
     "observe",
+    "resonance_summands",
+    "without_resonances",
 ]

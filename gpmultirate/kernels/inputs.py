@@ -20,7 +20,7 @@ from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 from gpmultirate.kernels.structure import ObservedTerm, StructuredKernel, observe
 from gpmultirate.validation import as_real_array, check_kernel
 
-__all__ = ["BlockTerm", "PerInputKernel", "kernel_for_inputs"]
+__all__ = ["BlockTerm", "PerInputKernel", "input_kernels", "kernel_for_inputs", "like_inputs"]
 
 
 class PerInputKernel(StructuredKernel, Kernel):
@@ -163,6 +163,25 @@ class PerInputKernel(StructuredKernel, Kernel):
             self, [observe(k, None, f"{path}input{i}__") for i, k in enumerate(self.kernels)],
             None, path,
         )
+
+
+def input_kernels(kernel) -> list:
+    """The kernel of each input: those of a :class:`PerInputKernel`, else ``[kernel]``.
+
+    Examples
+    --------
+    >>> from gpmultirate.kernels import DC, TC
+    >>> input_kernels(PerInputKernel([TC(0.5), DC(0.8, 0.9)]))
+    [TC(alpha=0.5), DC(alpha=0.8, beta=0.9)]
+    >>> input_kernels(TC(0.5))
+    [TC(alpha=0.5)]
+    """
+    return list(kernel.kernels) if isinstance(kernel, PerInputKernel) else [kernel]
+
+
+def like_inputs(kernels: list, template) -> Kernel:
+    """``kernels`` joined as ``template`` is: a :class:`PerInputKernel` or a single kernel."""
+    return PerInputKernel(list(kernels)) if isinstance(template, PerInputKernel) else kernels[0]
 
 
 def kernel_for_inputs(kernel, n_inputs: int) -> Kernel:

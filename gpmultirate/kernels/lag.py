@@ -19,14 +19,17 @@ import numbers
 
 import numpy as np
 from scipy import linalg
-from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
+from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
 from gpmultirate.validation import as_real_array, check_bounds, check_positive
 
-__all__ = ["TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags"]
+__all__ = [
+    "TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags",
+    "resonance_summands", "without_resonances",
+]
 
 # what the tuning strategy should know of each hyperparameter (see Role)
 _DECAY = ("decay", 1.0)
@@ -636,3 +639,36 @@ def _single(i: int, weight: float) -> np.ndarray:
     D = np.zeros((4, 4))
     D[i, i] = weight
     return D
+
+
+def resonance_summands(kernel) -> list:
+    """The PK summands of ``kernel`` reached through sums, in order.
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> resonance_summands(C(1.0) * DC() + PK(omega=0.5) + PK(omega=1.0))
+    [PK(alpha=0.9, omega=0.5, sigma1=1, sigma2=1), PK(alpha=0.9, omega=1, sigma1=1, sigma2=1)]
+    """
+    if isinstance(kernel, PK):
+        return [kernel]
+    if isinstance(kernel, Sum):
+        return resonance_summands(kernel.k1) + resonance_summands(kernel.k2)
+    return []
+
+
+def without_resonances(kernel):
+    """``kernel`` with its trailing PK summands removed (the part a resonance search starts from).
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> without_resonances(C(1.0) * DC() + PK(omega=0.5))
+    1**2 * DC(alpha=0.9, beta=0.9)
+    """
+    if isinstance(kernel, Sum):
+        if isinstance(kernel.k2, PK):
+            return without_resonances(kernel.k1)
+        if isinstance(kernel.k1, PK):
+            return without_resonances(kernel.k2)
+    return kernel
