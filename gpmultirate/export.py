@@ -115,13 +115,10 @@ class StateSpaceMixin:
         >>> import numpy as np
         >>> from scipy import signal
         >>> from gpmultirate import LeastSquaresFIR
-        >>> from gpmultirate.export import StateSpaceMixin
-        >>> class Model(LeastSquaresFIR, StateSpaceMixin):  # the exports mixed in
-        ...     pass
         >>> rng = np.random.default_rng(0)
         >>> u = rng.standard_normal(300)
         >>> y_slow = np.convolve(u, [0.0, 1.0, 0.5, 0.25])[:300][::3]
-        >>> model = Model(factor=3, order=4, sample_time=0.1).fit(u, y_slow)
+        >>> model = LeastSquaresFIR(factor=3, order=4, sample_time=0.1).fit(u, y_slow)
         >>> system = model.to_dlti()
         >>> system.dt
         0.1
@@ -178,13 +175,10 @@ class StateSpaceMixin:
         --------
         >>> import numpy as np
         >>> from gpmultirate import LeastSquaresFIR
-        >>> from gpmultirate.export import StateSpaceMixin
-        >>> class Model(LeastSquaresFIR, StateSpaceMixin):  # the exports mixed in
-        ...     pass
         >>> rng = np.random.default_rng(0)
         >>> u = rng.standard_normal(400)
         >>> g = 0.8 ** np.arange(30) - 0.5 ** np.arange(30)  # second order
-        >>> model = Model(factor=2, order=30).fit(u, np.convolve(u, g)[:400][::2])
+        >>> model = LeastSquaresFIR(factor=2, order=30).fit(u, np.convolve(u, g)[:400][::2])
         >>> system = model.to_state_space()
         >>> model.state_space_order_, system.A.shape
         (2, (2, 2))
@@ -226,14 +220,11 @@ class StateSpaceMixin:
         --------
         >>> import numpy as np
         >>> from gpmultirate import FIRGaussianProcess
-        >>> from gpmultirate.export import StateSpaceMixin
-        >>> class Model(FIRGaussianProcess, StateSpaceMixin):  # the exports mixed in
-        ...     pass
         >>> rng = np.random.default_rng(0)
         >>> u = rng.standard_normal(120)
         >>> g = 0.8 ** np.arange(40) - 0.5 ** np.arange(40)
         >>> y_slow = np.convolve(u, g)[:120][::2] + 0.01 * rng.standard_normal(60)
-        >>> model = Model(factor=2, order=40).fit(u, y_slow)
+        >>> model = FIRGaussianProcess(factor=2, order=40).fit(u, y_slow)
         >>> systems = model.sample_state_spaces(n_states=2, n_samples=3, random_state=0)
         >>> len(systems), systems[0].A.shape
         (3, (2, 2))
@@ -276,13 +267,10 @@ class StateSpaceMixin:
         --------
         >>> import numpy as np
         >>> from gpmultirate import LeastSquaresFIR
-        >>> from gpmultirate.export import StateSpaceMixin
-        >>> class Model(LeastSquaresFIR, StateSpaceMixin):  # the exports mixed in
-        ...     pass
         >>> rng = np.random.default_rng(0)
         >>> u = rng.standard_normal(400)
         >>> g = 0.8 ** np.arange(30) - 0.5 ** np.arange(30)
-        >>> model = Model(factor=2, order=30, sample_time=0.01)
+        >>> model = LeastSquaresFIR(factor=2, order=30, sample_time=0.01)
         >>> system = model.fit(u, np.convolve(u, g)[:400][::2]).to_control()
         >>> system.nstates, system.dt
         (2, 0.01)
