@@ -83,6 +83,7 @@ from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
 from gpmultirate.observations import DownsampledConvolution, build_experiment
+from gpmultirate.resonances import Resonance
 
 __all__ = [
     "FORMAT_NAME",
@@ -120,6 +121,7 @@ _ARRAYS = {
     "LeastSquaresFIR": ("u", "coef", "coef_covariance"),
 }
 # the plain-data part of scipy's L-BFGS-B result (hess_inv is an operator object)
+_RESONANCE_FIELDS = ("frequency_hz", "damping", "evidence_gain", "input")
 _OPTIMIZER_FIELDS = ("x", "fun", "jac", "nit", "nfev", "njev", "status", "success", "message")
 _ARRAY_DTYPES = frozenset(
     ["bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64",
@@ -236,6 +238,11 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
             ),
             optimizer_result_=None if result is None else _encode_optimizer_result(result),
         )
+        if hasattr(model, "resonances_"):
+            fitted["resonances_"] = [
+                {key: _encode(getattr(r, key), "resonances_") for key in _RESONANCE_FIELDS}
+                for r in model.resonances_
+            ]
     else:
         arrays["coef_covariance"] = model.coef_covariance_
         fitted["noise_variance_"] = _encode(model.noise_variance_, "noise_variance_")
@@ -618,7 +625,21 @@ def _load_records(header: dict, arrays: dict, estimator: type):
     )
     model.set_params(**params)
     _restore_optimizer_result(model, fitted)
+    _restore_resonances(model, fitted)
     return model
+
+
+def _restore_resonances(model, fitted: dict) -> None:
+    found = fitted.get("resonances_")
+    if found is None:
+        return
+    if not isinstance(found, list) or any(
+        not isinstance(r, dict) or set(r) != set(_RESONANCE_FIELDS) for r in found
+    ):
+        raise ModelFileError(f"invalid resonances_ in the model file: {found!r}")
+    model.resonances_ = [
+        Resonance(**{key: _decode(value) for key, value in r.items()}) for r in found
+    ]
 
 
 def _restore_optimizer_result(model, fitted: dict) -> None:
@@ -649,6 +670,7 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
     )
     model.set_params(**params)
     _restore_optimizer_result(model, fitted)
+    _restore_resonances(model, fitted)
     return model
 
 

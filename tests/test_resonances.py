@@ -198,6 +198,17 @@ def test_mode_above_the_slow_nyquist_frequency_is_found():
     assert goodness_of_fit(y_val, model.predict(u_val)) > 99.9
 
 
+def test_saved_and_loaded_models_keep_the_found_resonances(tmp_path):
+    system = _single_mode(2.3, 0.02)
+    u, y, u_val, _ = _experiment(system, 300, np.random.default_rng(1), snr_db=40)
+    model = _fit("auto", u, y, 300)
+    gm.save_model(model, tmp_path / "auto.npz")
+    loaded = gm.load_model(tmp_path / "auto.npz")
+    assert loaded.resonances_ == model.resonances_ and len(loaded.resonances_) == 1
+    assert loaded.get_params()["kernel"] == "auto"
+    np.testing.assert_array_equal(loaded.predict(u_val), model.predict(u_val))
+
+
 def test_evidence_gain_is_the_evidence_without_the_term_refitted():
     """The gain against a dense refit of the scale and noise without the term."""
     system = _single_mode(2.3, 0.02)
