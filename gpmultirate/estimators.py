@@ -18,7 +18,7 @@ import contextlib
 
 import numpy as np
 from scipy import linalg
-from sklearn.base import BaseEstimator, clone
+from sklearn.base import BaseEstimator
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
@@ -29,7 +29,7 @@ from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
 from gpmultirate.kernels import DC, PerInputKernel, check_lags, kernel_for_inputs
 from gpmultirate.metrics import goodness_of_fit
-from gpmultirate.observations import build_experiment, check_initial_conditions, regressor_rows
+from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
 from gpmultirate.responses import (
     FrequencyResponse,
@@ -40,7 +40,6 @@ from gpmultirate.responses import (
 from gpmultirate.validation import (
     check_bounds,
     check_int,
-    check_kernel,
     check_level,
     check_positive,
     check_rng,

@@ -20,6 +20,7 @@ from gpmultirate.study.simulation import (
 
 __all__ = [
     "METHODS",
+    "PAPER_NOISE_LEVEL",
     "PAPER_ORDERS",
     "PaperExample",
     "RunData",
