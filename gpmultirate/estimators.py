@@ -54,8 +54,8 @@ class _FIRModelMixin:
 
     Subclasses set ``coef_``, ``operator_``, ``n_inputs_`` and ``posterior_``
     (a :class:`~gpmultirate.inference.GaussianCoefficients` of the
-    input-major coefficient vector) through :meth:`_store_layout`, and
-    implement ``impulse_response``.
+    input-major coefficient vector) in ``fit``, and implement
+    ``impulse_response``.
     """
 
     #: whether the impulse response is defined between the integer lags
@@ -84,7 +84,7 @@ class _FIRModelMixin:
 
     def _fast_rows(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Rows of the fast-rate regressor of input(s) ``x`` (all inputs side by side)."""
-        periodic = getattr(self, "initial_conditions", "zero") == "periodic"
+        periodic = self.initial_conditions == "periodic"
         return np.hstack([
             regressor_rows(x[:, k], self._order, rows, periodic=periodic)
             for k in range(x.shape[1])
@@ -117,7 +117,7 @@ class _FIRModelMixin:
             return [self.predict(u_r, return_std) for u_r in u]
         x = self._check_prediction_input(u)
         n = x.shape[0]
-        periodic = getattr(self, "initial_conditions", "zero") == "periodic"
+        periodic = self.initial_conditions == "periodic"
         coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
         if not return_std and not periodic:
             return sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
