@@ -25,6 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from gpmultirate import tuning
 from gpmultirate.exceptions import IdentifiabilityError
+from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
 from gpmultirate.kernels import DC, PerInputKernel, check_lags, kernel_for_inputs
@@ -468,6 +469,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
         kernel = _initial_kernel(None if auto else self.kernel, experiment)
+        # refuse now what would be killed for lack of memory halfway
+        check_fit_memory(operator.n_outputs, operator.n_coefficients, kernel.theta.shape[0] + 1)
         noise_bounds = self._resolve_noise_bounds(y)
         if self.optimizer is not None and not isinstance(noise_bounds, str):
             noise = float(np.clip(noise, *noise_bounds))
@@ -667,6 +670,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         )
         operator, y = experiment.observation, experiment.y
         M, P = operator.n_outputs, operator.n_coefficients
+        check_fit_memory(M, P, 0)
         if P >= M:
             inputs = f" x {operator.n_inputs} inputs" if operator.n_inputs > 1 else ""
             raise IdentifiabilityError(
