@@ -9,8 +9,6 @@ import pytest
 import gpmultirate.study.runner as ex
 from gpmultirate import FIRGaussianProcess
 from gpmultirate.study import (
-    METHODS,
-    PAPER_ORDERS,
     StudyResult,
     paper_example,
     paper_kernels,
@@ -324,10 +322,72 @@ def test_invalid_arguments_name_the_argument(kwargs, name):
         run_paper_study(**arguments)
 
 
-def test_defaults_are_the_papers():
-    assert PAPER_ORDERS == tuple(range(50, 601, 50)) and METHODS == ("LS", "DC", "PK")
-    trial = run_trial(0, (10,), "LS", n_samples=N)
-    assert trial.run == 0 and trial.gof["LS"].shape == (1,)
+# The study of Section 5 of M. van Haren, R. S. Smith, T. Oomen, "System
+# Identification Beyond the Nyquist Frequency: A Kernel-Regularized Approach",
+# Control Engineering Practice 164:106425 (2025): 100 Monte Carlo runs; N = 600
+# fast samples, T = 0.1 s, every third sample kept (F = 3, M = 200); SNR drawn
+# uniformly in [40, 60] dB; every parameter within 10 % of nominal; FIR orders
+# P = 50, 100, ..., 600; least squares and the DC and PK kernel estimators.
+# Written out here once, not derived from the library's constants.
+PAPER_STUDY = {"n_runs": 100, "n_samples": 600, "factor": 3, "sample_time": 0.1,
+               "snr_db": (40.0, 60.0), "perturbation": 0.1,
+               "orders": [50, 100, 150, 200, 250, 300, 350, 400, 450, 500, 550, 600],
+               "methods": ("LS", "DC", "PK")}
+PAPER_CONFIG = {k: PAPER_STUDY[k]
+                for k in ("n_samples", "factor", "sample_time", "snr_db", "perturbation")}
+
+
+def test_default_study_runs_the_papers_configuration(monkeypatch):
+    # run_paper_study() with no arguments: record what each run is asked to do
+    calls = []
+
+    def recording_trial(seed, orders, methods, *, run, **config):
+        calls.append({"orders": np.asarray(orders).tolist(), "methods": tuple(methods),
+                      "config": config})
+        shape = np.shape(orders)
+        return ex.TrialResult(
+            run=run, gof={m: np.zeros(shape) for m in methods},
+            identifiable={m: np.ones(shape, dtype=bool) for m in methods},
+            fit_seconds={m: np.zeros(shape) for m in methods},
+            n_warnings={m: np.zeros(shape, dtype=int) for m in methods},
+            snr_db=50.0, seconds=0.0)
+
+    monkeypatch.setattr(ex, "run_trial", recording_trial)
+    study = run_paper_study(progress=False)
+    assert len(calls) == PAPER_STUDY["n_runs"] == study.n_runs
+    for call in calls:
+        assert call["orders"] == PAPER_STUDY["orders"]
+        assert call["methods"] == PAPER_STUDY["methods"]
+        assert call["config"] == PAPER_CONFIG
+    assert study.orders.tolist() == PAPER_STUDY["orders"]
+    assert tuple(study.methods) == PAPER_STUDY["methods"]
+    assert (study.n_samples, study.factor, study.sample_time, tuple(study.snr_range),
+            study.perturbation) == tuple(PAPER_CONFIG.values())
+    assert study.n_slow_samples == 200  # M = N / F
+
+
+def test_default_trial_simulates_and_fits_the_papers_configuration(monkeypatch):
+    # run_trial(seed) with no other arguments: the real simulation, fits recorded
+    simulated, fitted = [], []
+
+    def recording_simulation(seed, **config):
+        data = simulate_run(seed, **config)
+        simulated.append((config, data))
+        return data
+
+    def recording_fit(method, order, data):
+        fitted.append((method, order))
+        return None, 0.0, 0
+
+    monkeypatch.setattr(ex, "simulate_run", recording_simulation)
+    monkeypatch.setattr(ex, "fit_method", recording_fit)
+    trial = run_trial(0)
+    [(config, data)] = simulated
+    assert config == PAPER_CONFIG
+    assert data.u.shape == data.u_val.shape == (600,) and data.y_slow.shape == (200,)
+    assert data.factor == 3 and data.sample_time == 0.1 and 40 <= data.snr_db <= 60
+    assert fitted == [(m, p) for m in PAPER_STUDY["methods"] for p in PAPER_STUDY["orders"]]
+    assert trial.run == 0 and sorted(trial.gof) == sorted(PAPER_STUDY["methods"])
 
 
 # ------------------------------------------------------------------ example

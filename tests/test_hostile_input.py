@@ -32,7 +32,10 @@ file descriptors of this process (see
 ``test_save_model_rejects_a_file_descriptor_as_path``).
 
 Examples per run (derandomized, no example database: every run draws the
-same inputs; each test asserts that it ran at least its budget):
+same inputs; each test asserts that it ran at least its budget, and
+``test_generated_tests_checked_at_least_1000_examples``, last in the module,
+asserts that the examples the tests counted while running add up to at least
+1000):
 
 =================================================  ========
 test                                               examples
@@ -113,6 +116,9 @@ BUDGET = {
     "persistence": 150,
     "simulation": 300,
 }
+#: Examples each generated test actually checked in this session, by BUDGET key.
+RAN: dict[str, int] = {}
+MIN_TOTAL_EXAMPLES = 1000
 NAN, INF = float("nan"), float("inf")
 VALID = object()  # "keep the valid argument"
 
@@ -123,10 +129,6 @@ def single_threaded_blas():
     # slower tuning on two cores), so keep one thread while this module runs.
     with threadpool_limits(limits=1):
         yield
-
-
-def test_budget_is_at_least_1000_examples():
-    assert sum(BUDGET.values()) >= 1000
 
 
 # ------------------------------------------------------------- checking
@@ -203,8 +205,9 @@ def assert_rejected(case: Case) -> None:
     raise AssertionError(f"{case.label}: the invalid input was accepted")
 
 
-def run_hostile(cases: st.SearchStrategy, budget: int) -> int:
-    """Check ``budget`` generated cases; return how many ran."""
+def run_hostile(cases: st.SearchStrategy, key: str) -> int:
+    """Check ``BUDGET[key]`` generated cases; record in ``RAN[key]`` and return how many ran."""
+    budget = BUDGET[key]
     ran = 0
 
     @settings(
@@ -221,6 +224,7 @@ def run_hostile(cases: st.SearchStrategy, budget: int) -> int:
         assert_rejected(case)
 
     check()
+    RAN[key] = ran
     assert ran >= budget
     return ran
 
@@ -632,7 +636,7 @@ def fit_cases(draw):
 
 @pytest.mark.slow
 def test_fit_rejects_bad_arguments():
-    run_hostile(fit_cases(), BUDGET["fit"])
+    run_hostile(fit_cases(), "fit")
 
 
 def fitted_model_slots(model: Callable, name: str) -> list[Slot]:
@@ -725,7 +729,7 @@ def gaussian_process_method_cases():
 
 
 def test_gaussian_process_methods_reject_bad_arguments():
-    run_hostile(gaussian_process_method_cases(), BUDGET["gp_methods"])
+    run_hostile(gaussian_process_method_cases(), "gp_methods")
 
 
 def zero_order_hold_input():
@@ -762,7 +766,7 @@ def least_squares_fit_cases(draw):
 
 def test_least_squares_rejects_bad_arguments():
     cases = least_squares_fit_cases() | slot_cases(*fitted_model_slots(least_squares, "ls"))
-    run_hostile(cases, BUDGET["least_squares"])
+    run_hostile(cases, "least_squares")
 
 
 # -------------------------------------------------------------- operator
@@ -804,7 +808,7 @@ def operator_cases():
 
 
 def test_operator_rejects_bad_arguments():
-    run_hostile(operator_cases(), BUDGET["operator"])
+    run_hostile(operator_cases(), "operator")
 
 
 # -------------------------------------------------------- observed kernel
@@ -851,7 +855,7 @@ def observed_kernel_cases():
 
 
 def test_observed_kernel_rejects_bad_arguments():
-    run_hostile(observed_kernel_cases(), BUDGET["observed_kernel"])
+    run_hostile(observed_kernel_cases(), "observed_kernel")
 
 
 # ----------------------------------------------------------- lag kernels
@@ -899,7 +903,7 @@ def lag_kernel_cases():
 
 
 def test_lag_kernels_reject_bad_arguments():
-    run_hostile(lag_kernel_cases(), BUDGET["lag_kernels"])
+    run_hostile(lag_kernel_cases(), "lag_kernels")
 
 
 # ------------------------------------------------------------- metrics
@@ -916,7 +920,7 @@ def goodness_of_fit_cases():
 
 
 def test_goodness_of_fit_rejects_bad_arguments():
-    run_hostile(goodness_of_fit_cases(), BUDGET["goodness_of_fit"])
+    run_hostile(goodness_of_fit_cases(), "goodness_of_fit")
 
 
 # ---------------------------------------------------------- persistence
@@ -1093,7 +1097,7 @@ def persistence_cases():
 
 
 def test_persistence_rejects_bad_paths_and_objects():
-    run_hostile(persistence_cases(), BUDGET["persistence"])
+    run_hostile(persistence_cases(), "persistence")
 
 
 def test_save_model_rejects_a_file_descriptor_as_path(tmp_path):
@@ -1224,7 +1228,7 @@ def simulation_cases():
 
 
 def test_simulation_rejects_bad_arguments():
-    run_hostile(simulation_cases(), BUDGET["simulation"])
+    run_hostile(simulation_cases(), "simulation")
 
 
 # ----------------------------------------------------- minimal reproducers
@@ -1289,3 +1293,15 @@ MINIMAL_REPRODUCERS = (
 @pytest.mark.parametrize("case", MINIMAL_REPRODUCERS, ids=repr)
 def test_minimal_reproducer_is_rejected(case):
     assert_rejected(case)
+
+
+# ------------------------------------------------------------------ totals
+# Keep this test last in the module: it reads what the generated tests above
+# recorded while they ran.
+def test_generated_tests_checked_at_least_1000_examples():
+    missing = sorted(set(BUDGET) - set(RAN))
+    if missing:
+        pytest.skip(f"needs every generated test in this session; not run: {missing}")
+    short = {key: (RAN[key], BUDGET[key]) for key in BUDGET if RAN[key] < BUDGET[key]}
+    assert not short, f"examples checked below budget (ran, budget): {short}"
+    assert sum(RAN.values()) >= MIN_TOTAL_EXAMPLES, RAN
