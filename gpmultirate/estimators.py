@@ -28,7 +28,15 @@ from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
-from gpmultirate.kernels import DC, PerInputKernel, check_lags, kernel_for_inputs
+from gpmultirate.kernels import (
+    DC,
+    PerInputKernel,
+    check_lags,
+    input_kernels,
+    kernel_for_inputs,
+    like_inputs,
+    rescaled,
+)
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
@@ -256,18 +264,32 @@ def _blas_threads_for(operator):
     return contextlib.nullcontext()
 
 
-def _initial_kernel(kernel, experiment):
-    """The prior of the fit: the user's kernel(s), one per input, or the default."""
-    n = experiment.n_inputs
-    if kernel is not None:
-        return kernel_for_inputs(kernel, n)
+def _unit_scales(experiment) -> list[float]:
+    """Output power per unit input power, one per input: the data's units for the prior."""
     inputs = np.vstack(_record_inputs(experiment))
     power_y = float(np.mean(experiment.y**2)) or 1.0
-    kernels = []
-    for k in range(n):
-        # scale reference: output power per unit input power, for each input
-        reference = power_y / (float(np.mean(inputs[:, k] ** 2)) or 1.0)
-        kernels.append(ConstantKernel(reference, (reference * 1e-8, reference * 1e8)) * DC())
+    return [power_y / (float(np.mean(inputs[:, k] ** 2)) or 1.0) for k in range(inputs.shape[1])]
+
+
+def _initial_kernel(kernel, experiment, normalize: bool = True):
+    """The prior of the fit in the data's units: the user's kernel(s), or the default.
+
+    With ``normalize`` the user's kernel is a prior in normalized units
+    (input and output divided by their RMS): each input's amplitudes and
+    their bounds are multiplied by that input's unit scale
+    (:func:`~gpmultirate.kernels.rescaled`).  The default kernel is
+    ``ConstantKernel(c) * DC()`` with ``c`` that scale, bounds ``c * 1e-8 ..
+    c * 1e8``.
+    """
+    n = experiment.n_inputs
+    scales = _unit_scales(experiment)
+    if kernel is not None:
+        kernel = kernel_for_inputs(kernel, n)
+        if not normalize:
+            return kernel
+        kernels = [rescaled(k, c) for k, c in zip(input_kernels(kernel), scales)]
+        return like_inputs(kernels, kernel)
+    kernels = [ConstantKernel(c, (c * 1e-8, c * 1e8)) * DC() for c in scales]
     return kernels[0] if n == 1 else PerInputKernel(kernels)
 
 
@@ -341,6 +363,18 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         frequencies are in cycles per sample.
     max_resonances : int, default=4
         With ``kernel="auto"``, the most PK terms the search may add.
+    normalize : bool, default=True
+        When tuning, read the initial values and bounds of ``kernel``'s
+        amplitudes, ``noise_level`` and explicit ``noise_level_bounds`` in
+        normalized units: input(s) and output divided by their RMS (as
+        scikit-learn's ``normalize_y`` does for the output).  The tuned fit
+        then does not depend on the units of ``u`` and ``y``: an amplitude of
+        1 (``ConstantKernel(1.0)``) is an impulse response of the size the
+        data call for, and scikit-learn's default amplitude bounds
+        ``(1e-5, 1e5)`` span that scale.  ``kernel_``, ``noise_level_``, the
+        posterior, the bands and the evidence are in the data's units.  With
+        ``optimizer=None``, or ``normalize=False``, the kernel and noise
+        level are used in the data's units exactly as given.
 
     Attributes
     ----------
@@ -414,6 +448,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         initial_conditions: str = "zero",
         sample_time: float = 1.0,
         max_resonances: int = 4,
+        normalize: bool = True,
     ):
         self.kernel = kernel
         self.factor = factor
@@ -427,6 +462,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.initial_conditions = initial_conditions
         self.sample_time = sample_time
         self.max_resonances = max_resonances
+        self.normalize = normalize
 
     # ------------------------------------------------------------------ fit
     def fit(self, u, y_slow, sample_indices=None) -> "FIRGaussianProcess":
@@ -468,10 +504,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
-        kernel = _initial_kernel(None if auto else self.kernel, experiment)
+        # normalized units are a start and bounds for tuning: without tuning
+        # the kernel and the noise level are used exactly as given
+        normalize = bool(self.normalize) and self.optimizer is not None
+        kernel = _initial_kernel(None if auto else self.kernel, experiment, normalize)
         # refuse now what would be killed for lack of memory halfway
         check_fit_memory(operator.n_outputs, operator.n_coefficients, kernel.theta.shape[0] + 1)
-        noise_bounds = self._resolve_noise_bounds(y)
+        noise_bounds = self._resolve_noise_bounds(y, normalize)
+        if normalize:
+            noise *= float(np.mean(y**2)) or 1.0  # given in normalized units
         if self.optimizer is not None and not isinstance(noise_bounds, str):
             noise = float(np.clip(noise, *noise_bounds))
         self.operator_ = operator
@@ -505,11 +546,14 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.log_marginal_likelihood_value_ = self.posterior_.log_marginal_likelihood
         return self
 
-    def _resolve_noise_bounds(self, y):
+    def _resolve_noise_bounds(self, y, normalize: bool):
+        power = float(np.mean(y**2)) or 1.0
         if isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto":
-            power = float(np.mean(y**2)) or 1.0
             return (1e-12 * power, 10.0 * power)
-        return check_bounds(self.noise_level_bounds, "noise_level_bounds")
+        bounds = check_bounds(self.noise_level_bounds, "noise_level_bounds")
+        if normalize and not isinstance(bounds, str):
+            return (bounds[0] * power, bounds[1] * power)  # given in normalized units
+        return bounds
 
     # ------------------------------------------------------------ evidence
     def log_marginal_likelihood(self, theta=None, eval_gradient: bool = False):

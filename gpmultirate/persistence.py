@@ -233,6 +233,7 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
         fitted.update(
             kernel_=describe_kernel(model.kernel_),
             noise_level_=_encode(model.noise_level_, "noise_level_"),
+            noise_level_bounds_=_encode(model.noise_level_bounds_, "noise_level_bounds_"),
             log_marginal_likelihood_value_=_encode(
                 model.log_marginal_likelihood_value_, "log_marginal_likelihood_value_"
             ),
@@ -611,7 +612,8 @@ def _load_records(header: dict, arrays: dict, estimator: type):
         return model
     arguments = dict(
         params, kernel=kernel_from_description(fitted["kernel_"]),
-        noise_level=_number(fitted, "noise_level_"), optimizer=None,
+        noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
+        **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
     if model.operator_.order != order:
@@ -623,10 +625,17 @@ def _load_records(header: dict, arrays: dict, estimator: type):
         model.posterior_.coef, arrays["coef"], model.log_marginal_likelihood_value_,
         _number(fitted, "log_marginal_likelihood_value_"),
     )
-    model.set_params(**params)
+    model.set_params(**{"normalize": True, **params})
     _restore_optimizer_result(model, fitted)
     _restore_resonances(model, fitted)
     return model
+
+
+def _stored_noise_bounds(fitted: dict) -> dict:
+    """The noise bounds the model was tuned with, in the data's units (files since 0.1)."""
+    if "noise_level_bounds_" not in fitted:
+        return {}
+    return {"noise_level_bounds": _decode(fitted["noise_level_bounds_"])}
 
 
 def _restore_resonances(model, fitted: dict) -> None:
@@ -661,6 +670,9 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
         kernel=kernel_from_description(fitted["kernel_"]),
         noise_level=_number(fitted, "noise_level_"),
         optimizer=None,
+        # the stored kernel and noise level are in the data's units
+        normalize=False,
+        **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
     _check_layout(model.operator_, fitted)
@@ -668,7 +680,7 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
         model.coef_, arrays["coef"],
         model.log_marginal_likelihood_value_, _number(fitted, "log_marginal_likelihood_value_"),
     )
-    model.set_params(**params)
+    model.set_params(**{"normalize": True, **params})
     _restore_optimizer_result(model, fitted)
     _restore_resonances(model, fitted)
     return model

@@ -44,10 +44,23 @@ def test_units_do_not_change_the_default_fit(experiment, u_scale, y_scale):
 
 def test_amplitude_bounds_that_exclude_the_data_scale_warn(experiment):
     data, _, _ = experiment
+    # read in the data's units, scikit-learn's default bounds exclude the scale
     with pytest.warns(ConvergenceWarning, match="constant_value"):
-        gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(
+        gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300, normalize=False).fit(
             data.u * 1e3, data.y_slow * 1e-7
         )
+
+
+def test_normalized_units_need_no_warning_and_fit_in_any_units(experiment):
+    data, u_val, y_val = experiment
+    reference = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(
+        data.u, data.y_slow)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        scaled = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(
+            data.u * 1e3, data.y_slow * 1e-7)
+    assert scaled.score(u_val * 1e3, y_val * 1e-7) == pytest.approx(
+        reference.score(u_val, y_val), abs=0.1)
 
 
 def _assert_sound(model, u):

@@ -37,6 +37,7 @@ from gpmultirate.kernels.structure import (
     Role,
     StructuredKernel,
     observe,
+    rescaled,
 )
 
 __all__ = [
@@ -56,6 +57,7 @@ __all__ = [
     "kernel_for_inputs",
     "like_inputs",
     "observe",
+    "rescaled",
     "resonance_summands",
     "without_resonances",
 ]

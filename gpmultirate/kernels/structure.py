@@ -48,7 +48,7 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
 
-__all__ = ["LowRankTerm", "ObservedTerm", "Role", "StructuredKernel", "observe"]
+__all__ = ["LowRankTerm", "ObservedTerm", "Role", "StructuredKernel", "observe", "rescaled"]
 
 
 @dataclass(frozen=True)
@@ -621,3 +621,51 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
             return kernel.roles_term(path)
         return kernel.observed(observation, path)
     return ObservedTerm(kernel, observation, path)
+
+
+def rescaled(kernel: Kernel, factor: float) -> Kernel:
+    """A copy of ``kernel`` whose covariance is ``factor`` times larger, bounds included.
+
+    The amplitudes that together scale the whole kernel
+    (:meth:`ObservedTerm.scale_roles`) are multiplied by
+    ``factor ** power``, and so are their bounds, so that tuning explores
+    the same shapes.  A kernel without such amplitudes is wrapped as
+    ``ConstantKernel(factor, "fixed") * kernel``.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+    factor : float
+        Positive.
+
+    Returns
+    -------
+    sklearn Kernel
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate.kernels import DC
+    >>> kernel = rescaled(C(2.0, (1e-3, 1e3)) * DC(0.8, 0.9), 100.0)
+    >>> kernel.k1.constant_value, kernel.k1.constant_value_bounds
+    (200.0, (0.1, 100000.0))
+    >>> rescaled(DC(0.8, 0.9), 100.0)
+    10**2 * DC(alpha=0.8, beta=0.9)
+    """
+    term = observe(kernel)
+    positions = term.scale_roles()
+    if positions is None:
+        return ConstantKernel(float(factor), "fixed") * clone(kernel)
+    copy = clone(kernel)
+    params = copy.get_params()
+    roles = term.roles()
+    changes = {}
+    for i in positions:
+        role = roles[i]
+        scale = float(factor) ** role.power
+        changes[role.name] = params[role.name] * scale
+        bounds = params.get(role.name + "_bounds")
+        if bounds is not None and not isinstance(bounds, str):
+            changes[role.name + "_bounds"] = (bounds[0] * scale, bounds[1] * scale)
+    copy.set_params(**changes)
+    return copy
