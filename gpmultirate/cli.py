@@ -9,8 +9,10 @@ writes the fast-rate prediction of a saved model with its standard deviation.
 ``gpmultirate demo`` runs a reduced version of the Monte Carlo study of the
 paper's Section 5 (``--runs 100 --orders 50 100 ... 600`` is the full one),
 prints the goodness-of-fit table and writes it, with the figures of one run,
-to ``--output``.  ``gpmultirate example1`` draws the non-identifiability
-example (the paper's Example 1, Fig. 2).  Figures are rendered with
+to ``--output``; each finished run is saved at once to ``runs.jsonl`` there,
+so that an interrupted study continues with ``--resume``.  ``gpmultirate
+example1`` draws the non-identifiability example (the paper's Example 1,
+Fig. 2).  Figures are rendered with
 matplotlib's Agg canvas, without pyplot, so the command never opens a window.
 
 Errors in the arguments or the files end the command with exit status 2 and
@@ -36,6 +38,7 @@ import numpy as np
 
 from gpmultirate import __version__
 from gpmultirate.study import METHODS, paper_example, run_paper_study
+from gpmultirate.study.journal import JOURNAL_NAME, JournalError, read_journal
 
 __all__ = ["build_parser", "main"]
 
@@ -242,7 +245,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "figures gof_vs_order.png, bode.png, impulse_response.png and "
                     "intersample.png (one run's models at order --example-order).  "
                     "The paper's full study is --runs 100 --orders 50 100 150 200 250 300 350 "
-                    "400 450 500 550 600.",
+                    "400 450 500 550 600.  Each finished run is saved at once to "
+                    f"{JOURNAL_NAME} in --output, so that an interrupted study (Ctrl-C, a "
+                    "killed process) continues with --resume; the file is removed when the "
+                    "study is complete.",
     )
     demo.add_argument("--runs", type=_int_at_least(1), default=DEMO_RUNS, metavar="R",
                       help=f"Monte Carlo runs (default: {DEMO_RUNS}; the paper: 100)")
@@ -279,6 +285,15 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--example-order", type=_int_at_least(1), default=None, metavar="P",
                       help="order of the DC and PK models in the figures (default: N, as in "
                            "the paper's Fig. 6); LS uses its best identifiable order")
+    restart = demo.add_mutually_exclusive_group()
+    restart.add_argument("--resume", action="store_true",
+                         help=f"continue an interrupted study from the runs saved in "
+                              f"--output/{JOURNAL_NAME}, running only the missing ones; the "
+                              f"results equal those of an uninterrupted run.  The other "
+                              f"options must be those of the interrupted command")
+    restart.add_argument("--force", action="store_true",
+                         help=f"discard the runs of an interrupted study saved in "
+                              f"--output/{JOURNAL_NAME} and start over")
 
     example1 = commands.add_parser(
         "example1", help="non-identifiability example (paper Example 1, Fig. 2)",
@@ -434,14 +449,71 @@ def _demo(parser, args) -> int:
     if example_order > n:
         parser.error(f"argument --example-order: must lie in 1..N = 1..{n}; got {example_order}")
     out = _output_dir(parser, args.output)
+    journal = out / JOURNAL_NAME
+    _check_journal(parser, args, journal)
+    try:
+        status = _run_demo(parser, args, out, journal, example_order)
+    except KeyboardInterrupt:
+        _interrupted(args, journal)
+        return 130
+    return status
 
+
+def _journal_runs(journal: Path):
+    """Finished runs in ``journal`` and the runs of its study, or None if unreadable."""
+    try:
+        settings, trials = read_journal(journal)
+    except (OSError, JournalError):
+        return None
+    return len(trials), (None if settings is None else settings["n_runs"])
+
+
+def _check_journal(parser, args, journal: Path) -> None:
+    """Refuse to overwrite the saved runs of an interrupted study without --force."""
+    if not (journal.exists() or journal.is_symlink()):
+        if args.resume:
+            _say(args, f"no {JOURNAL_NAME} in {journal.parent}: nothing to resume, starting "
+                       f"the study")
+        return
+    if journal.is_dir():
+        parser.error(f"argument --output: {journal} is a directory")
+    if args.force:
+        journal.unlink()
+        return
+    if args.resume:
+        return
+    found = _journal_runs(journal)
+    if found is not None and found[0] == 0:
+        journal.unlink()  # no run was finished: nothing to lose
+        return
+    what = ("an unreadable journal" if found is None else
+            f"{found[0]} of {found[1]} finished runs of an interrupted study")
+    parser.error(f"argument --output: {journal} holds {what}; use --resume to continue it "
+                 f"or --force to start over")
+
+
+def _interrupted(args, journal: Path) -> None:
+    found = _journal_runs(journal) if journal.exists() else None
+    saved = (f"{found[0]} of {found[1]} runs are saved in {journal}" if found
+             else f"the finished runs are saved in {journal}")
+    print(f"gpmultirate demo: interrupted; {saved}; run the same command with --resume to "
+          f"continue", file=sys.stderr, flush=True)
+
+
+def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int:
+    n = args.n_samples
+    low, high = args.snr
     config = {"n_samples": n, "factor": args.factor, "sample_time": SAMPLE_TIME,
               "snr_db": (low, high)}
     started = time.perf_counter()
     _say(args, f"gpmultirate demo: {args.runs} run(s), orders {' '.join(map(str, args.orders))}, "
                f"methods {' '.join(args.methods)}, N = {n}, n_jobs = {args.n_jobs}")
-    result = run_paper_study(args.runs, args.orders, args.methods, n_jobs=args.n_jobs,
-                             random_state=args.seed, progress=not args.quiet, **config)
+    try:
+        result = run_paper_study(args.runs, args.orders, args.methods, n_jobs=args.n_jobs,
+                                 random_state=args.seed, progress=not args.quiet,
+                                 journal=journal, **config)
+    except JournalError as error:
+        parser.error(f"argument --resume: {error}" if args.resume else str(error))
     result.to_csv(out / "study.csv")
     result.to_csv(out / "study_runs.csv", runs=True)
     result.to_json(out / "study.json")
@@ -469,6 +541,7 @@ def _demo(parser, args) -> int:
                                 **config)
         if example.models:
             _example_figures(args, example, out)
+    journal.unlink(missing_ok=True)  # the study is complete: its runs are in study.json
     _say(args, f"done in {time.perf_counter() - started:.1f} s")
     return 0
 

@@ -189,7 +189,8 @@ class StudyResult:
     n_samples, factor, sample_time, snr_range, perturbation
         The settings of the study.
     total_seconds : float
-        Wall time of the whole study.
+        Wall time of the whole study (of its last session, for a study
+        resumed from a journal).
 
     Examples
     --------

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import sys
 import time
 import warnings
@@ -29,6 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
+from gpmultirate.study.journal import StudyJournal, read_journal, study_settings
 from gpmultirate.study.results import StudyResult
 from gpmultirate.study.simulation import (
     METHODS,
@@ -304,6 +306,7 @@ def run_paper_study(
     n_jobs: int = 1,
     random_state=0,
     progress: bool = True,
+    journal=None,
 ) -> StudyResult:
     """Run the paper's Monte Carlo study (Section 5) and collect the GoF of every fit.
 
@@ -339,10 +342,23 @@ def run_paper_study(
         Print ``run k/n done (about ... left; this run t s)`` to stderr as
         runs finish, the time left estimated from the mean wall time per
         finished run.
+    journal : str or path-like, optional
+        A file to which each run is appended as it finishes (one JSON line,
+        flushed to disk, see :mod:`gpmultirate.study.journal`).  If the file
+        exists, it must hold a study with the same settings; its finished
+        runs are reused and only the missing ones are run, which gives the
+        same result as an uninterrupted study (except for the wall times).
+        With ``random_state=None`` the journal's seed is used.
 
     Returns
     -------
     StudyResult
+
+    Raises
+    ------
+    gpmultirate.study.journal.JournalError
+        If ``journal`` holds a study with other settings, is corrupt, or is
+        being written by another process.
 
     Examples
     --------
@@ -362,20 +378,55 @@ def run_paper_study(
     n_jobs = check_n_jobs(n_jobs)
     if not isinstance(progress, bool):
         raise ValueError(f"progress must be True or False; got {progress!r}")
+    if journal is None:
+        root = seed_sequence(random_state)
+        return _collect(n_runs, orders, methods, config, n_jobs, root, progress, None)
+    if random_state is None and os.path.exists(journal):
+        # resume a study seeded from fresh entropy with the seed it drew
+        found, _ = read_journal(journal)
+        if found is not None:
+            random_state = np.random.SeedSequence(found["random_state"],
+                                                  spawn_key=tuple(found["spawn_key"]))
     root = seed_sequence(random_state)
-    seeds = [child_seed(root, i) for i in range(n_runs)]
+    settings = study_settings(n_runs, orders, methods, config, root)
+    with StudyJournal.open(journal, settings) as opened:
+        return _collect(n_runs, orders, methods, config, n_jobs, root, progress, opened)
+
+
+def _collect(n_runs, orders, methods, config, n_jobs, root, progress, journal):
+    """The runs of :func:`run_paper_study` missing from ``journal``, and the result."""
+    trials: list[TrialResult | None] = [None] * n_runs
+    if journal is not None:
+        for i, trial in journal.trials.items():
+            trials[i] = trial
+    n_done = sum(t is not None for t in trials)
+    if progress and n_done:
+        print(f"resuming from {journal.path}: {n_done} of {n_runs} runs done earlier",
+              file=sys.stderr, flush=True)
 
     start = time.perf_counter()
-    tasks = (joblib.delayed(run_trial)(seed, orders, methods, run=i, **config)
-             for i, seed in enumerate(seeds))
-    trials: list[TrialResult | None] = [None] * n_runs
-    for done, trial in enumerate(unordered_parallel(n_jobs, tasks), start=1):
-        trials[trial.run] = trial
-        if progress:
-            left = time_left(time.perf_counter() - start, done, n_runs)
-            eta = "" if done == n_runs else f"about {format_duration(left)} left; this run "
-            print(f"run {done}/{n_runs} done ({eta}{trial.seconds:.1f} s)", file=sys.stderr,
-                  flush=True)
+    tasks = (joblib.delayed(run_trial)(child_seed(root, i), orders, methods, run=i, **config)
+             for i in range(n_runs) if trials[i] is None)
+    results = unordered_parallel(n_jobs, tasks) if n_done < n_runs else iter(())
+    try:
+        for new, trial in enumerate(results, start=1):
+            if journal is not None:
+                journal.append(trial)
+            trials[trial.run] = trial
+            if progress:
+                done = n_done + new
+                left = time_left(time.perf_counter() - start, new, n_runs - n_done)
+                eta = "" if done == n_runs else f"about {format_duration(left)} left; this run "
+                print(f"run {done}/{n_runs} done ({eta}{trial.seconds:.1f} s)",
+                      file=sys.stderr, flush=True)
+    finally:
+        if hasattr(results, "close"):
+            # stopped early (an interrupt): joblib warns that it cancels the pending
+            # runs, which is the point; the finished ones are in the journal
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message=r".*tasks which were still being "
+                                        r"processed", category=UserWarning)
+                results.close()
 
     def stack(name):
         return {m: np.array([getattr(t, name)[m] for t in trials]) for m in methods}
