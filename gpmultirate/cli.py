@@ -22,7 +22,6 @@ one line on stderr that names the option, file or column.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import io
 import json
 import math
@@ -655,29 +654,23 @@ def _slow_samples(parser, args, path, y):
     return measured, values, {"y_slow": values, "sample_indices": measured}, (factor, None)
 
 
-def _fit_kernel(name: str, u: np.ndarray, y: np.ndarray):
-    """The ``kernel`` argument of the estimator for ``--kernel name``, and a note."""
+def _fit_kernel(name: str):
+    """The ``kernel`` argument of the estimator for ``--kernel name``.
+
+    ``tc`` and ``ss`` are ``ConstantKernel(1) * TC()`` (``SS()``) in the
+    estimator's normalized units, with the default kernel's amplitude bounds
+    ``1e-8 .. 1e8``: the estimator scales them to each input's data, as it
+    does its default ``dc`` kernel.
+    """
     from sklearn.gaussian_process.kernels import ConstantKernel
 
     from gpmultirate.kernels import SS, TC
 
     if name == "dc":
-        return None, None
+        return None
     if name == "auto":
-        if importlib.util.find_spec("gpmultirate.resonances") is not None:
-            return "auto", None
-        return None, ("--kernel auto is not available in this version; the default DC "
-                      "kernel was used")
-    shape = {"tc": TC, "ss": SS}[name]
-    x = u.reshape(u.shape[0], -1)
-    power_y = float(np.mean(y**2)) or 1.0
-    kernels = []
-    for k in range(x.shape[1]):
-        # the amplitude scale of the default kernel: output power per unit input power
-        reference = power_y / (float(np.mean(x[:, k] ** 2)) or 1.0)
-        kernels.append(ConstantKernel(reference, (reference * 1e-8, reference * 1e8))
-                       * shape())
-    return (kernels[0] if len(kernels) == 1 else kernels), None
+        return "auto"
+    return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
 
 
 def _plain(value):
@@ -720,7 +713,7 @@ def _png(fig) -> bytes:
     return buffer.getvalue()
 
 
-def _fit_figures(model, u, indices, values, names, frequency_kwargs) -> dict[str, bytes]:
+def _fit_figures(model, u, indices, values, names) -> dict[str, bytes]:
     from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
     from gpmultirate.responses import ImpulseResponse, OutputPrediction
 
@@ -731,7 +724,7 @@ def _fit_figures(model, u, indices, values, names, frequency_kwargs) -> dict[str
     fig = _figure(figsize=(4.8 * n_inputs + 1.2, 5.6))
     axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
     for k in range(n_inputs):
-        frf = model.frequency_response(input=k if n_inputs > 1 else None, **frequency_kwargs)
+        frf = model.frequency_response(input=k if n_inputs > 1 else None)
         plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean")
         axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
     figures["bode.png"] = _png(fig)
@@ -758,8 +751,7 @@ def _fit_figures(model, u, indices, values, names, frequency_kwargs) -> dict[str
 
     # fast-rate output on the record, all of it and a zoom on 20 slow periods
     prediction = OutputPrediction.from_model(
-        model, u, y_slow=values, sample_indices=indices,
-        sample_time=frequency_kwargs.get("sample_time"))
+        model, u, y_slow=values, sample_indices=indices)
     n = prediction.time.shape[0]
     spacing = (max(1, int(round(float(np.median(np.diff(indices))))))
                if indices.size > 1 else 1)
@@ -893,15 +885,9 @@ def _fit(parser, args) -> int:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
 
-    kernel, note = _fit_kernel(args.kernel, u, values)
-    notes = [note] if note else []
-    params = {"kernel": kernel, "order": args.order,
-              "initial_conditions": args.initial_conditions}
-    frequency_kwargs = {}
-    if "sample_time" in FIRGaussianProcess().get_params():
-        params["sample_time"] = args.sample_time
-    else:  # pragma: no cover - older estimators
-        frequency_kwargs["sample_time"] = args.sample_time
+    notes = []
+    params = {"kernel": _fit_kernel(args.kernel), "order": args.order,
+              "initial_conditions": args.initial_conditions, "sample_time": args.sample_time}
     y_slow = placement.pop("y_slow")
     if "factor" in placement:
         params.update(placement)
@@ -924,7 +910,6 @@ def _fit(parser, args) -> int:
     messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
     for message in messages:
         _say(args, f"warning: {message}")
-    frequency_kwargs.setdefault("sample_time", args.sample_time)
 
     summary = {
         "data": {"file": str(path), "inputs": inputs, "output": output, "n_samples": n,
@@ -950,14 +935,10 @@ def _fit(parser, args) -> int:
         parser.error(f"{path}: the model cannot be saved: {error}")
     files["model.npz"] = buffer.getvalue()
     system = None
-    if hasattr(model, "to_state_space"):
-        try:
-            system = model.to_state_space()
-        except (ValueError, NotImplementedError) as error:
-            notes.append(f"state_space.npz was not written: {error}")
-    else:
-        notes.append("state_space.npz was not written: this version of FIRGaussianProcess "
-                     "has no to_state_space method")
+    try:
+        system = model.to_state_space()
+    except ValueError as error:
+        notes.append(f"state_space.npz was not written: {error}")
     if system is not None:
         dt = getattr(system, "dt", None)
         buffer = io.BytesIO()
@@ -971,7 +952,7 @@ def _fit(parser, args) -> int:
     if u_val is not None:
         summary["validation"] = {"file": str(args.validate), "n_samples": int(y_val.shape[0]),
                                  "gof_percent": float(model.score(u_val, y_val))}
-    files.update(_fit_figures(model, u, indices, values, inputs, frequency_kwargs))
+    files.update(_fit_figures(model, u, indices, values, inputs))
     summary_json = json.dumps(_plain(summary), indent=2) + "\n"
     files["summary.json"] = summary_json.encode("utf-8")
     files["summary.md"] = _summary_markdown(json.loads(summary_json)).encode("utf-8")
