@@ -81,7 +81,7 @@ class _FIRModelMixin:
         return flat
 
     def _check_prediction_input(self, u, name: str = "u") -> np.ndarray:
-        inputs, several_records, _ = check_records(u, name)
+        inputs, several_records = check_records(u, name)
         if several_records:
             raise ValueError(f"{name} must be one record here; got a list")
         x = inputs[0]

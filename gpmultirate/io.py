@@ -327,14 +327,13 @@ def _read_mat(path: Path) -> DataTable:
 
     if path.stat().st_size == 0:
         raise DataFileError(path, "is empty")
+    hdf5 = "is a MATLAB v7.3 (HDF5) file, which is not read; save it with save(..., '-v7')"
     if _mat_version(path) == 0x0200:
-        raise DataFileError(path, "is a MATLAB v7.3 (HDF5) file, which is not read; save it "
-                                  "with save(..., '-v7')")
+        raise DataFileError(path, hdf5)
     try:
         listing = sio.whosmat(str(path))
-    except NotImplementedError:
-        raise DataFileError(path, "is a MATLAB v7.3 (HDF5) file, which is not read; save it "
-                                  "with save(..., '-v7')") from None
+    except NotImplementedError:  # scipy's word for a v7.3 file it recognizes itself
+        raise DataFileError(path, hdf5) from None
     except Exception as error:  # scipy raises many types for corrupted files
         raise DataFileError(path, f"is not a readable MATLAB file "
                                   f"({type(error).__name__}: {error})") from None

@@ -68,12 +68,20 @@ class DCFilterTerm(ObservedTerm):
     """A DC kernel through any observation, by the filters of the module docstring."""
 
     def _filtered(self):
-        """``beta``, the envelope ``d``, ``G = Phi D`` and ``H = G T``."""
-        values = self.kernel.checked_values()
-        beta = values["beta"]
-        decay = values["alpha"] ** (self.lags / 2.0)
-        G = self.observation.matrix * decay
-        return beta, decay, G, two_sided(G, [1.0], [1.0, -beta], include_center=True)
+        """``beta``, the envelope ``d``, ``G = Phi D`` and ``H = G T``, computed once per term.
+
+        The posterior asks a term for ``S`` and for ``Phi K``; both start from
+        the same filtered regressor.
+        """
+        cached = getattr(self, "_filtered_parts", None)
+        if cached is None:
+            values = self.kernel.checked_values()
+            beta = values["beta"]
+            decay = values["alpha"] ** (self.lags / 2.0)
+            G = self.observation.matrix * decay
+            cached = beta, decay, G, two_sided(G, [1.0], [1.0, -beta], include_center=True)
+            self._filtered_parts = cached
+        return cached
 
     def _free(self):
         return [h.name for h in self.kernel.hyperparameters if not h.fixed]

@@ -134,8 +134,14 @@ class ObservedTerm:
 
     # ------------------------------------------------------ parameter space
     def kernel_matrix(self) -> np.ndarray:
-        """``K`` at the lags ``0..P-1``."""
-        return self.kernel(self.observation.lags)
+        """``K`` at the lags ``0..P-1`` (evaluated once per term; not to be modified).
+
+        The posterior asks a term for ``K`` and for ``Phi K``; a dense kernel
+        is evaluated once for both.
+        """
+        if getattr(self, "_kernel_matrix", None) is None:
+            self._kernel_matrix = self.kernel(self.observation.lags)
+        return self._kernel_matrix
 
     def kernel_with_gradient(self) -> tuple[np.ndarray, np.ndarray]:
         """``K`` and its gradient, of shape ``(P, P, n_theta)``."""

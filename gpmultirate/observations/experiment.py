@@ -10,7 +10,7 @@ path of the uniform structure.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,7 +28,7 @@ __all__ = ["Experiment", "build_experiment", "check_records", "is_record_list"]
 
 @dataclass
 class Experiment:
-    """The observation of the used slow samples, and what the user's arrays looked like.
+    """The observation of the used slow samples.
 
     Attributes
     ----------
@@ -37,20 +37,11 @@ class Experiment:
         The used slow samples (finite, and for ``"discard"`` late enough),
         records concatenated.
     n_inputs : int
-    several_inputs : bool
-        ``u`` was 2-D: coefficients are returned with shape ``(n_inputs, P)``.
-    several_records : bool
-        ``u`` was a list: predictions are returned as lists.
-    n_samples : list of int
-        ``N`` of each record.
     """
 
     observation: Observation
     y: np.ndarray
     n_inputs: int
-    several_inputs: bool
-    several_records: bool
-    n_samples: list = field(default_factory=list)
 
 
 def is_record_list(x) -> bool:
@@ -62,7 +53,8 @@ def is_record_list(x) -> bool:
 
 
 def check_records(u, name: str = "u"):
-    """``(inputs, several_records, several_inputs)``: each record's input as ``(N, n_inputs)``."""
+    """``(inputs, several_records)``: each record's input as ``(N, n_inputs)``, and whether
+    ``u`` was a list of records.  A single input given as a column ``(N, 1)`` is one input."""
     several_records = is_record_list(u)
     records = list(u) if several_records else [u]
     if not records:
@@ -76,8 +68,7 @@ def check_records(u, name: str = "u"):
                 f"{label} has {inputs[-1].shape[1]} inputs; {name}[0] has {inputs[0].shape[1]}: "
                 "every record needs the same inputs"
             )
-    # a single input given as a column (N, 1) is one input, like a 1-D array
-    return inputs, several_records, inputs[0].shape[1] > 1
+    return inputs, several_records
 
 
 def _slow_samples(y, label: str) -> np.ndarray:
@@ -124,7 +115,7 @@ def build_experiment(
     >>> experiment.observation.sample_indices, experiment.y
     (array([0, 6]), array([1., 3.]))
     """
-    inputs, several_records, several_inputs = check_records(u)
+    inputs, several_records = check_records(u)
     if several_records:
         if not is_record_list(y_slow) or len(y_slow) != len(inputs):
             raise ValueError(
@@ -193,11 +184,4 @@ def build_experiment(
         observations.append(observation)
         used_y.append(y[measured][observation.used])
     observation = observations[0] if len(observations) == 1 else RecordStack(observations)
-    return Experiment(
-        observation=observation,
-        y=np.concatenate(used_y),
-        n_inputs=n_inputs,
-        several_inputs=several_inputs,
-        several_records=several_records,
-        n_samples=[x.shape[0] for x in inputs],
-    )
+    return Experiment(observation=observation, y=np.concatenate(used_y), n_inputs=n_inputs)
