@@ -14,20 +14,23 @@ or several (lists), slow samples at ``offset + m * factor`` or at any
 
 from __future__ import annotations
 
-import contextlib
 
 import numpy as np
 from scipy import linalg
 from sklearn.base import BaseEstimator
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
-from threadpoolctl import threadpool_limits
 
 from gpmultirate import tuning
 from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
-from gpmultirate.inference import GaussianCoefficients, LogEvidence, gaussian_samples
+from gpmultirate.inference import (
+    GaussianCoefficients,
+    LogEvidence,
+    blas_threads_for,
+    gaussian_samples,
+)
 from gpmultirate.kernels import (
     DC,
     PerInputKernel,
@@ -250,18 +253,8 @@ class _FIRModelMixin:
         return draws
 
 
-# Below this size the matrices of a fit are too small for threaded BLAS to pay
-# off, and on a busy machine its threads spin against each other: one thread.
-_SINGLE_THREAD_SIZE = 1500
 # entries of the convolution matrix formed at once by predict(..., return_std=True)
 _PREDICT_BLOCK_ENTRIES = 2**22
-
-
-def _blas_threads_for(operator):
-    """Limit BLAS to one thread for small problems; no limit otherwise."""
-    if max(operator.n_outputs, operator.n_coefficients) <= _SINGLE_THREAD_SIZE:
-        return threadpool_limits(limits=1, user_api="blas")
-    return contextlib.nullcontext()
 
 
 def _unit_scales(experiment) -> list[float]:
@@ -520,7 +513,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.noise_level_bounds_ = noise_bounds
         self.optimizer_result_ = None
         self.n_inputs_ = experiment.n_inputs
-        with _blas_threads_for(operator):
+        with blas_threads_for(operator):
             if auto:
                 from gpmultirate import resonances
 

@@ -22,12 +22,14 @@ packages the evidence as a function of the log hyperparameters for tuning.
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 
 import numpy as np
 from scipy import linalg
 
 from sklearn.base import clone
+from threadpoolctl import threadpool_limits
 
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.kernels import observe
@@ -38,6 +40,7 @@ __all__ = [
     "GaussianCoefficients",
     "LogEvidence",
     "ParameterSpacePosterior",
+    "blas_threads_for",
     "gaussian_samples",
     "log_gaussian",
     "log_marginal_likelihood",
@@ -47,6 +50,25 @@ __all__ = [
 ]
 
 LOG_2PI = np.log(2.0 * np.pi)
+
+# Below this size the matrices of a fit are too small for threaded BLAS to pay
+# off, and on a busy machine its threads spin against each other: one thread.
+SINGLE_THREAD_SIZE = 1500
+
+
+def blas_threads_for(observation):
+    """A context with one BLAS thread for small problems, no limit otherwise.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> with blas_threads_for(DownsampledConvolution(np.ones(90), 3, 30)):
+    ...     pass
+    """
+    if max(observation.n_outputs, observation.n_coefficients) <= SINGLE_THREAD_SIZE:
+        return threadpool_limits(limits=1, user_api="blas")
+    return contextlib.nullcontext()
 
 
 def log_gaussian(quadratic: float, log_det: float, n: int) -> float:

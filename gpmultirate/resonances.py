@@ -45,7 +45,6 @@ and a refinement.
 
 from __future__ import annotations
 
-import contextlib
 import numbers
 import warnings
 from dataclasses import dataclass, field
@@ -54,11 +53,10 @@ import numpy as np
 from scipy import linalg, optimize
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
-from threadpoolctl import threadpool_limits
 
 from gpmultirate import tuning
 from gpmultirate.exceptions import NumericalWarning
-from gpmultirate.inference import LOG_2PI, LogEvidence, robust_cholesky
+from gpmultirate.inference import LOG_2PI, LogEvidence, blas_threads_for, robust_cholesky
 from gpmultirate.kernels import (
     PK,
     input_kernels,
@@ -347,21 +345,9 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
     """
     max_resonances = _check_max_resonances(max_resonances)
     sample_time = check_positive(sample_time, "sample_time")
-    with _blas_threads(observation):
+    with blas_threads_for(observation):
         return _search(observation, y, base_kernel, noise_level, noise_bounds,
                        max_resonances, sample_time, random_state)
-
-
-# Below this size threaded BLAS does not pay off on the search's small
-# matrices, and on a busy machine its threads spin against each other.
-_SINGLE_THREAD_SIZE = 1500
-
-
-def _blas_threads(observation):
-    """One BLAS thread for small problems; no limit otherwise."""
-    if max(observation.n_outputs, observation.n_coefficients) <= _SINGLE_THREAD_SIZE:
-        return threadpool_limits(limits=1, user_api="blas")
-    return contextlib.nullcontext()
 
 
 def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonances,
