@@ -42,6 +42,9 @@ def test_units_do_not_change_the_default_fit(experiment, u_scale, y_scale):
     np.testing.assert_allclose(std_scaled, std * ratio, rtol=1e-3)
 
 
+# with the amplitude held at its bound far above the data, the covariance of the
+# data is close to singular and gets jitter: expected here, not what is tested
+@pytest.mark.filterwarnings("ignore:the data covariance is not numerically positive definite")
 def test_amplitude_bounds_that_exclude_the_data_scale_warn(experiment):
     data, _, _ = experiment
     # read in the data's units, scikit-learn's default bounds exclude the scale
