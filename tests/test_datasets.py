@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
+import hashlib
 import pathlib
 import sys
 
@@ -121,6 +122,19 @@ def test_cd_player_arm_values_equal_shared_source_file():
 @pytest.mark.skipif(not CD_SHARED.exists(), reason="shared DaISy copy not available")
 def test_cd_player_arm_packaged_file_is_an_unmodified_copy():
     assert CD_PACKAGED.read_bytes() == CD_SHARED.read_bytes()
+
+
+# SHA-256 of the DaISy files as distributed (robot_arm.dat, CD_player_arm.dat),
+# so the packaged copies are checked where the source files are not at hand
+SOURCE_SHA256 = {
+    PACKAGED: "7577818296239b7a47d1db59abac7ae03fe106f246e0a001152fcc0a733d83c7",
+    CD_PACKAGED: "a2ef4bf51c3102487a0690c7a68d97f3b1966cd07319580011a97fc0af904eaa",
+}
+
+
+@pytest.mark.parametrize("path", list(SOURCE_SHA256), ids=lambda path: path.name)
+def test_packaged_files_hash_as_the_daisy_sources(path):
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == SOURCE_SHA256[path]
 
 
 def test_cd_player_arm_arrays_are_read_only_and_new():
