@@ -8,6 +8,8 @@ reproduce ``sum((Phi^T W Phi) * dK_j)`` with ``dK`` from scikit-learn's
 ``kernel_matvec`` are checked against ``Phi @ K`` and ``K @ v``.
 """
 
+import sys
+
 import numpy as np
 import pytest
 from sklearn.gaussian_process.kernels import RBF
@@ -314,3 +316,31 @@ def test_prefer_recursion_on_the_measured_cases():
         assert prefer_recursion(M, N, P) is False
     # more lags only make the BLAS route dearer
     assert prefer_recursion(1000, 30_000, 2000) and not prefer_recursion(1000, 30_000, 50)
+
+
+@pytest.mark.parametrize("kernel", [DC(alpha=0.8, beta=0.6), TC(alpha=0.9), SS(alpha=0.7)],
+                         ids=["DC", "TC", "SS"])
+def test_leftover_memory_never_reaches_the_result(kernel, monkeypatch):
+    # np.empty may hand back memory that holds any bit pattern, NaN included: the
+    # recursion must not compute with it (no floating-point warning) nor change its result
+    op = DownsampledConvolution(np.random.default_rng(3).standard_normal(90), 3, 30, 1)
+    clean_S, clean_dS = observed_recursion(kernel, op.uniform_sampling, op.order)
+    recursion_module = sys.modules[observed_recursion.__module__]
+
+    class PoisonedNumpy:
+        def __getattr__(self, name):
+            return getattr(np, name)
+
+        @staticmethod
+        def empty(shape):
+            # a signalling NaN: any arithmetic on it raises "invalid value"
+            return np.full(shape, 0x7FF4000000000000, dtype=np.uint64).view(np.float64)
+
+    monkeypatch.setattr(recursion_module, "np", PoisonedNumpy())
+    with np.errstate(all="raise"):
+        S, dS = observed_recursion(kernel, op.uniform_sampling, op.order)
+    np.testing.assert_array_equal(S, clean_S)
+    for derivative, clean in zip(dS, clean_dS):
+        np.testing.assert_array_equal(derivative, clean)
+    dense = op.matrix @ kernel(op.lags) @ op.matrix.T
+    np.testing.assert_allclose(S, dense, rtol=1e-10, atol=1e-12 * np.abs(dense).max())

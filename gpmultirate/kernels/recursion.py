@@ -174,11 +174,15 @@ def _mirror_upper(S: np.ndarray, block: int = 64) -> None:
 
 
 def _square(size: int) -> np.ndarray:
-    """An uninitialised ``size x size`` array whose buffer has ``size - 1`` entries of slack.
+    """An uninitialised ``size x size`` array whose buffer has ``size`` zeros of slack.
 
-    The slack lets :func:`_diagonals` view the array along its diagonals.
+    The slack lets :func:`_diagonals` view the array along its diagonals; it
+    is zeroed so that the recursion never computes with leftover memory
+    (a signalling NaN there raises "invalid value" warnings).
     """
-    return np.empty(size * (size + 1))[: size * size].reshape(size, size)
+    buffer = np.empty(size * (size + 1))
+    buffer[size * size:] = 0.0
+    return buffer[: size * size].reshape(size, size)
 
 
 def _diagonals(X: np.ndarray) -> np.ndarray:
