@@ -11,7 +11,7 @@ from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
 from gpmultirate.responses import FrequencyResponse
-from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.observed import ObservedKernel
 from gpmultirate.observations import DownsampledConvolution, SampledConvolution
 from gpmultirate.persistence import ModelFileError, load_model, save_model
@@ -28,6 +28,7 @@ __all__ = [
     "SampledConvolution",
     "__version__",
     "goodness_of_fit",
+    "fit_percent",
     "load_model",
     "save_model",
 ]

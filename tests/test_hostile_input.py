@@ -96,6 +96,7 @@ from gpmultirate import (
     LeastSquaresFIR,
     ModelFileError,
     ObservedKernel,
+    fit_percent,
     goodness_of_fit,
     load_model,
     save_model,
@@ -915,6 +916,10 @@ def goodness_of_fit_cases():
         Slot("goodness_of_fit(y_true={}, y_pred)", lambda v: goodness_of_fit(v, y),
              constant_signals(7), ("y_true",)),
         Slot("goodness_of_fit(y_true, y_pred={})", lambda v: goodness_of_fit(y, v),
+             bad_signals(7) | wrong_lengths(7), ("y_pred",)),
+        Slot("fit_percent(y_true={}, y_pred)", lambda v: fit_percent(v, y),
+             bad_signals(7) | constant_signals(7), ("y_true",)),
+        Slot("fit_percent(y_true, y_pred={})", lambda v: fit_percent(y, v),
              bad_signals(7) | wrong_lengths(7), ("y_pred",)),
     )
 

@@ -101,3 +101,20 @@ def test_goodness_of_fit_formula_and_errors():
         gm.goodness_of_fit(np.ones(3), np.ones(3))
     with pytest.raises(ValueError, match="y_pred"):
         gm.goodness_of_fit(y, y[:2])
+
+
+def test_fit_percent_is_matlab_compare_fit():
+    y = np.array([1.0, 3.0, 2.0, 5.0])
+    y_hat = np.array([1.5, 2.5, 2.0, 4.0])
+    # written out element by element, as MATLAB's compare documents it
+    error = np.sqrt(sum((a - b) ** 2 for a, b in zip(y, y_hat)))
+    spread = np.sqrt(sum((a - 2.75) ** 2 for a in y))
+    assert gm.fit_percent(y, y_hat) == pytest.approx(100 * (1 - error / spread))
+    assert gm.fit_percent(y, y) == 100.0
+    assert gm.fit_percent(y, np.full(4, 2.75)) == pytest.approx(0.0)
+    gof = gm.goodness_of_fit(y, y_hat)
+    assert gm.fit_percent(y, y_hat) == pytest.approx(100 * (1 - np.sqrt(1 - gof / 100)))
+    with pytest.raises(ValueError, match="y_true"):
+        gm.fit_percent(np.ones(3), np.ones(3))
+    with pytest.raises(ValueError, match="y_pred"):
+        gm.fit_percent(y, y[:2])
