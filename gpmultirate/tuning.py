@@ -40,6 +40,7 @@ __all__ = [
     "maximize",
     "minimize_lbfgs",
     "prefit_scale_and_noise",
+    "warn_at_bounds",
 ]
 
 # L-BFGS-B settings: tighter than scipy's defaults, which stop early on the
@@ -92,7 +93,7 @@ def maximize(evidence, n_restarts: int = 0, random_state=None):
         transform = DecayRateTransform(
             [i for i, role in enumerate(roles) if role.kind == "decay"]
         )
-        if evidence.n_outputs <= FISHER_MAX_OUTPUTS:
+        if evidence.has_fisher and evidence.n_outputs <= FISHER_MAX_OUTPUTS:
 
             def run(start):
                 return fisher_scoring(_value_grad_fisher(evidence), start, bounds, transform)
@@ -416,6 +417,79 @@ def warn_if_not_converged(result) -> None:
             ConvergenceWarning,
             stacklevel=4,
         )
+
+
+# A tuned entry of theta this close to a finite bound (in theta units, relative
+# to the bound's size) is reported as ending on it.
+BOUND_TOLERANCE = 1e-4
+
+
+def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, str, float]]:
+    """The tuned hyperparameters that ended on a finite bound.
+
+    Parameters
+    ----------
+    evidence : LogEvidence
+        The objective; its ``bounds`` are the user's (not a search window).
+    theta : ndarray, optional
+        The tuned point; ``evidence.theta`` by default.
+
+    Returns
+    -------
+    list of (name, value, side, bound)
+        ``side`` is ``"lower"`` or ``"upper"``; ``value`` and ``bound`` in
+        the hyperparameter's own units (not ``theta``).
+    """
+    theta = evidence.theta if theta is None else np.asarray(theta, dtype=float)
+    bounds = evidence.bounds
+    kernel, noise = evidence.split(theta)
+    params = kernel.get_params()
+    names = [role.name for role in evidence.roles()]
+    if evidence.noise_is_free:
+        names.append("noise_level")
+    found = []
+    for i, name in enumerate(names):
+        for side, column in (("lower", 0), ("upper", 1)):
+            edge = bounds[i, column]
+            if not np.isfinite(edge):
+                continue
+            if abs(theta[i] - edge) <= BOUND_TOLERANCE * max(1.0, abs(edge)):
+                if name == "noise_level":
+                    value, bound = noise, evidence.noise_bounds[column]
+                else:
+                    value = params[name]
+                    bound = _value_bounds(kernel, name)[column]
+                found.append((name, float(np.ravel(value)[0]), side, float(bound)))
+    return found
+
+
+def _value_bounds(kernel, name: str):
+    """The bounds, in value units, of the parameter ``name`` of ``kernel``."""
+    owner_name, _, leaf = name.rpartition("__")
+    owner = kernel.get_params()[owner_name] if owner_name else kernel
+    return np.ravel(getattr(owner, f"hyperparameter_{leaf}").bounds)
+
+
+def warn_at_bounds(evidence, theta=None) -> None:
+    """Emit one ConvergenceWarning naming every hyperparameter that ended on a finite bound.
+
+    As scikit-learn's Gaussian processes do: a value on its bound usually
+    means the bound, not the data, decided it.  The noise level is included.
+    """
+    found = hyperparameters_at_bounds(evidence, theta)
+    if not found:
+        return
+    listed = "; ".join(
+        f"{name} = {value:.4g} is on its {side} bound {bound:.4g}"
+        for name, value, side, bound in found
+    )
+    warnings.warn(
+        f"tuning ended on a bound: {listed}. The bound, not the data, decided "
+        "these values; widen the bounds (the kernel's <name>_bounds or "
+        "noise_level_bounds) and fit again, or fix them if that is intended.",
+        ConvergenceWarning,
+        stacklevel=3,
+    )
 
 
 # Fisher scoring settings: stop when the predicted gain of a full step is below
