@@ -9,7 +9,7 @@ for the prior covariances.
 from gpmultirate import datasets, kernels, simulation
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
-from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
+from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, NumericalWarning
 from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.observed import ObservedKernel
@@ -24,6 +24,7 @@ __all__ = [
     "LeastSquaresFIR",
     "ModelFileError",
     "NumericalWarning",
+    "HeldOutWarning",
     "ObservedKernel",
     "SampledConvolution",
     "__version__",

@@ -15,14 +15,18 @@ or several (lists), slow samples at ``offset + m * factor`` or at any
 from __future__ import annotations
 
 
+import numbers
+import warnings
+
 import numpy as np
 from scipy import linalg
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import tuning
-from gpmultirate.exceptions import IdentifiabilityError
+from gpmultirate.crossvalidation import CrossValidation, contiguous_folds, held_out_predictions
+from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import (
@@ -40,7 +44,7 @@ from gpmultirate.kernels import (
     like_inputs,
     rescaled,
 )
-from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
 from gpmultirate.responses import (
@@ -286,6 +290,54 @@ def _initial_kernel(kernel, experiment, normalize: bool = True):
     return kernels[0] if n == 1 else PerInputKernel(kernels)
 
 
+# the held-out check after evidence tuning: its shortest order and margin
+MIN_CHECKED_ORDER = 10
+HELD_OUT_MARGIN = 5.0  # percentage points of fit
+
+
+def auto_orders(longest: int) -> list[int]:
+    """The candidate orders of ``order="auto"``: ``N, N/2, ..., N/32``, at least 10.
+
+    Examples
+    --------
+    >>> auto_orders(600)
+    [18, 37, 75, 150, 300, 600]
+    >>> auto_orders(12)
+    [12]
+    """
+    orders = {longest} | {longest // 2**k for k in range(1, 6) if longest // 2**k >= 10}
+    return sorted(orders)
+
+
+def _order_candidates(order):
+    """None for one order (an int or None), "auto", or the checked list of candidates."""
+    if order is None or isinstance(order, numbers.Integral) and not isinstance(order, bool):
+        return None
+    if isinstance(order, str):
+        if order == "auto":
+            return "auto"
+        raise ValueError(f"order must be an integer, 'auto' or a list of integers; got {order!r}")
+    try:
+        candidates = [check_int(o, "order", low=1) for o in order]
+    except TypeError:
+        raise ValueError(
+            f"order must be an integer, 'auto' or a list of integers; got {order!r}"
+        ) from None
+    if not candidates:
+        raise ValueError("order must not be an empty list")
+    return sorted(set(candidates))
+
+
+def _check_tuning(tuning_criterion) -> str:
+    if not isinstance(tuning_criterion, str) or tuning_criterion not in (
+        "evidence", "cross_validation"
+    ):
+        raise ValueError(
+            f"tuning must be 'evidence' or 'cross_validation'; got {tuning_criterion!r}"
+        )
+    return tuning_criterion
+
+
 def _record_inputs(experiment):
     """The inputs of every record, as ``(N, n_inputs)`` arrays."""
     out = []
@@ -323,9 +375,13 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         are found from the data (see :mod:`gpmultirate.resonances`).
     factor : int, default=1
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
-    order : int, optional
+    order : int, "auto" or sequence of int, optional
         FIR order ``P`` in ``1..N``, shared by all inputs; default ``N``, the
-        length of the (longest) record.
+        length of the (longest) record.  ``"auto"`` or a list of candidate
+        orders: fit each candidate and keep the one the tuning criterion
+        (``tuning``) prefers, per used slow sample; ``"auto"`` tries
+        ``N, N/2, N/4, ..., N/32`` (at least 10).  The candidates and their
+        criteria are reported in ``order_selection_``.
     offset : int, default=0
         Fast index of the first slow sample, ``0..F-1``.
     noise_level : float, default=1.0
@@ -339,6 +395,22 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         the reduction of long records, L-BFGS-B above; see the theory
         page and :mod:`gpmultirate.tuning`); ``None`` uses them exactly as
         given.
+    tuning : {"evidence", "cross_validation"}, default="evidence"
+        The criterion the hyperparameters (and an ``"auto"`` order)
+        maximize: ``"evidence"``, the log marginal likelihood (eq. 19);
+        ``"cross_validation"``, the log density of held-out blocks of slow
+        samples predicted from the others (K-fold over time, ``cv`` folds;
+        see :mod:`gpmultirate.crossvalidation`), which judges the model by
+        what it predicts rather than by how well it explains the data.  It
+        works in data space: ``O(M^3)`` per evaluation for ``M`` slow
+        samples.  After evidence tuning, the held-out fit of the tuned model
+        is compared with that of shorter orders (same folds, same
+        hyperparameters) and a warning names a shorter order that predicts
+        clearly better.
+    cv : int, default=5
+        The number of folds of ``"cross_validation"`` (and of the held-out
+        check after evidence tuning): contiguous blocks of slow samples of
+        each record.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -396,7 +468,16 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The posterior of the coefficients at lags ``0..P-1``.
     optimizer_result_ : scipy.optimize.OptimizeResult or None
         The best optimizer run (``x`` in ``theta`` coordinates, ``fun`` the
-        negative log evidence), or None when nothing was tuned.
+        negative log evidence, or the negative cross-validated log
+        predictive likelihood), or None when nothing was tuned.
+    cv_log_predictive_likelihood_ : float
+        With ``tuning="cross_validation"``: the sum over the folds of the
+        log density of the held-out slow samples at the tuned values.
+    order_selection_ : dict
+        With ``order="auto"`` or a list: ``"order"`` (the candidates),
+        ``"score"`` (the criterion per used slow sample, higher is better),
+        ``"criterion"`` (``"log_evidence"`` or ``"cv_log_predictive"``) and
+        ``"best_order"``.
 
     Examples
     --------
@@ -442,6 +523,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         sample_time: float = 1.0,
         max_resonances: int = 4,
         normalize: bool = True,
+        tuning: str = "evidence",
+        cv: int = 5,
     ):
         self.kernel = kernel
         self.factor = factor
@@ -456,6 +539,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.sample_time = sample_time
         self.max_resonances = max_resonances
         self.normalize = normalize
+        self.tuning = tuning
+        self.cv = cv
 
     # ------------------------------------------------------------------ fit
     def fit(self, u, y_slow, sample_indices=None) -> "FIRGaussianProcess":
@@ -477,9 +562,18 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         -------
         self
         """
+        criterion = _check_tuning(self.tuning)
+        n_folds = check_int(self.cv, "cv", low=2)
+        candidates = _order_candidates(self.order)
+        if candidates is not None:
+            return self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
+        return self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
+
+    def _fit_order(self, u, y_slow, sample_indices, order, criterion, n_folds, check=True):
+        """Fit at one order; ``check``: compare the held-out fit with shorter orders."""
         experiment = build_experiment(
             u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
-            order=self.order, initial_conditions=self.initial_conditions,
+            order=order, initial_conditions=self.initial_conditions,
         )
         operator, y = experiment.observation, experiment.y
         if not (self.optimizer is None or (
@@ -525,19 +619,117 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 self.optimizer_result_ = search.optimizer_result
                 self.resonances_ = search.resonances
             evidence = LogEvidence(operator, y, kernel, noise, noise_bounds)
-            if self.optimizer is not None and not auto:
-                result = tuning.maximize(evidence, n_restarts, self.random_state)
+            objective = evidence
+            if criterion == "cross_validation":
+                check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 1)
+                objective = CrossValidation(operator, y, kernel, noise, noise_bounds, n_folds)
+            if self.optimizer is not None and (not auto or objective is not evidence):
+                # with "auto", the search tuned by the evidence: cross-validation goes on from there
+                result = tuning.maximize(objective, n_restarts, self.random_state)
                 if result is not None:
                     self.optimizer_result_ = result
                     kernel, noise = evidence.split(result.x)
             self.posterior_ = evidence.posterior(kernel, noise)
+            if objective is not evidence:
+                moved = objective.moved_to(kernel, noise)
+                self.cv_log_predictive_likelihood_ = float(moved(moved.theta))
         # kept for log_marginal_likelihood(theta) and the posterior at real lags
         self._evidence = evidence.moved_to(kernel, noise)
+        if self.optimizer_result_ is not None:
+            tuning.warn_at_bounds(self._evidence)
         self.kernel_ = kernel
         self.noise_level_ = noise
         self.coef_ = self._shaped(self.posterior_.coef)
         self.log_marginal_likelihood_value_ = self.posterior_.log_marginal_likelihood
+        if check and criterion == "evidence" and self.optimizer is not None:
+            self._warn_if_a_shorter_order_predicts_better(
+                u, y_slow, sample_indices, experiment, n_folds
+            )
         return self
+
+    def _fit_order_selection(self, u, y_slow, sample_indices, candidates, criterion):
+        """Fit every candidate order and keep the one the criterion prefers."""
+        if candidates == "auto":
+            longest = build_experiment(
+                u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
+                initial_conditions=self.initial_conditions,
+            ).observation.order
+            candidates = auto_orders(longest)
+        n_folds = check_int(self.cv, "cv", low=2)
+        fits, caught = [], []
+        for order in candidates:
+            model = clone(self)
+            with warnings.catch_warnings(record=True) as record:
+                warnings.simplefilter("always")
+                model._fit_order(u, y_slow, sample_indices, order, criterion, n_folds, False)
+            fits.append(model)
+            caught.append(record)
+        if criterion == "evidence":
+            values = [m.log_marginal_likelihood_value_ for m in fits]
+        else:
+            values = [m.cv_log_predictive_likelihood_ for m in fits]
+        # per used slow sample: "discard" uses fewer samples at higher orders
+        scores = np.array([v / m.y_slow_.shape[0] for v, m in zip(values, fits)])
+        best = int(np.argmax(scores))
+        params = self.get_params(deep=False)
+        self.__dict__.update(
+            {key: value for key, value in vars(fits[best]).items() if key not in params}
+        )
+        self.order_selection_ = {
+            "order": np.array(candidates),
+            "score": scores,
+            "criterion": "log_evidence" if criterion == "evidence" else "cv_log_predictive",
+            "best_order": int(candidates[best]),
+        }
+        for w in caught[best]:  # only the kept model's warnings concern the user
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return self
+
+    def _warn_if_a_shorter_order_predicts_better(self, u, y_slow, sample_indices, experiment,
+                                                  n_folds):
+        """Warn when held-out slow samples are predicted clearly better at a shorter order.
+
+        The same hyperparameters, the same folds (as ``tuning="cross_validation"``);
+        only the order is cut to ``P/2, P/4, P/8``.  Skipped where it would cost
+        more than the fit (more slow samples than coefficients: the fit then
+        works on the ``P x P`` reduction, the check would need ``M x M``) or is
+        not comparable (``"discard"`` uses other samples at other orders).
+        """
+        operator, y = experiment.observation, experiment.y
+        order = operator.order
+        if (self.initial_conditions == "discard" or y.shape[0] > operator.n_coefficients
+                or order < 2 * MIN_CHECKED_ORDER):
+            return
+        try:
+            folds = contiguous_folds([r.n_outputs for r in operator.records], n_folds)
+        except ValueError:
+            return  # fewer samples than folds: nothing to hold out
+        fits = {}
+        for shorter in [order] + [order // d for d in (2, 4, 8) if order // d >= MIN_CHECKED_ORDER]:
+            observation = operator if shorter == order else build_experiment(
+                u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
+                order=shorter, initial_conditions=self.initial_conditions,
+            ).observation
+            try:
+                mean, _ = held_out_predictions(
+                    observation, self.kernel_, self.noise_level_, y, folds
+                )
+                fits[shorter] = fit_percent(y, mean)
+            except ValueError:
+                return
+        best = max(fits, key=fits.get)
+        if fits[best] > fits[order] + HELD_OUT_MARGIN:
+            warnings.warn(
+                f"held-out slow samples are predicted clearly better at a shorter order: "
+                f"order={best} fits {fits[best]:.1f} % of them, order={order} "
+                f"{fits[order]:.1f} % ({n_folds}-fold cross-validation over time at the tuned "
+                "hyperparameters). The marginal likelihood trusts the model, and measured data "
+                "with drift, disturbances or a little nonlinearity can make it prefer a worse "
+                f"predictor: try order={best}, or order='auto' with "
+                "tuning='cross_validation'.",
+                HeldOutWarning,
+                stacklevel=3,
+            )
 
     def _resolve_noise_bounds(self, y, normalize: bool):
         power = float(np.mean(y**2)) or 1.0

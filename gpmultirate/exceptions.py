@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["IdentifiabilityError", "NumericalWarning"]
+__all__ = ["HeldOutWarning", "IdentifiabilityError", "NumericalWarning"]
 
 
 class IdentifiabilityError(ValueError):
@@ -21,3 +21,19 @@ class IdentifiabilityError(ValueError):
 
 class NumericalWarning(UserWarning):
     """A factorisation needed extra diagonal jitter to succeed."""
+
+
+class HeldOutWarning(UserWarning):
+    """Held-out slow samples are predicted clearly better by another model.
+
+    Emitted after marginal-likelihood tuning when a shorter order, at the same
+    hyperparameters, predicts the held-out blocks of a K-fold
+    cross-validation over time clearly better: the evidence can prefer a
+    worse predictor on measured data.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import HeldOutWarning
+    >>> issubclass(HeldOutWarning, UserWarning)
+    True
+    """

@@ -42,6 +42,7 @@ __all__ = [
     "ParameterSpacePosterior",
     "blas_threads_for",
     "gaussian_samples",
+    "inverse_from_cholesky",
     "log_gaussian",
     "log_marginal_likelihood",
     "log_marginal_likelihood_fisher",
@@ -331,7 +332,7 @@ def log_marginal_likelihood(
     value = log_gaussian(y @ alpha, 2.0 * np.log(np.diag(L)).sum(), y.shape[0]) + rest_value
     if not eval_gradient:
         return value
-    W = _inverse_from_cholesky(L)
+    W = inverse_from_cholesky(L)
     W *= -1.0
     W = linalg.blas.dger(1.0, alpha, alpha, a=W, overwrite_a=True)  # + alpha alpha^T
     grad = 0.5 * contract(W)
@@ -340,7 +341,7 @@ def log_marginal_likelihood(
     return value, grad
 
 
-def _inverse_from_cholesky(L: np.ndarray) -> np.ndarray:
+def inverse_from_cholesky(L: np.ndarray) -> np.ndarray:
     """The symmetric inverse ``(L L^T)^{-1}`` from a lower Cholesky factor (LAPACK potri)."""
     inverse, info = linalg.lapack.dpotri(L, lower=1)
     if info != 0:
@@ -375,7 +376,7 @@ def log_marginal_likelihood_fisher(
     Ky[np.diag_indices_from(Ky)] += noise_level
     L, _ = robust_cholesky(Ky)
     M = y.shape[0]
-    inverse = _inverse_from_cholesky(L)
+    inverse = inverse_from_cholesky(L)
     a = inverse @ y
     value = log_gaussian(y @ a, 2.0 * np.log(np.diag(L)).sum(), M)
     terms = []  # ("dense", dS, V, V^T) or ("factor", U, B, D)
@@ -517,6 +518,9 @@ class LogEvidence:
     (4,)
     """
 
+    #: whether :meth:`with_fisher` is available (Fisher scoring may be used)
+    has_fisher = True
+
     def __init__(self, observation, y, kernel, noise_level: float, noise_bounds):
         self.data, self.z = reduce_observation(observation, y)
         self.kernel = kernel
@@ -584,7 +588,7 @@ class LogEvidence:
 
     def moved_to(self, kernel, noise_level: float) -> "LogEvidence":
         """The same objective, on the same (reduced) data, started at ``kernel`` and ``noise_level``."""
-        moved = LogEvidence.__new__(LogEvidence)
+        moved = type(self).__new__(type(self))
         moved.__dict__.update(self.__dict__)
         moved.kernel, moved.noise_level = kernel, float(noise_level)
         return moved

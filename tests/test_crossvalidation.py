@@ -1,0 +1,197 @@
+"""Cross-validation tuning, order selection and the held-out check after evidence tuning."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.stats import multivariate_normal
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+import gpmultirate as gm
+from gpmultirate import simulation as sim
+from gpmultirate.crossvalidation import (
+    CrossValidation,
+    contiguous_folds,
+    held_out_predictions,
+    log_predictive_likelihood,
+)
+from gpmultirate.kernels import DC, PK
+from gpmultirate.observations import build_experiment
+
+
+def refit_per_fold(Phi, K, noise, y, folds):
+    """The plain K-refit: for each fold, condition on the other samples and score the block."""
+    total, mean = 0.0, np.empty_like(y)
+    for B in folds:
+        T = np.setdiff1d(np.arange(y.shape[0]), B)
+        Phi_T, Phi_B = Phi[T], Phi[B]
+        # the posterior of the coefficients from the training samples only (eq. 15)
+        Ky_T = Phi_T @ K @ Phi_T.T + noise * np.eye(T.shape[0])
+        gain = np.linalg.solve(Ky_T, Phi_T @ K).T
+        coef = gain @ y[T]
+        cov = K - gain @ Phi_T @ K
+        m = Phi_B @ coef
+        c = Phi_B @ cov @ Phi_B.T + noise * np.eye(B.shape[0])
+        total += multivariate_normal(m, c).logpdf(y[B])
+        mean[B] = m
+    return total, mean
+
+
+@pytest.fixture(scope="module")
+def small():
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(120)
+    g = 0.85 ** np.arange(40) * np.cos(0.7 * np.arange(40))
+    y = np.convolve(u, g)[:120][::3] + 0.05 * rng.standard_normal(40)
+    return u, y
+
+
+@pytest.mark.parametrize("order, n_folds", [(40, 5), (20, 3), (120, 7)])
+def test_objective_matches_a_refit_per_fold(small, order, n_folds):
+    u, y = small
+    op = gm.DownsampledConvolution(u, 3, order)
+    kernel = C(0.7) * DC(alpha=0.8, beta=0.6) + PK(alpha=0.9, omega=0.7)
+    folds = contiguous_folds([op.n_outputs], n_folds)
+    K = kernel(np.arange(order, dtype=float)[:, None])
+    expected, expected_mean = refit_per_fold(op.matrix, K, 0.01, y, folds)
+    value = log_predictive_likelihood(op, kernel, 0.01, y, folds)
+    assert value == pytest.approx(expected, rel=1e-9)
+    mean, variance = held_out_predictions(op, kernel, 0.01, y, folds)
+    np.testing.assert_allclose(mean, expected_mean, rtol=1e-8, atol=1e-10)
+    assert np.all(variance > 0.01)
+
+
+def test_gradient_matches_finite_differences(small):
+    u, y = small
+    op = gm.DownsampledConvolution(u, 3, 40)
+    objective = CrossValidation(
+        op, y, C(0.7) * DC(alpha=0.8, beta=0.6) + PK(alpha=0.9, omega=0.7), 0.01,
+        (1e-6, 1.0), n_folds=4,
+    )
+    theta = objective.theta
+    value, grad = objective(theta, eval_gradient=True)
+    step = 1e-6
+    numeric = [
+        (objective(theta + step * e) - objective(theta - step * e)) / (2 * step)
+        for e in np.eye(theta.shape[0])
+    ]
+    np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6)
+
+
+def test_records_are_folded_each_in_time_order():
+    folds = contiguous_folds([10, 4], 3)
+    assert [f.tolist() for f in folds] == [[0, 1, 2, 3, 10, 11], [4, 5, 6, 12], [7, 8, 9, 13]]
+    with pytest.raises(ValueError, match="cv"):
+        contiguous_folds([4, 3], 5)
+    with pytest.raises(ValueError, match="cv"):
+        contiguous_folds([10], 1)
+
+
+def test_several_records_and_inputs_match_a_refit(small):
+    u, y = small
+    rng = np.random.default_rng(5)
+    u2 = rng.standard_normal((90, 2))
+    y2 = rng.standard_normal(30)
+    experiment = build_experiment([np.c_[u, u[::-1]], u2], [y, y2], factor=3, order=25)
+    op = experiment.observation
+    kernel = gm.kernels.PerInputKernel([C(1.0) * DC(alpha=0.8), C(0.5) * DC(alpha=0.7)])
+    folds = contiguous_folds([r.n_outputs for r in op.records], 4)
+    lags = np.arange(25, dtype=float)[:, None]
+    K = np.zeros((50, 50))
+    K[:25, :25] = kernel.kernels[0](lags)
+    K[25:, 25:] = kernel.kernels[1](lags)
+    expected, _ = refit_per_fold(op.matrix, K, 0.1, experiment.y, folds)
+    assert log_predictive_likelihood(op, kernel, 0.1, experiment.y, folds) == pytest.approx(
+        expected, rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def paper():
+    system = sim.paper_system(0.1)
+    u = sim.multisine(300, random_state=1)
+    data = sim.simulate_experiment(system, u, 3, snr_db=30, random_state=3)
+    u_val = sim.multisine(300, random_state=2)
+    return data, u_val, system.simulate(u_val)
+
+
+def test_cross_validation_tuning_maximizes_its_objective(paper):
+    data, u_val, y_val = paper
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=150,
+                                  tuning="cross_validation", cv=4).fit(data.u, data.y_slow)
+    objective = CrossValidation(model.operator_, model.y_slow_, model.kernel_,
+                                model.noise_level_, model.noise_level_bounds_, 4)
+    theta = objective.theta
+    best = objective(theta)
+    assert best == pytest.approx(model.cv_log_predictive_likelihood_, rel=1e-10)
+    rng = np.random.default_rng(0)
+    bounds = objective.bounds
+    for _ in range(5):  # no nearby point is better
+        step = 0.05 * rng.standard_normal(theta.shape[0])
+        assert objective(np.clip(theta + step, bounds[:, 0], bounds[:, 1])) <= best + 1e-6
+    # and it identifies the system as well as the evidence does here
+    evidence = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=150).fit(data.u, data.y_slow)
+    assert model.score(u_val, y_val) > evidence.score(u_val, y_val) - 1.0
+
+
+def test_auto_order_is_the_best_of_a_brute_force_sweep(paper):
+    data, _, _ = paper
+    orders = [20, 40, 80, 160]
+    for criterion in ("evidence", "cross_validation"):
+        model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=orders, tuning=criterion,
+                                      cv=4).fit(data.u, data.y_slow)
+        sweep = []
+        for order in orders:
+            single = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=order,
+                                           tuning=criterion, cv=4)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                single.fit(data.u, data.y_slow)
+            sweep.append(single.log_marginal_likelihood_value_ if criterion == "evidence"
+                         else single.cv_log_predictive_likelihood_)
+        best = orders[int(np.argmax(sweep))]
+        selection = model.order_selection_
+        assert selection["best_order"] == best == model.operator_.order == model.coef_.shape[0]
+        np.testing.assert_allclose(selection["score"], np.array(sweep) / data.y_slow.shape[0],
+                                   rtol=1e-9)
+        assert model.order == orders  # the parameter is left as given
+
+
+def test_auto_order_grid():
+    assert gm.estimators.auto_orders(683) == [21, 42, 85, 170, 341, 683]
+    assert gm.estimators.auto_orders(15) == [15]
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(tuning="loo"), "tuning"), (dict(cv=1), "cv"), (dict(cv=2.5), "cv"),
+    (dict(order="best"), "order"), (dict(order=[]), "order"), (dict(order=[10, 0]), "order"),
+    (dict(order=[10, 1000]), "order"),
+])
+def test_bad_arguments_name_themselves(small, bad, match):
+    u, y = small
+    with pytest.raises(ValueError, match=match):
+        gm.FIRGaussianProcess(factor=3, **bad).fit(u, y)
+
+
+def test_held_out_check_names_a_shorter_order_when_it_predicts_better():
+    # a prior fixed far too long for a fast system in heavy noise: only the noise is
+    # tuned, and the coefficients at long lags fit noise that held-out blocks expose
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, 0.6 ** np.arange(20))[:600] + 0.5 * rng.standard_normal(600)
+    kernel = C(1.0, "fixed") * DC(alpha=0.999, beta=0.5, alpha_bounds="fixed",
+                                  beta_bounds="fixed")
+    with pytest.warns(gm.HeldOutWarning, match=r"order=75 fits [\d.]+ % of them, order=600 -"):
+        model = gm.FIRGaussianProcess(kernel, factor=3).fit(u, y[::3])
+    # the warning's numbers are those of the held-out predictions at the two orders
+    folds = contiguous_folds([200], 5)
+    for order, sign in ((600, -1), (75, 1)):
+        op = gm.DownsampledConvolution(u, 3, order)
+        mean, _ = held_out_predictions(op, model.kernel_, model.noise_level_, y[::3], folds)
+        assert np.sign(gm.fit_percent(y[::3], mean)) == sign
+
+
+def test_held_out_check_is_silent_on_an_fir_system(paper):
+    data, _, _ = paper
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gm.HeldOutWarning)
+        gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(data.u, data.y_slow)
