@@ -68,7 +68,8 @@ from gpmultirate.kernels import (
 from gpmultirate.validation import check_positive
 
 __all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "SEARCH_THRESHOLD", "Resonance",
-           "ResonanceSearch", "damping_ratio", "resonance_scan", "search_resonances"]
+           "ResonanceSearch", "damping_ratio", "resonance_scan", "search_resonances",
+           "slowest_decay"]
 
 #: log evidence gain (nats) a PK term must bring to be kept
 EVIDENCE_THRESHOLD = 12.0
@@ -81,6 +82,24 @@ MAX_DAMPING = 0.5
 # deviations relative to the data's scale)
 _SCAN_DECAYS = (2.0, 6.0, 20.0, 60.0)
 _SCAN_AMPLITUDES = np.geomspace(1e-4, 1e2, 31)
+
+
+def slowest_decay(order: int) -> float:
+    """The largest ``alpha`` of a resonance the search adds: it must decay within the order.
+
+    An FIR model of order ``P`` says the response has died out by lag ``P``;
+    a PK term whose envelope ``alpha^(t/2)`` has not (``alpha`` near 1) is no
+    longer an impulse response but a persistent oscillation, which on
+    measured data fits disturbances within the record and fails beyond it.
+    The envelope must fall at least by ``e^-2`` (the slowest decay the scan
+    tries) by lag ``P``: ``alpha <= exp(-4 / P)``.
+
+    Examples
+    --------
+    >>> round(slowest_decay(600), 5)
+    0.99336
+    """
+    return float(np.exp(-2.0 * _SCAN_DECAYS[0] / order))
 
 
 @dataclass(frozen=True)
@@ -371,6 +390,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
         _, k, alpha, omega, sigma = best
         trial = model.with_term(k, PK(
             alpha=alpha, omega=omega, sigma1=sigma, sigma2=sigma,
+            alpha_bounds=(1e-4, slowest_decay(evidence.data.order)),
             sigma1_bounds=(sigma * 1e-4, sigma * 1e4), sigma2_bounds=(sigma * 1e-4, sigma * 1e4),
         ))
         gain = trial.value - model.value
