@@ -71,6 +71,19 @@ def _int_at_least(low: int):
     return parse
 
 
+def _order_or_auto(text: str):
+    if text == "auto":
+        return "auto"
+    try:
+        return _int_at_least(1)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer >= 1 or 'auto', got {text!r}") from None
+
+
+_order_or_auto.__name__ = "order"
+
+
 def _nonzero_int(text: str) -> int:
     try:
         value = int(text)
@@ -157,8 +170,16 @@ def _add_fit_parser(commands) -> None:
     fit.add_argument("--sample-time", type=_positive_float, default=1.0, metavar="T",
                      help="fast sample time in seconds; frequencies are in Hz (default: 1, "
                           "cycles per sample)")
-    fit.add_argument("--order", type=_int_at_least(1), default=None, metavar="P",
-                     help="FIR order in 1..N, N the number of rows (default: N)")
+    fit.add_argument("--order", type=_order_or_auto, default=None, metavar="P",
+                     help="FIR order in 1..N, N the number of rows, or 'auto': the best of "
+                          "N, N/2, ..., N/32 by the tuning criterion (default: N)")
+    fit.add_argument("--tuning", choices=("evidence", "cross_validation"), default="evidence",
+                     help="criterion of the hyperparameters (and of --order auto): the "
+                          "marginal likelihood, or the log density of held-out blocks of slow "
+                          "samples (default: evidence)")
+    fit.add_argument("--cv", type=_int_at_least(2), default=5, metavar="K",
+                     help="folds of cross-validation: contiguous blocks of slow samples "
+                          "(default: 5)")
     fit.add_argument("--kernel", choices=FIT_KERNELS, default="dc",
                      help="prior of the impulse response: dc, tc or ss with a data-scaled "
                           "amplitude, or auto (resonances found from the data) "
@@ -801,6 +822,12 @@ def _summary_markdown(summary: dict) -> str:
     elif "resonances" in summary:
         lines += ["", "## Resonances found", "", "```",
                   json.dumps(summary["resonances"], indent=1), "```"]
+    selection = summary.get("order_selection")
+    if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
+        lines += ["", f"## Order selection ({selection.get('criterion')} per slow sample)", "",
+                  "| order | score |", "|---|---|"]
+        lines += [f"| {o} | {_cell_text(v)} |"
+                  for o, v in zip(selection["orders"], selection.get("score_per_sample", []))]
     if "state_space" in summary:
         lines += ["", "## State-space model", "",
                   f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
@@ -809,6 +836,8 @@ def _summary_markdown(summary: dict) -> str:
         lines += ["", "## Validation", "",
                   f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
                   f"({val['n_samples']} fast samples)"]
+        if "fit_percent" in val:
+            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
     if summary["notes"]:
         lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
     return "\n".join(lines) + "\n"
@@ -861,7 +890,7 @@ def _write_files(parser, out: Path, files: dict, force: bool, stale=()) -> None:
 def _fit(parser, args) -> int:
     import warnings
 
-    from gpmultirate import FIRGaussianProcess, save_model
+    from gpmultirate import FIRGaussianProcess, fit_percent, save_model
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
@@ -870,7 +899,7 @@ def _fit(parser, args) -> int:
     started = time.perf_counter()
     u, (y,) = _read_inputs(parser, path, inputs, [output])
     n = y.shape[0]
-    if args.order is not None and args.order > n:
+    if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")
     indices, values, placement, (factor, offset) = _slow_samples(parser, args, path, y)
@@ -887,7 +916,8 @@ def _fit(parser, args) -> int:
 
     notes = []
     params = {"kernel": _fit_kernel(args.kernel), "order": args.order,
-              "initial_conditions": args.initial_conditions, "sample_time": args.sample_time}
+              "initial_conditions": args.initial_conditions, "sample_time": args.sample_time,
+              "tuning": args.tuning, "cv": args.cv}
     y_slow = placement.pop("y_slow")
     if "factor" in placement:
         params.update(placement)
@@ -920,6 +950,7 @@ def _fit(parser, args) -> int:
                   "initial_conditions": args.initial_conditions,
                   "kernel_option": args.kernel, "kernel": str(model.kernel_),
                   "hyperparameters": _hyperparameters(model.kernel_),
+                  "tuning": args.tuning,
                   "log_evidence": float(model.log_marginal_likelihood_value_),
                   "noise_level": float(model.noise_level_)},
         "notes": notes,
@@ -927,6 +958,15 @@ def _fit(parser, args) -> int:
     }
     if hasattr(model, "resonances_"):
         summary["resonances"] = _plain(model.resonances_)
+    if hasattr(model, "cv_log_predictive_likelihood_"):
+        summary["model"]["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
+    if hasattr(model, "order_selection_"):
+        selection = model.order_selection_
+        summary["order_selection"] = {
+            "criterion": selection["criterion"],
+            "orders": [int(o) for o in selection["order"]],
+            "score_per_sample": [float(v) for v in selection["score"]],
+        }
     files = {}
     buffer = io.BytesIO()
     try:
@@ -950,8 +990,10 @@ def _fit(parser, args) -> int:
         files["state_space.npz"] = buffer.getvalue()
         summary["state_space"] = {"order": int(np.asarray(system.A).shape[0])}
     if u_val is not None:
+        y_model = model.predict(u_val)
         summary["validation"] = {"file": str(args.validate), "n_samples": int(y_val.shape[0]),
-                                 "gof_percent": float(model.score(u_val, y_val))}
+                                 "gof_percent": float(model.score(u_val, y_val)),
+                                 "fit_percent": float(fit_percent(y_val, y_model))}
     files.update(_fit_figures(model, u, indices, values, inputs))
     summary_json = json.dumps(_plain(summary), indent=2) + "\n"
     files["summary.json"] = summary_json.encode("utf-8")

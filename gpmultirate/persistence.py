@@ -123,6 +123,7 @@ _ARRAYS = {
 # the plain-data part of scipy's L-BFGS-B result (hess_inv is an operator object)
 _RESONANCE_FIELDS = ("frequency_hz", "damping", "evidence_gain", "input")
 _OPTIMIZER_FIELDS = ("x", "fun", "jac", "nit", "nfev", "njev", "status", "success", "message")
+_SELECTION_FIELDS = ("order", "score", "criterion", "best_order")
 _ARRAY_DTYPES = frozenset(
     ["bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64",
      "float16", "float32", "float64"]
@@ -239,6 +240,14 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
             ),
             optimizer_result_=None if result is None else _encode_optimizer_result(result),
         )
+        if hasattr(model, "cv_log_predictive_likelihood_"):
+            fitted["cv_log_predictive_likelihood_"] = _encode(
+                model.cv_log_predictive_likelihood_, "cv_log_predictive_likelihood_")
+        if hasattr(model, "order_selection_"):
+            fitted["order_selection_"] = {
+                key: _encode(model.order_selection_[key], "order_selection_")
+                for key in _SELECTION_FIELDS
+            }
         if hasattr(model, "resonances_"):
             fitted["resonances_"] = [
                 {key: _encode(getattr(r, key), "resonances_") for key in _RESONANCE_FIELDS}
@@ -613,7 +622,7 @@ def _load_records(header: dict, arrays: dict, estimator: type):
     arguments = dict(
         params, kernel=kernel_from_description(fitted["kernel_"]),
         noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
-        **_stored_noise_bounds(fitted),
+        order=order, **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
     if model.operator_.order != order:
@@ -628,6 +637,7 @@ def _load_records(header: dict, arrays: dict, estimator: type):
     model.set_params(**{"normalize": True, **params})
     _restore_optimizer_result(model, fitted)
     _restore_resonances(model, fitted)
+    _restore_tuning_results(model, fitted)
     return model
 
 
@@ -651,6 +661,18 @@ def _restore_resonances(model, fitted: dict) -> None:
     ]
 
 
+def _restore_tuning_results(model, fitted: dict) -> None:
+    """``cv_log_predictive_likelihood_`` and ``order_selection_``, where the fit made them."""
+    if "cv_log_predictive_likelihood_" in fitted:
+        model.cv_log_predictive_likelihood_ = _number(fitted, "cv_log_predictive_likelihood_")
+    selection = fitted.get("order_selection_")
+    if selection is None:
+        return
+    if not isinstance(selection, dict) or set(selection) != set(_SELECTION_FIELDS):
+        raise ModelFileError(f"invalid order_selection_ in the model file: {selection!r}")
+    model.order_selection_ = {key: _decode(value) for key, value in selection.items()}
+
+
 def _restore_optimizer_result(model, fitted: dict) -> None:
     result = fitted.get("optimizer_result_")
     if result is not None:
@@ -672,6 +694,8 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
         optimizer=None,
         # the stored kernel and noise level are in the data's units
         normalize=False,
+        # the order that was fitted (the parameter may be "auto" or a list)
+        order=_integer(fitted, "order"),
         **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
@@ -683,6 +707,7 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
     model.set_params(**{"normalize": True, **params})
     _restore_optimizer_result(model, fitted)
     _restore_resonances(model, fitted)
+    _restore_tuning_results(model, fitted)
     return model
 
 

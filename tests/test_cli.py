@@ -351,6 +351,9 @@ def test_fit_refuses_to_overwrite_and_force_replaces(tmp_path, capsys):
     (["--kernel", "pk"], "--kernel"),
     (["--order", "0"], "--order"),
     (["--order", "91"], "--order"),
+    (["--order", "best"], "--order"),
+    (["--tuning", "loo"], "--tuning"),
+    (["--cv", "1"], "--cv"),
     (["--factor", "0"], "--factor"),
     (["--factor", "3", "--offset", "3"], "--offset"),
     (["--sample-time", "-1"], "--sample-time"),
@@ -487,3 +490,32 @@ def test_fit_out_must_be_a_directory(tmp_path, capsys):
     assert info.value.code == 2
     (line,) = capsys.readouterr().err.splitlines()
     assert "--out" in line and "not a directory" in line
+
+
+def test_fit_auto_order_by_cross_validation(tmp_path):
+    import json
+
+    import gpmultirate as gm
+
+    u, y = _system(4)
+    data = tmp_path / "data.npz"
+    np.savez(data, u=u[:, 0], y=y)
+    u_val, y_val = _system(5)
+    val = tmp_path / "val.npz"
+    np.savez(val, u=u_val[:, 0], y=y_val)
+    out = tmp_path / "fit"
+    assert main(["fit", str(data), "--input", "u", "--output", "y", "--factor", "3",
+                 "--order", "auto", "--tuning", "cross_validation", "--cv", "4",
+                 "--validate", str(val), "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    model = gm.load_model(out / "model.npz")
+    selection = summary["order_selection"]
+    assert selection["criterion"] == "cv_log_predictive"
+    assert selection["orders"] == gm.estimators.auto_orders(N_FAST)
+    best = selection["orders"][int(np.argmax(selection["score_per_sample"]))]
+    assert summary["model"]["order"] == best == model.coef_.shape[0]
+    assert summary["model"]["tuning"] == "cross_validation"
+    prediction = np.convolve(u_val[:, 0], model.coef_)[:N_FAST]
+    fit = 100 * (1 - np.linalg.norm(y_val - prediction) / np.linalg.norm(y_val - y_val.mean()))
+    assert summary["validation"]["fit_percent"] == pytest.approx(fit, rel=1e-9)
+    assert "Order selection" in (out / "summary.md").read_text()

@@ -195,3 +195,19 @@ def test_held_out_check_is_silent_on_an_fir_system(paper):
     with warnings.catch_warnings():
         warnings.simplefilter("error", gm.HeldOutWarning)
         gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(data.u, data.y_slow)
+
+
+def test_selected_model_round_trips_through_a_file(paper, tmp_path):
+    data, u_val, _ = paper
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=[40, 80],
+                                  tuning="cross_validation", cv=4).fit(data.u, data.y_slow)
+    gm.save_model(model, tmp_path / "m.npz")
+    loaded = gm.load_model(tmp_path / "m.npz")
+    assert loaded.get_params()["order"] == [40, 80]
+    assert loaded.get_params()["tuning"] == "cross_validation"
+    np.testing.assert_array_equal(loaded.predict(u_val), model.predict(u_val))
+    assert loaded.cv_log_predictive_likelihood_ == model.cv_log_predictive_likelihood_
+    for key in ("order", "score"):
+        np.testing.assert_array_equal(loaded.order_selection_[key], model.order_selection_[key])
+    assert loaded.order_selection_["best_order"] == model.order_selection_["best_order"]
+    assert loaded.order_selection_["criterion"] == "cv_log_predictive"
