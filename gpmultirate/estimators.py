@@ -47,6 +47,7 @@ from gpmultirate.kernels import (
 from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
+from gpmultirate.resonances import slowest_decay
 from gpmultirate.responses import (
     FrequencyResponse,
     check_frequencies,
@@ -276,7 +277,9 @@ def _initial_kernel(kernel, experiment, normalize: bool = True):
     their bounds are multiplied by that input's unit scale
     (:func:`~gpmultirate.kernels.rescaled`).  The default kernel is
     ``ConstantKernel(c) * DC()`` with ``c`` that scale, bounds ``c * 1e-8 ..
-    c * 1e8``.
+    c * 1e8``, and ``alpha`` at most
+    :func:`~gpmultirate.resonances.slowest_decay` of the order: its envelope
+    falls at least by ``e^-2`` by lag ``P``.
     """
     n = experiment.n_inputs
     scales = _unit_scales(experiment)
@@ -286,7 +289,13 @@ def _initial_kernel(kernel, experiment, normalize: bool = True):
             return kernel
         kernels = [rescaled(k, c) for k, c in zip(input_kernels(kernel), scales)]
         return like_inputs(kernels, kernel)
-    kernels = [ConstantKernel(c, (c * 1e-8, c * 1e8)) * DC() for c in scales]
+    # the FIR model says the response has died out by lag P: the default prior agrees
+    slowest = slowest_decay(experiment.observation.order)
+    kernels = [
+        ConstantKernel(c, (c * 1e-8, c * 1e8))
+        * DC(alpha=min(0.9, slowest), alpha_bounds=(1e-4, slowest))
+        for c in scales
+    ]
     return kernels[0] if n == 1 else PerInputKernel(kernels)
 
 
@@ -370,7 +379,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Prior covariance over lag; a list gives one kernel per input, and
         one kernel for several inputs is copied for each (each copy tuned
         separately).  Default ``ConstantKernel(c) * DC(alpha=0.9, beta=0.9)``
-        per input, with ``c`` and its bounds set from the data.  ``"auto"``:
+        per input, with ``c`` and its bounds set from the data, and ``alpha``
+        bounded so that the prior's envelope ``alpha^(t/2)`` falls at least
+        by ``e^-2`` by lag ``P`` (the FIR model's own assumption: the
+        response has died out by then).  ``"auto"``:
         that default plus up to ``max_resonances`` PK terms whose frequencies
         are found from the data (see :mod:`gpmultirate.resonances`).
     factor : int, default=1
