@@ -337,7 +337,7 @@ def correlation(distance, beta: float, eval_gradient: bool = False):
 
     Examples
     --------
-    >>> correlation(np.array([0.0, 1.0, 2.0, 0.5]), -0.5)
+    >>> correlation(np.array([0.0, 1.0, 2.0, 0.5]), -0.5).round(12)
     array([ 1.  , -0.5 ,  0.25,  0.  ])
     """
     magnitude = abs(beta)

@@ -157,7 +157,8 @@ class ArtanhTransform(ThetaTransform):
         return float(out) if out.ndim == 0 else out
 
     def derivative(self, value):
-        return 1.0 - np.square(value)
+        out = 1.0 - np.square(value)
+        return float(out) if np.ndim(out) == 0 else out
 
     def check_bounds(self, bounds, name="bounds"):
         array = _as_bounds(bounds, name)
