@@ -608,7 +608,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         normalize = bool(self.normalize) and self.optimizer is not None
         kernel = _initial_kernel(None if auto else self.kernel, experiment, normalize)
         # refuse now what would be killed for lack of memory halfway
-        check_fit_memory(operator.n_outputs, operator.n_coefficients, kernel.theta.shape[0] + 1)
+        n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
+        check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1)
         noise_bounds = self._resolve_noise_bounds(y, normalize)
         if normalize:
             noise *= float(np.mean(y**2)) or 1.0  # given in normalized units
@@ -759,7 +760,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Parameters
         ----------
         theta : array-like, optional
-            Log hyperparameters: ``kernel_.theta`` followed by
+            Hyperparameters in tuning coordinates: ``kernel_.theta`` (the
+            log of each free value, ``artanh`` of DC's ``beta``) followed by
             ``log(noise_level)`` unless the noise level is fixed.  By default
             the fitted value is returned.
         eval_gradient : bool, default=False

@@ -17,7 +17,8 @@ Every route evaluates the Gaussian log density through one function,
 :func:`log_gaussian` (eq. 19, corrected); the structured products come from
 the kernel's terms (:func:`gpmultirate.kernels.observe`) and the
 observation's reduction, never from type tests here.  :class:`LogEvidence`
-packages the evidence as a function of the log hyperparameters for tuning.
+packages the evidence as a function of ``theta`` (the hyperparameters in their
+tuning coordinates: the log of most, ``artanh`` of DC's ``beta``) for tuning.
 """
 
 from __future__ import annotations
@@ -314,7 +315,7 @@ def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCo
 def log_marginal_likelihood(
     operator, kernel, noise_level: float, y: np.ndarray, eval_gradient: bool, noise_free: bool
 ):
-    """Log evidence of the slow data and its gradient with respect to log hyperparameters.
+    """Log evidence of the slow data and its gradient with respect to ``theta``.
 
     The gradient has the kernel's ``theta`` first and, when ``noise_free`` is
     true, the derivative with respect to ``log(noise_level)`` last.
@@ -356,7 +357,7 @@ def inverse_from_cholesky(L: np.ndarray) -> np.ndarray:
 def log_marginal_likelihood_fisher(
     operator, kernel, noise_level: float, y: np.ndarray, noise_free: bool
 ):
-    """Log evidence, its gradient and its Fisher information in log hyperparameters.
+    """Log evidence, its gradient and its Fisher information in ``theta``.
 
     With ``a = Ky^{-1} y`` and ``V_j = Ky^{-1} dKy_j`` (``dKy_j`` the
     derivative of the data covariance with respect to ``theta_j``):
@@ -478,7 +479,7 @@ def resonance_grid_log_marginal_likelihood(
 
 
 class LogEvidence:
-    """The log marginal likelihood of the data as a function of the log hyperparameters.
+    """The log marginal likelihood of the data as a function of ``theta``.
 
     The objective that tuning maximizes: ``theta`` is the kernel's ``theta``
     followed, when the noise level is tuned, by ``log(noise_level)``.  Long
@@ -542,7 +543,7 @@ class LogEvidence:
 
     @property
     def bounds(self) -> np.ndarray:
-        """Log bounds of ``theta``, of shape ``(n, 2)``."""
+        """Bounds of ``theta`` (the kernel's ``bounds``, log noise bounds), of shape ``(n, 2)``."""
         bounds = self.kernel.bounds.reshape(-1, 2)
         if self.noise_is_free:
             bounds = np.vstack([bounds, np.log(self.noise_bounds)])
@@ -624,7 +625,7 @@ class LogEvidence:
     def along(self, theta, index: int, values):
         """The log evidence for each value of ``theta[index]``, or None.
 
-        ``values`` are hyperparameter values (not their logs).  None unless
+        ``values`` are hyperparameter values (not their ``theta`` coordinates).  None unless
         the entry belongs to a low-rank summand of the kernel.
         """
         role = self.roles()[index]

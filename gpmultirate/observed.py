@@ -72,7 +72,7 @@ class ObservedKernel(GenericKernelMixin, Kernel):
 
     @property
     def theta(self) -> np.ndarray:
-        """Log of the free hyperparameters of the inner kernel."""
+        """The free hyperparameters of the inner kernel in their tuning coordinates (``theta``)."""
         return self.kernel.theta
 
     @theta.setter
@@ -81,7 +81,7 @@ class ObservedKernel(GenericKernelMixin, Kernel):
 
     @property
     def bounds(self) -> np.ndarray:
-        """Log bounds of the free hyperparameters of the inner kernel."""
+        """The bounds of the inner kernel's ``theta``."""
         return self.kernel.bounds
 
     def __eq__(self, other) -> bool:

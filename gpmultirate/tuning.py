@@ -16,10 +16,12 @@ user's initial values is fragile.  The strategy is:
    ``omega`` of a :class:`~gpmultirate.kernels.PK` term), evaluate the
    evidence on a grid around its initial value, keep the best and restrict
    the frequency to a window around it;
-3. maximize over all free hyperparameters, in decay-rate coordinates, by
-   Fisher scoring up to ``FISHER_MAX_OUTPUTS`` (reduced) slow samples and by
-   L-BFGS-B with analytic gradients above, from that point and from
-   optional random restarts.
+3. maximize over all free hyperparameters, in decay-rate coordinates for
+   the decays (role ``"decay"``) and in ``theta`` for the rest (the log of
+   a positive value, ``artanh`` of a correlation), by Fisher scoring up to
+   ``FISHER_MAX_OUTPUTS`` (reduced) slow samples and by L-BFGS-B with
+   analytic gradients above, from that point and from optional random
+   restarts.
 """
 
 from __future__ import annotations
@@ -63,7 +65,8 @@ def maximize(evidence, n_restarts: int = 0, random_state=None):
     evidence : LogEvidence
         The objective, with its initial point, bounds and roles.
     n_restarts : int, default=0
-        Extra runs from points drawn uniformly in the log bounds.
+        Extra runs from points drawn uniformly within the bounds of ``theta``
+        (log bounds of positive values, ``artanh`` bounds of correlations).
     random_state : int, RandomState, Generator or None
         Seed of the restarts.
 
@@ -294,11 +297,13 @@ def _clip(x, bounds):
 class DecayRateTransform:
     """Optimizer coordinates in which decay parameters are well scaled.
 
-    A decay or correlation parameter ``a`` in (0, 1] (``alpha``, ``beta``)
-    enters ``theta`` as ``log a``, which is tiny and badly scaled for the
-    values near 1 that impulse responses need.  The optimizer works on
-    ``z = log(-log a)``, the log of the decay rate per sample, instead;
-    the other coordinates are unchanged.
+    A decay parameter ``a`` in (0, 1] (``alpha``) enters ``theta`` as
+    ``log a``, which is tiny and badly scaled for the values near 1 that
+    impulse responses need.  The optimizer works on ``z = log(-log a)``, the
+    log of the decay rate per sample, instead; the other coordinates are
+    unchanged.  A correlation in (-1, 1) (DC's ``beta``, role
+    ``"correlation"``) needs no such change: its ``theta = artanh(beta)``
+    is already close to ``-log(1 - |beta|) / 2`` near ``+-1``.
 
     Parameters
     ----------
@@ -340,7 +345,8 @@ class DecayRateTransform:
 def grid_search_resonances(evidence, theta, bounds, indices):
     """Coordinate-wise grid search of the resonance frequencies.
 
-    For each position in ``indices``, the log evidence is evaluated on a
+    For each position in ``indices`` (frequencies, whose ``theta`` is the
+    log of the value), the log evidence is evaluated on a
     geometric grid of ``RESONANCE_POINTS`` values within a factor
     ``RESONANCE_SPAN`` of the current one, all at once where
     ``evidence.along`` can (a low-rank summand, by rank updates of one
@@ -348,10 +354,11 @@ def grid_search_resonances(evidence, theta, bounds, indices):
     """
     theta = theta.copy()
     offsets = np.log(np.geomspace(1.0 / RESONANCE_SPAN, RESONANCE_SPAN, RESONANCE_POINTS))
+    roles = evidence.roles()
     for i in indices:
         candidates = np.unique(np.clip(theta[i] + offsets, bounds[i, 0], bounds[i, 1]))
         try:
-            values = evidence.along(theta, i, np.exp(candidates))
+            values = evidence.along(theta, i, roles[i].transform.from_theta(candidates))
         except ValueError:
             values = None
         if values is None:
@@ -612,10 +619,14 @@ def _damped_solve(F, scale, damping, g):
     """Solve ``(F + damping diag(scale)) x = g`` for a positive semi-definite ``F``.
 
     In coordinates scaled by ``sqrt(scale)`` the matrix is decomposed; its
-    eigenvalues are floored at ``1e-10`` of the largest, so directions the
-    data carry no information on get a bounded step instead of a warning.
+    eigenvalues are floored at ``1e-10`` of the largest in magnitude (``1``
+    when all vanish), so directions the data carry no information on get a
+    bounded step instead of a warning, also when rounding in a nearly
+    singular data covariance leaves ``F`` with no positive eigenvalue.
     """
     root = np.sqrt(scale)
     values, vectors = linalg.eigh(F / np.outer(root, root), check_finite=False)
-    values = np.maximum(values, 1e-10 * max(values.max(), 1e-300)) + damping
+    top = float(np.abs(values).max()) if values.size else 0.0
+    floor = 1e-10 * top if np.isfinite(top) and top > 0.0 else 1.0
+    values = np.maximum(values, floor) + damping
     return (vectors @ ((vectors.T @ (g / root)) / values)) / root

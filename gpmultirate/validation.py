@@ -57,39 +57,35 @@ def check_rng(random_state, name: str = "random_state"):
 def check_kernel(kernel, name: str = "kernel"):
     """Check a scikit-learn kernel's hyperparameter values and bounds.
 
-    Every value must be real, finite and positive, every bound of a free
-    hyperparameter a pair ``0 < low <= high``; lag kernels also check their
-    own ranges (``alpha <= 1`` ...) on a test evaluation.
+    Each hyperparameter is checked against its ``theta`` coordinate
+    (:func:`gpmultirate.kernels.transforms.transform_of`): a value tuned in
+    ``log`` must be real, finite and positive and its bounds a pair
+    ``0 < low <= high``; a correlation tuned in ``artanh`` (DC's ``beta``)
+    must lie in ``(-1, 1]`` and its bounds within it.  Lag kernels also
+    check their own ranges (``alpha <= 1`` ...) on a test evaluation.
     """
     from sklearn.gaussian_process.kernels import Kernel
+
+    from gpmultirate.kernels.transforms import transform_of
 
     if not isinstance(kernel, Kernel):
         raise ValueError(f"{name} must be a scikit-learn Kernel over lags; got {type(kernel).__name__}")
     params = kernel.get_params()
     for h in kernel.hyperparameters:
         value = params.get(h.name)
+        transform = transform_of(kernel, h.name)
         try:
-            values = as_real_array(value, f"{name} hyperparameter {h.name}")
+            as_real_array(value, f"{name} hyperparameter {h.name}")
+            transform.check_value(value, f"{name} hyperparameter {h.name}")
         except ValueError as exc:
-            raise ValueError(f"{name} hyperparameter {h.name}: {exc}") from None
-        if not (np.all(np.isfinite(values)) and np.all(values > 0)):
-            raise ValueError(f"{name} hyperparameter {h.name} must be finite and positive; got {value!r}")
+            message = str(exc)
+            if not message.startswith(name):
+                message = f"{name} hyperparameter {h.name}: {message}"
+            raise ValueError(message) from None
         if h.fixed:
             continue
         bounds_name = f"{h.name.rpartition('__')[2]}_bounds"
-        try:
-            bounds = np.asarray(h.bounds, dtype=float).reshape(-1, 2)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"{name} {bounds_name} must be a pair (low, high) or 'fixed'; got {h.bounds!r}"
-            ) from None
-        if not (
-            np.all(np.isfinite(bounds)) and np.all(bounds[:, 0] > 0)
-            and np.all(bounds[:, 0] <= bounds[:, 1])
-        ):
-            raise ValueError(
-                f"{name} {bounds_name} must satisfy 0 < low <= high (finite); got {h.bounds!r}"
-            )
+        transform.check_bounds(h.bounds, f"{name} {bounds_name}")
     try:
         kernel(np.zeros((1, 1)))
     except ValueError as exc:

@@ -39,6 +39,7 @@ def observed_without(kernel, term, op):
 
 KERNELS = {
     "C*DC": C(2.0) * DC(alpha=0.8, beta=0.9),
+    "C*DC-negative-beta+PK": C(2.0) * DC(alpha=0.8, beta=-0.7) + PK(alpha=0.9, omega=2.8),
     "DC+PK": DC(alpha=0.8, beta=0.7) + PK(alpha=0.9, omega=0.7, sigma1=0.5, sigma2=1.2),
     "C*TC+C": C(0.5) * TC(alpha=0.7) + C(1.3),
     "SS*Cfixed+RBF": SS(alpha=0.8) * C(0.3, "fixed") + RBF(3.0),

@@ -469,7 +469,7 @@ class Bad:
 
 HYPERPARAMETERS = {
     TC: {"alpha": (0.0, 1.0)},
-    DC: {"alpha": (0.0, 1.0), "beta": (0.0, 1.0)},
+    DC: {"alpha": (0.0, 1.0), "beta": (-1.0, 1.0)},
     SS: {"alpha": (0.0, 1.0)},
     PK: {"alpha": (0.0, 1.0), "omega": (0.0, 2 * math.pi), "sigma1": (0.0, INF),
          "sigma2": (0.0, INF)},
@@ -515,18 +515,21 @@ def bad_kernels(*, amplitudes: bool = True):
 
 
 BAD_BOUNDS = ("abc", (-1.0, 2.0), (0.0, 1.0), (2.0, 1.0), (NAN, 1.0), (1e-3,), 5.0, {})
+# DC's beta is a correlation: (0, 1) is valid for it, the bounds must lie in (-1, 1]
+BAD_CORRELATION_BOUNDS = ("abc", (-1.0, 0.5), (-2.0, 0.5), (0.5, 1.5), (0.6, 0.5), (NAN, 0.5),
+                          (1e-3,), 5.0, {})
 
 
 @st.composite
 def kernels_with_bad_bounds(draw):
     """Kernels whose tuning bounds are malformed (only used when tuning)."""
-    bounds = draw(st.sampled_from(BAD_BOUNDS))
-    kernel = draw(st.sampled_from([
-        lambda b: TC(alpha_bounds=b),
-        lambda b: C(1.0) * DC(beta_bounds=b),
-        lambda b: C(1.0, constant_value_bounds=b) * SS(),
-        lambda b: PK(omega_bounds=b),
-    ]))(bounds)
+    kernel, choices = draw(st.sampled_from([
+        (lambda b: TC(alpha_bounds=b), BAD_BOUNDS),
+        (lambda b: C(1.0) * DC(beta_bounds=b), BAD_CORRELATION_BOUNDS),
+        (lambda b: C(1.0, constant_value_bounds=b) * SS(), BAD_BOUNDS),
+        (lambda b: PK(omega_bounds=b), BAD_BOUNDS),
+    ]))
+    kernel = kernel(draw(st.sampled_from(choices)))
     return Bad(kernel, ("bounds", "alpha_bounds", "beta_bounds", "omega_bounds",
                         "constant_value_bounds", "kernel"))
 
@@ -668,7 +671,7 @@ def fitted_model_slots(model: Callable, name: str) -> list[Slot]:
     ]
 
 
-N_THETA = 4  # log of the constant, alpha, beta of C * DC, and of the noise level
+N_THETA = 4  # log of the constant and alpha, artanh(beta) of C * DC, log of the noise level
 
 
 def bad_thetas():

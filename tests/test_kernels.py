@@ -262,27 +262,35 @@ def test_gradient_on_integer_grid_matches_finite_differences(kernel):
     np.testing.assert_allclose(dK, numeric, rtol=1e-5, atol=1e-7 * np.abs(numeric).max())
 
 
+# theta = log(value) except DC's correlation, theta = artanh(beta)
+CORRELATIONS = {("DC", "beta")}
+
+
 @pytest.mark.parametrize("kernel", kernel_params(BASIC))
-def test_theta_is_log_of_hyperparameters(kernel):
+def test_theta_is_log_or_artanh_of_hyperparameters(kernel):
     kernel = clone(kernel)
     init_args = [p for p in signature(type(kernel).__init__).parameters if p != "self"]
     bound_names = {a[: -len("_bounds")] for a in init_args if a.endswith("_bounds")}
     assert {h.name for h in kernel.hyperparameters} == bound_names
+
+    def coordinate(name):
+        return np.arctanh if (type(kernel).__name__, name) in CORRELATIONS else np.log
+
     theta = kernel.theta
     for i, h in enumerate(kernel.hyperparameters):
-        assert theta[i] == np.log(getattr(kernel, h.name))
+        assert theta[i] == coordinate(h.name)(getattr(kernel, h.name))
         assert h.value_type == "numeric"
         np.testing.assert_array_equal(
-            kernel.bounds[i], np.log(getattr(kernel, h.name + "_bounds"))
+            kernel.bounds[i], coordinate(h.name)(getattr(kernel, h.name + "_bounds"))
         )
     # the theta setter writes the values back, and attributes feed theta
     for i, h in enumerate(kernel.hyperparameters):
         theta = kernel.theta
-        theta[i] = np.log(0.42)
+        theta[i] = coordinate(h.name)(0.42)
         kernel.theta = theta
         assert getattr(kernel, h.name) == pytest.approx(0.42)
         setattr(kernel, h.name, 0.43)
-        assert kernel.theta[i] == pytest.approx(np.log(0.43))
+        assert kernel.theta[i] == pytest.approx(coordinate(h.name)(0.43))
 
 
 def test_hyperparameter_names_and_default_bounds():
@@ -291,7 +299,7 @@ def test_hyperparameter_names_and_default_bounds():
 
     assert listing(TC()) == [("alpha", (1e-4, 1.0))]
     assert listing(SS()) == [("alpha", (1e-4, 1.0))]
-    assert listing(DC()) == [("alpha", (1e-4, 1.0)), ("beta", (1e-4, 1.0))]
+    assert listing(DC()) == [("alpha", (1e-4, 1.0)), ("beta", (-0.9999, 0.9999))]
     assert listing(PK()) == [
         ("alpha", (1e-4, 1.0)),
         ("omega", (1e-3, np.pi)),
@@ -308,9 +316,9 @@ def test_hyperparameter_names_and_default_bounds():
         "k2__sigma1",
         "k2__sigma2",
     ]
-    np.testing.assert_allclose(
-        composite.theta, np.log([2.0, 0.9, 0.9, 0.9, 0.5, 1.0, 1.0]), rtol=1e-15
-    )
+    expected = np.log([2.0, 0.9, 0.9, 0.9, 0.5, 1.0, 1.0])
+    expected[2] = np.arctanh(0.9)  # DC's beta
+    np.testing.assert_allclose(composite.theta, expected, rtol=1e-15)
 
 
 @pytest.mark.parametrize("kernel", kernel_params(BASIC))
@@ -435,11 +443,15 @@ def test_get_params_and_set_params_consistent_with_theta(kernel):
     kernel = clone(kernel)
     params = kernel.get_params()
     free = [h for h in kernel.hyperparameters if not h.fixed]
+
+    def value(h, theta):  # every beta here is DC's, whose theta is artanh(beta)
+        return np.tanh(theta) if h.name.endswith("beta") else np.exp(theta)
+
     for i, h in enumerate(free):
-        assert np.exp(kernel.theta[i]) == pytest.approx(params[h.name], rel=1e-14)
+        assert value(h, kernel.theta[i]) == pytest.approx(params[h.name], rel=1e-14)
     for i, h in enumerate(free):
         kernel.set_params(**{h.name: 0.37})
-        assert np.exp(kernel.theta[i]) == pytest.approx(0.37, rel=1e-14)
+        assert value(h, kernel.theta[i]) == pytest.approx(0.37, rel=1e-14)
         assert kernel.get_params()[h.name] == 0.37
 
 
@@ -448,7 +460,9 @@ def test_set_params_then_clone_and_bounds():
     kernel.set_params(alpha=0.6, beta_bounds=(0.1, 0.9))
     cloned = clone(kernel)
     assert cloned.get_params() == kernel.get_params()
-    np.testing.assert_allclose(cloned.bounds, np.log([[1e-4, 1.0], [0.1, 0.9]]))
+    np.testing.assert_allclose(
+        cloned.bounds, [np.log([1e-4, 1.0]), np.arctanh([0.1, 0.9])], rtol=1e-15
+    )
     np.testing.assert_allclose(cloned(X), dc_direct(LAGS, LAGS, 0.6, 0.5), rtol=1e-13)
     with pytest.raises(ValueError):
         kernel.set_params(gamma=1.0)
@@ -529,9 +543,11 @@ def test_gradient_with_Y_raises(kernel):
         (SS(alpha=-0.2), "alpha"),
         (SS(alpha=np.nan), "alpha"),
         (DC(alpha=1.01, beta=0.5), "alpha"),
-        (DC(alpha=0.5, beta=0.0), "beta"),
+        (DC(alpha=0.5, beta=-1.0), "beta"),
+        (DC(alpha=0.5, beta=-1.5), "beta"),
+        (DC(alpha=0.5, beta=np.nan), "beta"),
         (DC(alpha=0.5, beta=1.2), "beta"),
-        (DC(alpha=0.5, beta=-0.5), "beta"),
+        (DC(alpha=0.5, beta=1.0 + 1e-12), "beta"),
         (DC(alpha=0.5, beta="0.5"), "beta"),
         (PK(alpha=0.0), "alpha"),
         (PK(omega=-0.3), "omega"),

@@ -99,7 +99,8 @@ def test_gradient_matches_finite_differences(setup, kernel):
 
 
 def test_gradient_equals_dense_closed_form(setup):
-    # d/dlog(alpha) of Phi K Phi^T is Phi (K * (t_i + t_j)/2) Phi^T, and so on
+    # d/dlog(alpha) of Phi K Phi^T is Phi (K * (t_i + t_j)/2) Phi^T; theta of beta is
+    # artanh(beta), d/dtheta = (1 - beta^2) d/dbeta, d/dbeta K = K |t_i - t_j| / beta
     op, Phi, _ = setup
     ok = ObservedKernel(DC(alpha=0.8, beta=0.6), op)
     M = op.n_outputs
@@ -107,7 +108,7 @@ def test_gradient_equals_dense_closed_form(setup):
     lags = np.arange(ORDER)
     K = dc_direct(lags, lags, 0.8, 0.6)
     d_alpha = Phi @ (K * np.add.outer(lags, lags) / 2) @ Phi.T
-    d_beta = Phi @ (K * np.abs(np.subtract.outer(lags, lags))) @ Phi.T
+    d_beta = Phi @ (K * np.abs(np.subtract.outer(lags, lags)) * (1 - 0.6**2) / 0.6) @ Phi.T
     np.testing.assert_allclose(dS[..., 0], d_alpha, rtol=1e-9, atol=1e-11 * np.abs(d_alpha).max())
     np.testing.assert_allclose(dS[..., 1], d_beta, rtol=1e-9, atol=1e-11 * np.abs(d_beta).max())
 
@@ -137,7 +138,7 @@ def test_hyperparameters_delegate_with_prefix(setup):
 def test_theta_setter_and_params(setup):
     op, _, _ = setup
     ok = ObservedKernel(DC(alpha=0.8, beta=0.6), op)
-    ok.theta = np.log([0.5, 0.3])
+    ok.theta = [np.log(0.5), np.arctanh(0.3)]
     assert ok.kernel.alpha == pytest.approx(0.5)
     assert ok.kernel.beta == pytest.approx(0.3)
     params = ok.get_params()
@@ -146,7 +147,7 @@ def test_theta_setter_and_params(setup):
     assert set(ok.get_params(deep=False)) == {"kernel", "operator"}
     ok.set_params(kernel__alpha=0.7)
     assert ok.kernel.alpha == 0.7
-    np.testing.assert_allclose(ok.theta, np.log([0.7, 0.3]))
+    np.testing.assert_allclose(ok.theta, [np.log(0.7), np.arctanh(0.3)])
 
 
 def test_clone_and_clone_with_theta(setup):
@@ -158,9 +159,10 @@ def test_clone_and_clone_with_theta(setup):
     assert cloned.kernel is not ok.kernel
     assert cloned.operator == op
     theta = ok.theta.copy()
-    other = ok.clone_with_theta(np.log([2.0, 0.5, 0.4]))
+    new_theta = [np.log(2.0), np.log(0.5), np.arctanh(0.4)]
+    other = ok.clone_with_theta(new_theta)
     np.testing.assert_array_equal(ok.theta, theta)  # the original is untouched
-    np.testing.assert_allclose(other.theta, np.log([2.0, 0.5, 0.4]))
+    np.testing.assert_allclose(other.theta, new_theta)
     M = op.n_outputs
     S = dense_S(Phi, 2.0, 0.5, 0.4)
     np.testing.assert_allclose(
@@ -201,7 +203,7 @@ def test_gpr_log_marginal_likelihood_equals_dense_density(setup, noise):
     assert value == pytest.approx(expected, rel=1e-9)
 
     def dense(theta_):
-        c, a, b = np.exp(theta_)
+        c, a, b = np.exp(theta_[0]), np.exp(theta_[1]), np.tanh(theta_[2])
         return multivariate_normal(np.zeros(M), dense_S(Phi, c, a, b) + noise * np.eye(M)).logpdf(y)
 
     step = 1e-5

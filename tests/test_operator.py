@@ -143,8 +143,9 @@ def test_covariance_gradient_matches_finite_differences(case):
     step = 1e-5
 
     def dense_cov(theta_):
-        # theta = log [constant, DC alpha, DC beta, PK alpha, omega, sigma1, sigma2]
+        # theta = log [constant, DC alpha, PK alpha, omega, sigma1, sigma2], artanh(DC beta)
         c, alpha, beta, a, w, s1, s2 = np.exp(theta_)
+        beta = np.tanh(theta_[2])
         K = dc_direct(lags, lags, alpha, beta, c)
         env = a ** (lags / 2)
         K += s1**2 * np.outer(env * np.cos(w * lags), env * np.cos(w * lags))

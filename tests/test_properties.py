@@ -371,7 +371,7 @@ def test_input_scaling_with_tuned_default_kernel(problem, c):
     model, scaled = tuned(problem.u), tuned(c * problem.u)
     assert_close(c * scaled.coef_, model.coef_, 1e-4, "c * coef_")
     assert np.isclose(scaled.noise_level_, model.noise_level_, rtol=1e-4)
-    shift = scaled.kernel_.theta - model.kernel_.theta  # log(amplitude), log(alpha), log(beta)
+    shift = scaled.kernel_.theta - model.kernel_.theta  # log(amplitude), log(alpha), artanh(beta)
     np.testing.assert_allclose(shift, [-2 * np.log(c), 0.0, 0.0], atol=1e-3)
 
 

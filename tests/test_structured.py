@@ -66,7 +66,8 @@ KERNELS = {
     "DC-beta-fixed": DC(alpha=0.8, beta=0.5, beta_bounds="fixed"),
     "C-fixed*DC": C(3.0, "fixed") * DC(alpha=0.9, beta=0.8),
     "DC-beta-near-1": DC(alpha=0.9, beta=0.999999),
-    "DC-beta-1": DC(alpha=0.95, beta=1.0),
+    # beta = 1 has no finite theta = artanh(beta): allowed when fixed
+    "DC-beta-1": DC(alpha=0.95, beta=1.0, beta_bounds="fixed"),
     "DC-alpha-small": DC(alpha=1e-3, beta=0.7),
     "DC-both-extreme": C(5.0) * DC(alpha=1e-4, beta=0.9999),
     "PK": PK(alpha=0.9, omega=0.7, sigma1=1.3, sigma2=0.6),

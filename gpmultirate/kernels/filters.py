@@ -8,9 +8,13 @@ once).  With ``G = Phi D`` and ``H = G T``:
 * ``S = Phi K Phi^T = H G^T``, ``O(M P + M^2 P)`` instead of ``O(M P^2)``;
 * the derivative in ``log alpha`` is ``E K + K E`` with ``E = diag(t / 2)``,
   so ``tr(W Phi dK Phi^T) = sum_{m, i} t_i H[m, i] (W G)[m, i]``;
-* the derivative in ``log beta`` replaces ``T`` by ``|i - j| beta^|i - j|``,
-  a second-order filter;
+* the derivative in ``beta`` replaces ``T`` by ``|i - j| beta^(|i - j| - 1)``,
+  a second-order filter, times ``d beta / d theta`` (``1 - beta^2`` for
+  ``theta = artanh(beta)``);
 * ``Phi K = H D``.
+
+All of it holds for any ``-1 < beta <= 1``: on the integer grid the
+correlation of a negative ``beta`` is ``beta^|i - j|`` too.
 
 The products of ``G`` (which has the sparsity of ``Phi``) with ``H`` and
 with ``W`` are the observation's: a triangular regressor halves them.
@@ -60,8 +64,17 @@ def suffix_after(X: np.ndarray) -> np.ndarray:
 
 
 def _distance_filtered(G, beta):
-    """``G T'`` with ``T'[i, j] = |i - j| beta^|i - j|`` (derivative in ``log beta``)."""
-    return two_sided(G, [0.0, beta], [1.0, -2.0 * beta, beta**2], include_center=False)
+    """``G T'`` with ``T'[i, j] = |i - j| beta^(|i - j| - 1)``, the derivative of ``T`` in ``beta``.
+
+    The causal taps ``k beta^(k - 1)`` (``k >= 1``) are the impulse response
+    of ``z^-1 / (1 - beta z^-1)^2``, which is defined at ``beta = 0`` too.
+
+    Examples
+    --------
+    >>> _distance_filtered(np.array([[0.0, 0.0, 1.0, 0.0, 0.0]]), -0.5)
+    array([[-1.,  1.,  0.,  1., -1.]])
+    """
+    return two_sided(G, [0.0, 1.0], [1.0, -2.0 * beta, beta**2], include_center=False)
 
 
 class DCFilterTerm(ObservedTerm):
@@ -86,16 +99,21 @@ class DCFilterTerm(ObservedTerm):
     def _free(self):
         return [h.name for h in self.kernel.hyperparameters if not h.fixed]
 
+    def _beta_scale(self, beta):
+        """``d beta / d theta`` of the kernel's ``beta`` coordinate."""
+        return self.kernel.theta_transform("beta").derivative(beta)
+
     def parameter_contractor(self):
         K = self.kernel_matrix()
         lags = self.lags
-        distance = np.abs(np.subtract.outer(lags, lags))
+        _, gradients = self.kernel.lag_covariance(lags, lags, eval_gradient=True)
+        d_beta = gradients["beta"]
         free = self._free()
 
         def contract(A):
             AK = A * K
             # sum_ij A_ij K_ij (t_i + t_j) / 2 = t^T (A * K) 1 for symmetric A and K
-            values = {"alpha": lags @ AK.sum(axis=1), "beta": np.sum(AK * distance)}
+            values = {"alpha": lags @ AK.sum(axis=1), "beta": np.sum(A * d_beta)}
             return np.array([values[name] for name in free])
 
         return K, contract
@@ -113,7 +131,8 @@ class DCFilterTerm(ObservedTerm):
             WG = self.observation.symmetric_times_regressor_shaped(W, G)
             values = {
                 "alpha": np.einsum("mi,mi,i->", H, WG, lags),
-                "beta": np.einsum("mi,mi->", _distance_filtered(G, beta), WG),
+                "beta": self._beta_scale(beta)
+                * np.einsum("mi,mi->", _distance_filtered(G, beta), WG),
             }
             return np.array([values[name] for name in free])
 
@@ -129,7 +148,9 @@ class DCFilterTerm(ObservedTerm):
                 half = (G * (self.lags / 2.0)) @ H.T
                 items.append(half + half.T)
             else:
-                items.append(symmetrize(_distance_filtered(G, beta) @ G.T))
+                items.append(
+                    self._beta_scale(beta) * symmetrize(_distance_filtered(G, beta) @ G.T)
+                )
         return S, items
 
     def regressor_times_kernel(self):

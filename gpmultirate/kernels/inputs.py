@@ -83,7 +83,7 @@ class PerInputKernel(StructuredKernel, Kernel):
     def theta(self, theta) -> None:
         start = 0
         for kernel in self.kernels:
-            n = kernel.theta.shape[0]
+            n = kernel.n_dims
             kernel.theta = theta[start : start + n]
             start += n
 
@@ -108,11 +108,11 @@ class PerInputKernel(StructuredKernel, Kernel):
         rows, t = self._split(X, "X")
         cols, s = (rows, t) if Y is None else self._split(Y, "Y")
         K = np.zeros((rows.shape[0], cols.shape[0]))
-        gradient = np.zeros((rows.shape[0], cols.shape[0], self.theta.shape[0]))
+        gradient = np.zeros((rows.shape[0], cols.shape[0], self.n_dims))
         start = 0
         for i, kernel in enumerate(self.kernels):
             a, b = np.flatnonzero(rows == i), np.flatnonzero(cols == i)
-            n = kernel.theta.shape[0]
+            n = kernel.n_dims
             if a.size and b.size:
                 if eval_gradient:
                     block, d_block = kernel(t[a], eval_gradient=True)

@@ -7,9 +7,13 @@ real lags and stay positive semidefinite there, which turns the FIR
 coefficients into samples of a Gaussian process ``g(t)`` over continuous lag.
 
 Hyperparameters follow scikit-learn's conventions: they are plain constructor
-arguments, each has ``<name>_bounds`` (a pair or ``"fixed"``), ``theta`` is
-the log of the free values, and gradients (``eval_gradient=True``) are taken
-with respect to ``theta``.  The paper's overall scale ``lambda`` is
+arguments, each has ``<name>_bounds`` (a pair or ``"fixed"``), ``theta``
+holds the free values in tuning coordinates, and gradients
+(``eval_gradient=True``) are taken with respect to ``theta``.  Each
+hyperparameter declares its coordinate
+(:mod:`gpmultirate.kernels.transforms`): the log of the value, as in
+scikit-learn, except DC's correlation ``beta`` in ``(-1, 1)``, which enters
+as ``artanh(beta)``.  The paper's overall scale ``lambda`` is
 :class:`~sklearn.gaussian_process.kernels.ConstantKernel`, as in scikit-learn.
 """
 
@@ -24,15 +28,17 @@ from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
+from gpmultirate.kernels.transforms import ARTANH, LOG, ThetaTransform
 from gpmultirate.validation import as_real_array, check_bounds, check_positive
 
 __all__ = [
-    "TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags",
+    "TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags", "correlation",
     "resonance_summands", "without_resonances",
 ]
 
 # what the tuning strategy should know of each hyperparameter (see Role)
 _DECAY = ("decay", 1.0)
+_CORRELATION = ("correlation", 1.0)
 
 
 def check_lags(X, name: str = "X") -> np.ndarray:
@@ -70,15 +76,89 @@ def check_lags(X, name: str = "X") -> np.ndarray:
 
 
 class LagKernel(StructuredKernel, Kernel):
-    """Common machinery of the lag kernels: input checks, repr, range checks.
+    """Common machinery of the lag kernels: input checks, repr, range checks, ``theta``.
 
     A subclass lists its hyperparameters with their allowed ranges in
-    ``_ranges`` as ``(name, lower, upper)`` (the range is ``(lower, upper]``)
-    and implements :meth:`lag_covariance`.
+    ``_ranges`` as ``(name, lower, upper)`` (the range is ``(lower, upper]``),
+    the ``theta`` coordinate of those not tuned in ``log(value)`` in
+    ``_transforms`` (``{name: ThetaTransform}``), and implements
+    :meth:`lag_covariance`.
+
+    ``theta``, its setter and ``bounds`` are scikit-learn's, except that
+    each entry goes through its hyperparameter's transform
+    (:meth:`theta_transform`) instead of ``log``; ``clone_with_theta``, the
+    kernel algebra (``+``, ``*``) and ``GaussianProcessRegressor`` use them
+    unchanged.
     """
 
     # (name, lower, upper): the allowed range (lower, upper] of each value
     _ranges: tuple = ()
+    # {name: ThetaTransform} of the hyperparameters whose theta is not log(value)
+    _transforms: dict = {}
+
+    def theta_transform(self, name: str) -> ThetaTransform:
+        """The map between the value of hyperparameter ``name`` and its ``theta`` entry.
+
+        Examples
+        --------
+        >>> DC().theta_transform("beta"), DC().theta_transform("alpha")
+        (ArtanhTransform(), LogTransform())
+        """
+        return self._transforms.get(name, LOG)
+
+    def _free(self) -> list:
+        return [h for h in self.hyperparameters if not h.fixed]
+
+    @property
+    def n_dims(self) -> int:
+        """Number of free hyperparameters (entries of ``theta``), without evaluating it."""
+        return sum(h.n_elements for h in self._free())
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The free hyperparameters in tuning coordinates (the log of most; see :meth:`theta_transform`).
+
+        Raises
+        ------
+        ValueError
+            When a free value has no finite coordinate (e.g. ``beta = 1``
+            with free bounds).
+        """
+        return np.array(
+            [self.theta_transform(h.name).to_theta(getattr(self, h.name), h.name)
+             for h in self._free()],
+            dtype=float,
+        )
+
+    @theta.setter
+    def theta(self, theta) -> None:
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        free = self._free()
+        if theta.shape[0] != len(free):
+            raise ValueError(
+                f"theta has not the correct number of entries. Should be {len(free)}; "
+                f"given are {theta.shape[0]}"
+            )
+        self.set_params(**{
+            h.name: self.theta_transform(h.name).from_theta(value)
+            for h, value in zip(free, theta)
+        })
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """The bounds of ``theta``, of shape ``(n_dims, 2)``: each hyperparameter's bounds transformed.
+
+        Raises
+        ------
+        ValueError
+            When the bounds of a free hyperparameter are not an interval of
+            allowed values; the message names them.
+        """
+        rows = [
+            self.theta_transform(h.name).bounds_to_theta(h.bounds, f"{h.name}_bounds")
+            for h in self._free()
+        ]
+        return np.vstack(rows) if rows else np.array([])
 
     def is_stationary(self) -> bool:
         """Return False: impulse-response kernels decay with the lag."""
@@ -118,15 +198,16 @@ class LagKernel(StructuredKernel, Kernel):
         t, s : ndarray of shape (n,) and (m,)
             Non-negative lags; ``s`` may be ``t`` itself.
         eval_gradient : bool, default=False
-            Also return the derivatives with respect to the log of every
-            hyperparameter, fixed or not (unlike ``__call__``, also when
-            ``s`` is not ``t``).
+            Also return the derivatives with respect to the ``theta``
+            coordinate of every hyperparameter (:meth:`theta_transform`:
+            ``log(name)`` for most, ``artanh(beta)`` for DC's ``beta``),
+            fixed or not (unlike ``__call__``, also when ``s`` is not ``t``).
 
         Returns
         -------
         K : ndarray of shape (n, m)
         gradients : dict of ndarray of shape (n, m), only with ``eval_gradient``
-            ``{name: dK / d log(name)}``.
+            ``{name: dK / d theta_name}``.
         """
         raise NotImplementedError
 
@@ -140,8 +221,8 @@ class LagKernel(StructuredKernel, Kernel):
         Y : array-like of shape (m, 1), optional
             Second lags; ``X`` when None.
         eval_gradient : bool, default=False
-            Also return the gradient with respect to the log of the free
-            hyperparameters (only when ``Y`` is None).
+            Also return the gradient with respect to ``theta``, the free
+            hyperparameters in tuning coordinates (only when ``Y`` is None).
 
         Returns
         -------
@@ -177,7 +258,7 @@ class ShiftScaledKernel(LagKernel):
     """
 
     def shift_scale(self) -> tuple[float, dict]:
-        """``a`` and ``{name: d log(a) / d log(name)}`` for every hyperparameter."""
+        """``a`` and ``{name: d log(a) / d theta_name}`` for every hyperparameter."""
         raise NotImplementedError
 
     def right_multiply(self, X: np.ndarray) -> np.ndarray:
@@ -218,11 +299,72 @@ def _envelope_outer(t, s, alpha):
     return np.outer(alpha ** (t / 2.0), alpha ** (s / 2.0))
 
 
+def correlation(distance, beta: float, eval_gradient: bool = False):
+    r"""DC's correlation at lag distances ``d >= 0``, and its derivative in ``beta``.
+
+    .. math::
+
+        \rho(d) = \beta^d \quad (\beta \ge 0), \qquad
+        \rho(d) = |\beta|^d \cos(\pi d) \quad (\beta < 0).
+
+    On integer distances both are ``beta**d``.  For a negative ``beta`` the
+    second form extends it to real distances as the product of the
+    exponential correlation ``|beta|^|d|`` and ``cos(pi d)``, both positive
+    semidefinite, so the kernel stays positive semidefinite on continuous
+    lag (the Gaussian process is an exponentially correlated one modulated at
+    the fast Nyquist frequency).  The wave is ``cos(pi (d mod 2))``, exactly
+    ``+-1`` on integers.
+
+    Parameters
+    ----------
+    distance : ndarray
+        Non-negative distances ``|t - s|``.
+    beta : float
+        In (-1, 1].
+    eval_gradient : bool, default=False
+        Also return ``d rho / d beta``.
+
+    Returns
+    -------
+    rho : ndarray of the shape of ``distance``
+    d_rho : ndarray, only with ``eval_gradient``
+
+    Raises
+    ------
+    ValueError
+        For the derivative at ``beta = 0`` when a distance lies strictly
+        between 0 and 1, where it is infinite.
+
+    Examples
+    --------
+    >>> correlation(np.array([0.0, 1.0, 2.0, 0.5]), -0.5).round(12)
+    array([ 1.  , -0.5 ,  0.25,  0.  ])
+    """
+    magnitude = abs(beta)
+    rho = magnitude**distance
+    wave = np.cos(np.pi * np.remainder(distance, 2.0)) if beta < 0 else None
+    if wave is not None:
+        rho = rho * wave
+    if not eval_gradient:
+        return rho
+    # d/d beta of |beta|^d (+-cos(pi d)) = d |beta|^(d - 1) (sign(beta) wave)
+    if magnitude == 0.0 and np.any((distance > 0.0) & (distance < 1.0)):
+        raise ValueError(
+            "the derivative in beta is infinite at beta = 0 for lag distances between 0 and 1; "
+            "use beta != 0 or integer lags"
+        )
+    exponent = np.where(distance > 0.0, distance - 1.0, 0.0)
+    d_rho = distance * magnitude**exponent
+    if wave is not None:
+        d_rho = -d_rho * wave
+    return rho, d_rho
+
+
 def _power_of_distance(t, s, beta):
-    """``beta**|t_i - s_j|``; a Toeplitz matrix on the integer grid."""
+    """DC's correlation at ``|t_i - s_j|``; a Toeplitz matrix on the integer grid."""
     if t is s and _is_grid(t):
-        return linalg.toeplitz(beta**t)
-    return beta ** np.abs(np.subtract.outer(t, s))
+        return linalg.toeplitz(correlation(t, beta))
+    return correlation(np.abs(np.subtract.outer(t, s)), beta)
 
 
 class TC(_DecayKernel):
@@ -293,18 +435,38 @@ class _TCTerm(ObservedTerm):
 class DC(ShiftScaledKernel):
     r"""Diagonal-correlated kernel (paper eq. 16, without the scale ``lambda``).
 
-    .. math:: k(t, s) = \alpha^{(t + s)/2}\, \beta^{|t - s|}
+    .. math:: k(t, s) = \alpha^{(t + s)/2}\, \rho(|t - s|), \qquad
+              \rho(d) = \beta^d \ (\beta \ge 0), \quad
+              \rho(d) = |\beta|^d \cos(\pi d) \ (\beta < 0)
+
+    On integer lags this is the paper's ``alpha^((i+j)/2) beta^|i-j|`` with
+    ``|beta| < 1``.  A negative ``beta`` makes neighbouring coefficients
+    alternate in sign (resonances near the fast Nyquist frequency,
+    acceleration outputs); on real lags the cosine, ``+-1`` on integers,
+    keeps the kernel real and positive semidefinite (see
+    :func:`correlation`).
+
+    ``theta`` holds ``log(alpha)`` and ``artanh(beta)``, which maps
+    ``(-1, 1)`` onto the real line; the gradient is with respect to them.
+    ``beta = 1`` (a rank-one kernel, the pure decay ``alpha^((t+s)/2)``) is
+    allowed when ``beta_bounds="fixed"``: it has no finite ``theta``, so
+    asking the ``theta`` of a kernel with a free ``beta = 1`` (as tuning
+    does) raises a ValueError.  A bound of 1 is accepted and read as the
+    largest float below 1.
 
     Parameters
     ----------
     alpha : float, default=0.9
         Decay per fast sample, in (0, 1].
     beta : float, default=0.9
-        Correlation between neighbouring lags, in (0, 1] (the paper's
-        ``|beta| < 1``; negative values are not positive definite on
-        continuous lags and are not offered).
-    alpha_bounds, beta_bounds : pair of floats or "fixed", default=(1e-4, 1.0)
-        Bounds for marginal-likelihood tuning.
+        Correlation between neighbouring lags, in (-1, 1] (1 only when
+        fixed).
+    alpha_bounds : pair of floats or "fixed", default=(1e-4, 1.0)
+        Bounds on ``alpha`` for marginal-likelihood tuning.
+    beta_bounds : pair of floats or "fixed", default=(-0.9999, 0.9999)
+        Bounds on ``beta``, within (-1, 1].  The default is symmetric and
+        admits correlation lengths ``-1 / log|beta|`` up to 10,000 samples of
+        either sign, while keeping ``theta`` within ``+-4.95``.
 
     Examples
     --------
@@ -317,15 +479,16 @@ class DC(ShiftScaledKernel):
            [0.894, 1.6  ]])
     """
 
-    _ranges = (("alpha", 0.0, 1.0), ("beta", 0.0, 1.0))
-    tuning_roles = {"alpha": _DECAY, "beta": _DECAY}
+    _ranges = (("alpha", 0.0, 1.0), ("beta", -1.0, 1.0))
+    _transforms = {"beta": ARTANH}
+    tuning_roles = {"alpha": _DECAY, "beta": _CORRELATION}
 
     def __init__(
         self,
         alpha: float = 0.9,
         beta: float = 0.9,
         alpha_bounds=(1e-4, 1.0),
-        beta_bounds=(1e-4, 1.0),
+        beta_bounds=(-0.9999, 0.9999),
     ):
         self.alpha = alpha
         self.beta = beta
@@ -345,9 +508,12 @@ class DC(ShiftScaledKernel):
         if not eval_gradient:
             return _envelope_outer(t, s, alpha) * _power_of_distance(t, s, beta)
         mean_lag = np.add.outer(t, s) / 2.0
-        distance = np.abs(np.subtract.outer(t, s))
-        K = alpha**mean_lag * beta**distance
-        return K, {"alpha": mean_lag * K, "beta": distance * K}
+        envelope = alpha**mean_lag
+        rho, d_rho = correlation(np.abs(np.subtract.outer(t, s)), beta, eval_gradient=True)
+        K = envelope * rho
+        d_beta = envelope * d_rho
+        d_beta *= self.theta_transform("beta").derivative(beta)  # d beta / d theta
+        return K, {"alpha": mean_lag * K, "beta": d_beta}
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""

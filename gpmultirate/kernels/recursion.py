@@ -51,7 +51,8 @@ is evaluated row by row on the upper triangle.  That is ``O(M^2 F) =
 O(M N)`` operations, mostly one matrix product, against ``O(M^2 P)`` for
 ``Phi K Phi^T``.
 
-Derivatives with respect to ``theta = log(hyperparameters)`` follow by
+Derivatives with respect to ``theta`` (the hyperparameters in tuning
+coordinates: ``log(alpha)``, ``artanh(beta)`` for DC) follow by
 differentiating this form (forward mode):
 
 .. math::
@@ -59,7 +60,7 @@ differentiating this form (forward mode):
     S'[m, m'] = a^F S'[m-1, m'-1] + F \rho\, a^F S[m-1, m'-1] + Y'[m, m'],
 
 with ``rho = d log(a) / d theta`` (1 for ``log alpha`` of TC and DC, 3 for
-SS, 0 for ``log beta``) and ``Y'`` the product rule applied to the two
+SS, 0 for DC's ``beta``) and ``Y'`` the product rule applied to the two
 factors; the factors depend on ``theta`` through ``a`` and through ``r``
 and ``s``, i.e. only through the first and last kernel rows.
 
@@ -91,7 +92,8 @@ class _Rows:
     """First and last rows of ``K`` on lags ``0..P-1``, the scale ``a`` and derivatives.
 
     ``d_first[name]`` and ``d_last[name]`` are the derivatives of the rows
-    with respect to ``log(name)``, ``rho[name]`` that of ``log(a)``; ``free``
+    with respect to the ``theta`` entry of ``name``, ``rho[name]`` that of
+    ``log(a)``; ``free``
     lists the free hyperparameters in ``theta`` order.
     """
 

@@ -17,8 +17,9 @@ question                                       method of :class:`ObservedTerm`
 =============================================  ===============================
 
 (``dK_j`` is the derivative with respect to the ``j``-th entry of
-``kernel.theta``, the log of a free hyperparameter; ``A`` and ``W`` are
-symmetric.)  :class:`ObservedTerm` answers all of them densely, from the
+``kernel.theta``, a free hyperparameter in its tuning coordinate -- its log,
+or ``artanh`` of a correlation, see :mod:`gpmultirate.kernels.transforms`;
+``A`` and ``W`` are symmetric.)  :class:`ObservedTerm` answers all of them densely, from the
 kernel matrix and scikit-learn's gradient, so any scikit-learn kernel works.
 A kernel with structure subclasses :class:`StructuredKernel` and returns,
 from :meth:`StructuredKernel.observed`, a term class that answers faster: a
@@ -34,10 +35,11 @@ terms, ``ConstantKernel * k`` keeps the constant a scalar factor, any other
 alone is rank one.
 
 Tuning also asks what each free hyperparameter *is* (:class:`Role`): a decay
-or correlation in (0, 1] (``"decay"``, tuned in decay-rate coordinates), a
-resonance frequency (``"frequency"``, searched on a grid), an amplitude
-(``"amplitude"``; the set that scales the whole kernel is
-:meth:`ObservedTerm.scale_roles`), or anything else (``"other"``).
+in (0, 1] (``"decay"``, tuned in decay-rate coordinates), a correlation in
+(-1, 1) (``"correlation"``, tuned in ``artanh``), a resonance frequency
+(``"frequency"``, searched on a grid), an amplitude (``"amplitude"``; the set
+that scales the whole kernel is :meth:`ObservedTerm.scale_roles`), or
+anything else (``"other"``).
 """
 
 from __future__ import annotations
@@ -47,6 +49,8 @@ from dataclasses import dataclass
 import numpy as np
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
+
+from gpmultirate.kernels.transforms import LOG, ThetaTransform
 
 __all__ = ["LowRankTerm", "ObservedTerm", "Role", "StructuredKernel", "observe", "rescaled"]
 
@@ -60,8 +64,11 @@ class Role:
     name : str
         The parameter's full name in the kernel (``k1__k2__alpha``), as
         :meth:`~sklearn.base.BaseEstimator.set_params` takes it.
-    kind : {"decay", "frequency", "amplitude", "other"}
-        ``"decay"``: a value in (0, 1] such as ``alpha`` or ``beta``;
+    kind : {"decay", "correlation", "frequency", "amplitude", "other"}
+        ``"decay"``: a value in (0, 1] such as ``alpha``, with
+        ``theta = log(value)``;
+        ``"correlation"``: a value in (-1, 1) such as DC's ``beta``, with
+        ``theta = artanh(value)``;
         ``"frequency"``: a resonance frequency in radians per sample;
         ``"amplitude"``: the kernel scales with ``value ** (1 / power)``.
     owner : sklearn Kernel
@@ -71,6 +78,9 @@ class Role:
     power : float
         For amplitudes: scaling the owner by ``c`` multiplies the value by
         ``c ** power`` (1 for a constant, 1/2 for a standard deviation).
+    transform : ThetaTransform
+        How the value maps to its ``theta`` entry (``log`` unless the owner
+        declares otherwise).
     """
 
     name: str
@@ -78,6 +88,7 @@ class Role:
     owner: Kernel
     leaf_name: str
     power: float = 1.0
+    transform: ThetaTransform = LOG
 
 
 def no_gradient(A) -> np.ndarray:
@@ -216,12 +227,15 @@ class ObservedTerm:
     def roles(self) -> list[Role]:
         """One :class:`Role` per free entry of ``kernel.theta``, in order."""
         declared = getattr(self.kernel, "tuning_roles", {})
+        transform_of = getattr(self.kernel, "theta_transform", None)
         roles = []
         for h in self.kernel.hyperparameters:
             if h.fixed:
                 continue
             kind, power = declared.get(h.name, ("other", 1.0))
-            roles += [Role(self.path + h.name, kind, self.kernel, h.name, power)] * h.n_elements
+            transform = LOG if transform_of is None else transform_of(h.name)
+            role = Role(self.path + h.name, kind, self.kernel, h.name, power, transform)
+            roles += [role] * h.n_elements
         return roles
 
     def scale_groups(self):
@@ -597,7 +611,7 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
     >>> bool(np.allclose(S, op.matrix @ kernel(op.lags) @ op.matrix.T))
     True
     >>> [role.kind for role in term.roles()]
-    ['amplitude', 'decay', 'decay', 'decay', 'frequency', 'amplitude', 'amplitude']
+    ['amplitude', 'decay', 'correlation', 'decay', 'frequency', 'amplitude', 'amplitude']
     """
     if isinstance(kernel, Sum):
         return SumTerm(
