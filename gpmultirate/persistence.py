@@ -2,10 +2,11 @@
 
 :func:`save_model` writes a fitted :class:`~gpmultirate.FIRGaussianProcess`,
 :class:`~gpmultirate.LeastSquaresFIR` or :class:`~gpmultirate.MultiOutputFIR`
-to an ``.npz`` archive of plain numbers; :func:`load_model` reads it back without unpickling anything and
-without importing any name found in the file, so loading a file from an
-untrusted source cannot run code.  (Fitted models also round-trip through
-:mod:`pickle`, but a pickle must only be loaded from a trusted source.)
+to an ``.npz`` archive of plain numbers; :func:`load_model` reads it back
+without unpickling anything and without importing any name found in the
+file, so loading a file from an untrusted source cannot run code.  (Fitted
+models also round-trip through :mod:`pickle`, but a pickle must only be
+loaded from a trusted source.)
 
 File format, version 1
 ----------------------
