@@ -7,7 +7,11 @@ and PK at P = N), a long record (N = 50,000, P = 2,000) and P = N = 6,000;
 and the experiments beyond the paper's, each against the uniform one-input
 fit of the same size in the same run: two inputs at paper size, the paper
 case with 20 % of the slow samples missing, four records of N = 600, and the
-long record with irregular instants (mean spacing 3, jitter +-1).
+long record with irregular instants (mean spacing 3, jitter +-1); and a
+structure with 2 inputs and 28 outputs (N = 8,523, F = 3, P = 200), one
+default-kernel fit per output with :class:`gpmultirate.MultiOutputFIR`,
+serially and in two processes (ratio against serial).  ``--repeat 3`` runs
+every case three times and prints the min/median/max time.
 Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own.
 Printed: wall time, peak memory, validation goodness of fit, and the time ratio
 against
@@ -29,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -320,6 +325,8 @@ CASES = {
     "long_irregular": ("long record, irregular instants", ["ours"]),
     "multi_output_28": ("2 inputs, 28 outputs, N = 8,523, P = 200", ["serial", "n_jobs_2"]),
 }
+# the implementation a case's ratios are against, when it is not "ours"
+BASELINES = {"multi_output_28": "serial"}
 # each experiment beyond the paper's and its uniform one-input reference of the same size
 WIDE_REFERENCES = {
     "two_inputs": "paper_dc", "missing_20": "paper_dc", "four_records": "uniform_2400",
@@ -357,6 +364,20 @@ def run_case(name, implementation, n_samples=None, order=None):
     raise ValueError(f"unknown case {name!r}")
 
 
+def repeated(runs):
+    """The run of median time among ``runs``, with the minimum and maximum time."""
+    failed = [r for r in runs if "error" in r]
+    if failed:
+        return failed[0]
+    ordered = sorted(runs, key=lambda r: r["seconds"])
+    median = dict(ordered[(len(ordered) - 1) // 2])
+    if len(ordered) % 2 == 0:
+        median["seconds"] = float(np.median([r["seconds"] for r in ordered]))
+    median.update(seconds_min=ordered[0]["seconds"], seconds_max=ordered[-1]["seconds"],
+                  seconds_all=[r["seconds"] for r in runs])
+    return median
+
+
 def in_subprocess(name, implementation, n_samples=None, order=None, timeout=1800):
     command = [sys.executable, __file__, "--child", name, implementation]
     if n_samples:
@@ -376,6 +397,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     parser.add_argument("--scaling", action="store_true", help="also time against N")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="runs of each case (the median is reported, with min and max)")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--n-samples", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--order", type=int, help=argparse.SUPPRESS)
@@ -388,18 +411,23 @@ def main(argv=None):
         return 0
 
     OUTPUT.mkdir(exist_ok=True)
-    results = {}
+    results = {"load_average_start": os.getloadavg()}
+    print("load average (1, 5, 15 min): {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     print(f"{'case':42s} {'impl':10s} {'time s':>9s} {'peak MB':>8s} {'GoF %':>9s} {'ratio':>7s}")
     for name in args.cases:
         title, implementations = CASES[name]
         results[name] = {}
         for implementation in implementations:
-            r = in_subprocess(name, implementation)
+            r = repeated([in_subprocess(name, implementation) for _ in range(args.repeat)])
             results[name][implementation] = r
-            ours = results[name].get("ours", {}).get("seconds")
+            ours = results[name].get(BASELINES.get(name, "ours"), {}).get("seconds")
             if "error" in r:
                 print(f"{title:42s} {implementation:10s} {r['error']}")
                 continue
+            if args.repeat > 1:
+                print(f"{'':42s} {'':10s} time min/median/max "
+                      f"{r['seconds_min']:.2f} / {r['seconds']:.2f} / {r['seconds_max']:.2f} s "
+                      f"of {args.repeat} runs")
             ratio = r["seconds"] / ours if ours else float("nan")
             reference = results.get(WIDE_REFERENCES.get(name), {}).get("ours", {})
             if implementation == "ours" and reference.get("seconds"):
@@ -407,11 +435,16 @@ def main(argv=None):
                 ratio = r["seconds"] / reference["seconds"]
             if isinstance(r["gof"], dict):
                 print(f"{'':42s} {'':10s} GoF {r['gof']}")
+            if "workers_mb" in r:
+                print(f"{'':42s} {'':10s} peak MB of a worker process {r['workers_mb']:.0f}; "
+                      f"lowest GoF of an output {r['gof_min']:.3f} %")
             gof = r["gof"] if isinstance(r["gof"], float) else np.mean(list(r["gof"].values()))
             print(
                 f"{title:42s} {implementation:10s} {r['seconds']:9.2f} {r['peak_mb']:8.0f} "
                 f"{gof:9.3f} {ratio:7.1f}"
             )
+    results["load_average_end"] = os.getloadavg()
+    print("load average (1, 5, 15 min): {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     if args.scaling:
         results["scaling"] = scaling()
     (OUTPUT / "results.json").write_text(json.dumps(results, indent=2))
