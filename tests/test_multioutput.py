@@ -9,7 +9,9 @@ fit of that output's measured samples only, given by their instants.
 
 import io
 import json
+import pathlib
 import pickle
+import subprocess
 import sys
 
 import numpy as np
@@ -340,3 +342,11 @@ def test_saving_refuses_a_template_it_cannot_store(fitted):
     model.estimator = object()
     with pytest.raises(TypeError, match="estimator of a MultiOutputFIR"):
         gm.save_model(model, io.BytesIO())
+
+
+def test_importing_the_package_imports_no_dask():
+    code = ("import sys, gpmultirate, gpmultirate.multioutput, gpmultirate.persistence; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, cwd=pathlib.Path(__file__).resolve().parents[1])
+    assert done.stdout.strip() == "[]"
