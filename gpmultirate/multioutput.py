@@ -129,7 +129,7 @@ class MultiOutputFIR(BaseEstimator):
         """
         estimator = self._check_estimator()
         n_jobs = _check_n_jobs(self.n_jobs)
-        columns = _output_columns(y_slow)
+        columns = _output_columns(y_slow, several_records=is_record_list(u))
         tasks = (
             joblib.delayed(_fit_output)(clone(estimator), u, y_j, sample_indices, j)
             for j, y_j in enumerate(columns)
@@ -260,9 +260,13 @@ def _check_n_jobs(n_jobs):
     return int(n_jobs)
 
 
-def _output_columns(y_slow) -> list:
-    """The slow data of each output: a column, or a list of columns (one per record)."""
-    if is_record_list(y_slow):
+def _output_columns(y_slow, several_records: bool) -> list:
+    """The slow data of each output: a column, or a list of columns (one per record).
+
+    ``y_slow`` holds records when ``u`` does (a nested list of numbers is
+    then a list of records, not one 2-D array).
+    """
+    if several_records and is_record_list(y_slow):
         records = [_output_matrix(y_r, f"y_slow[{r}]") for r, y_r in enumerate(y_slow)]
         n_outputs = records[0].shape[1]
         for r, y_r in enumerate(records):

@@ -350,3 +350,12 @@ def test_importing_the_package_imports_no_dask():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True, cwd=pathlib.Path(__file__).resolve().parents[1])
     assert done.stdout.strip() == "[]"
+
+
+def test_nested_lists_are_one_record_when_u_is_one(data):
+    u, y_slow, _ = data
+    y = np.nan_to_num(y_slow)
+    from_lists = MultiOutputFIR(ESTIMATORS["ls"]()).fit(u[:, 0].tolist(), y.tolist())
+    from_arrays = MultiOutputFIR(ESTIMATORS["ls"]()).fit(u[:, 0], y)
+    assert from_lists.n_outputs_ == 3
+    np.testing.assert_array_equal(from_lists.coef_, from_arrays.coef_)
