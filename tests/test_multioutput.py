@@ -7,6 +7,7 @@ comparisons are exact.  Missing samples of one output are checked against a
 fit of that output's measured samples only, given by their instants.
 """
 
+import hashlib
 import io
 import json
 import pathlib
@@ -359,3 +360,59 @@ def test_nested_lists_are_one_record_when_u_is_one(data):
     from_arrays = MultiOutputFIR(ESTIMATORS["ls"]()).fit(u[:, 0], y)
     assert from_lists.n_outputs_ == 3
     np.testing.assert_array_equal(from_lists.coef_, from_arrays.coef_)
+
+
+def checksum(header, arrays):
+    """SHA-256 as the persistence module documents it, to forge files with valid checksums."""
+    digest = hashlib.sha256()
+    content = {key: value for key, value in header.items() if key != "sha256"}
+    digest.update(json.dumps(content, sort_keys=True, separators=(",", ":")).encode() + b"\n")
+    for name in sorted(arrays):
+        a = arrays[name]
+        digest.update(f"{name}:{a.dtype.str}:{','.join(map(str, a.shape))}\n".encode())
+        digest.update(a.tobytes())
+    return digest.hexdigest()
+
+
+def forge(path, edit):
+    header, members = read_members(path)
+    edit(header, members)
+    header["sha256"] = checksum(header, members)
+    encoded = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
+    with open(path, "wb") as file:
+        np.savez(file, header=encoded, **members)
+
+
+def test_forged_file_with_a_valid_checksum_loads_the_same(fitted, tmp_path):
+    """The checksum above is the module's: an unchanged forged file loads."""
+    path = tmp_path / "model.npz"
+    gm.save_model(fitted["ls"], path)
+    forge(path, lambda header, members: None)
+    np.testing.assert_array_equal(gm.load_model(path).coef_, fitted["ls"].coef_)
+
+
+def first_output(edit):
+    return lambda header, members: edit(header["fitted"]["outputs"][0])
+
+
+INCONSISTENT = {
+    "missing array": first_output(lambda o: o["arrays"].update(coef="array_99")),
+    "array not used": lambda h, m: m.update(array_99=np.zeros(3)),
+    "nested version 3": first_output(lambda o: o.update(format_version=3)),
+    "unknown template": lambda h, m: h["template"].update(estimator="Evil"),
+    "unknown parameter": lambda h, m: h["params"].update(callback="print"),
+    "bad n_jobs": lambda h, m: h["params"].update(n_jobs=0),
+    "n_outputs": lambda h, m: h["fitted"].update(n_outputs=4),
+    "no outputs": lambda h, m: h["fitted"].update(n_outputs=0, outputs=[]),
+    "extra entry": first_output(lambda o: o.update(code="print")),
+    "other estimator": first_output(lambda o: o.update(estimator="MultiOutputFIR")),
+}
+
+
+@pytest.mark.parametrize("edit", INCONSISTENT.values(), ids=list(INCONSISTENT))
+def test_inconsistent_multi_output_file_refused(fitted, tmp_path, edit):
+    path = tmp_path / "model.npz"
+    gm.save_model(fitted["ls"], path)
+    forge(path, edit)
+    with pytest.raises(ModelFileError):
+        gm.load_model(path)
