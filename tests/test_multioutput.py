@@ -416,3 +416,22 @@ def test_inconsistent_multi_output_file_refused(fitted, tmp_path, edit):
     forge(path, edit)
     with pytest.raises(ModelFileError):
         gm.load_model(path)
+
+
+def test_predict_command_writes_every_output(fitted, data, tmp_path):
+    from gpmultirate.cli import main
+
+    u, _, u_new = data
+    model = fitted["gp"]
+    gm.save_model(model, tmp_path / "model.npz")
+    columns = "u0,u1\n" + "".join(f"{a!r},{b!r}\n" for a, b in u_new.tolist())
+    (tmp_path / "new.csv").write_text(columns)
+    assert main(["predict", str(tmp_path / "model.npz"), str(tmp_path / "new.csv"), "--input",
+                 "u0", "u1", "--out", str(tmp_path / "p.csv"), "--quiet"]) == 0
+    table = np.genfromtxt(tmp_path / "p.csv", delimiter=",", names=True)
+    assert table.dtype.names == ("index", "time", "y_0", "y_std_0", "y_1", "y_std_1",
+                                 "y_2", "y_std_2")
+    mean, std = model.predict(u_new, return_std=True)
+    for j in range(3):
+        np.testing.assert_array_equal(table[f"y_{j}"], mean[:, j])
+        np.testing.assert_array_equal(table[f"y_std_{j}"], std[:, j])
