@@ -12,6 +12,7 @@ from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, NumericalWarning
 from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import fit_percent, goodness_of_fit
+from gpmultirate.multioutput import MultiOutputFIR
 from gpmultirate.observed import ObservedKernel
 from gpmultirate.observations import DownsampledConvolution, SampledConvolution
 from gpmultirate.persistence import ModelFileError, load_model, save_model
@@ -23,6 +24,7 @@ __all__ = [
     "IdentifiabilityError",
     "LeastSquaresFIR",
     "ModelFileError",
+    "MultiOutputFIR",
     "NumericalWarning",
     "HeldOutWarning",
     "ObservedKernel",

@@ -207,7 +207,8 @@ def _add_predict_parser(commands) -> None:
                     "(model.npz) for the input column(s) of a data file, from rest (or in "
                     "periodic steady state for a periodic model).  Writes a CSV with the "
                     "columns index, time, y and y_std (posterior standard deviation of the "
-                    "noise-free output).",
+                    "noise-free output); for a many-output model (MultiOutputFIR), y_j and "
+                    "y_std_j for every output j.",
     )
     predict.add_argument("model", metavar="MODEL", help="model file written by gpmultirate fit")
     predict.add_argument("data", metavar="DATA", help="data file: .csv, .npz or .mat")
@@ -1031,11 +1032,17 @@ def _predict(parser, args) -> int:
                      f"input(s); got {len(args.inputs)} column(s)")
     u, _ = _read_inputs(parser, args.data, args.inputs)
     mean, std = model.predict(u, return_std=True)
-    sample_time = float(getattr(model, "sample_time", 1.0))
+    # a many-output model (MultiOutputFIR) predicts one column per output
+    several = mean.ndim == 2
+    mean, std = mean.reshape(mean.shape[0], -1), std.reshape(std.shape[0], -1)
+    models = getattr(model, "estimators_", [model])
+    sample_time = float(getattr(models[0], "sample_time", 1.0))
+    names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
     text = io.StringIO()
-    text.write("index,time,y,y_std\n")
+    text.write(",".join(["index,time", *names]) + "\n")
     for k, (m, s) in enumerate(zip(mean, std)):
-        text.write(f"{k},{k * sample_time:.17g},{m:.17g},{s:.17g}\n")
+        values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
+        text.write(f"{k},{k * sample_time:.17g},{values}\n")
     _write_files(parser, out.parent if str(out.parent) else Path("."),
                  {out.name: text.getvalue().encode("utf-8")}, args.force)
     _say(args, f"wrote {out} ({mean.shape[0]} fast samples)")

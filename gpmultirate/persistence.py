@@ -1,11 +1,12 @@
 """Saving fitted FIR models to portable files and loading them back.
 
-:func:`save_model` writes a fitted :class:`~gpmultirate.FIRGaussianProcess`
-or :class:`~gpmultirate.LeastSquaresFIR` to an ``.npz`` archive of plain
-numbers; :func:`load_model` reads it back without unpickling anything and
-without importing any name found in the file, so loading a file from an
-untrusted source cannot run code.  (Fitted models also round-trip through
-:mod:`pickle`, but a pickle must only be loaded from a trusted source.)
+:func:`save_model` writes a fitted :class:`~gpmultirate.FIRGaussianProcess`,
+:class:`~gpmultirate.LeastSquaresFIR` or :class:`~gpmultirate.MultiOutputFIR`
+to an ``.npz`` archive of plain numbers; :func:`load_model` reads it back
+without unpickling anything and without importing any name found in the
+file, so loading a file from an untrusted source cannot run code.  (Fitted
+models also round-trip through :mod:`pickle`, but a pickle must only be
+loaded from a trusted source.)
 
 File format, version 1
 ----------------------
@@ -37,6 +38,19 @@ coefficient vector) and, for LeastSquaresFIR, ``coef_covariance``.  Both
 estimators are rebuilt by fitting the stored data again (least squares is
 deterministic; a Gaussian process is conditioned at the stored
 hyperparameters), and the coefficients are checked against ``coef``.
+
+File format, version 3
+----------------------
+A :class:`~gpmultirate.MultiOutputFIR`: ``estimator`` is ``"MultiOutputFIR"``,
+``params`` holds ``n_jobs``, ``template`` the class name (``estimator``) and
+the ``params`` of the unfitted estimator that is cloned for every output,
+and ``fitted`` holds ``n_outputs`` and ``outputs``, one object per output
+with the ``format_version`` (1 or 2), ``estimator``, ``params`` and
+``fitted`` entries of that output's model as a file of its own would hold
+them, and ``arrays``, which maps that file's array names to members
+``array_<k>`` of the archive.  An array that several outputs share (the
+input) is stored once.  Each output's model is loaded as its own file would
+be, under the one BLAS thread it was fitted with.
 
 A kernel is a JSON tree such as ``{"class": "Sum", "k1": {...}, "k2": {...}}``
 or ``{"class": "DC", "params": {"alpha": 0.9, ...}}`` whose classes must be
@@ -82,6 +96,7 @@ from gpmultirate.inference import GaussianCoefficients
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
+from gpmultirate.multioutput import MultiOutputFIR, _check_n_jobs, one_blas_thread
 from gpmultirate.observations import DownsampledConvolution, build_experiment
 from gpmultirate.resonances import Resonance
 
@@ -99,7 +114,7 @@ __all__ = [
 PathOrFile = Union[str, os.PathLike, BinaryIO]
 
 FORMAT_NAME = "gpmultirate-model"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
 #: The only kernel classes a model file may name, by class name.
 KERNEL_CLASSES = types.MappingProxyType(
@@ -116,6 +131,8 @@ _KERNEL_SLOTS = {"Sum": ("k1", "k2"), "Product": ("k1", "k2"), "Exponentiation":
 # constructor arguments that are lists of kernels
 _KERNEL_LISTS = {"PerInputKernel": "kernels"}
 _ESTIMATORS = {cls.__name__: cls for cls in (FIRGaussianProcess, LeastSquaresFIR)}
+# the entries of a single model's header that a MultiOutputFIR file keeps per output
+_OUTPUT_ENTRIES = ("format_version", "estimator", "params", "fitted")
 _ARRAYS = {
     "FIRGaussianProcess": ("u", "y_slow", "coef"),
     "LeastSquaresFIR": ("u", "coef", "coef_covariance"),
@@ -148,7 +165,9 @@ class ModelFileError(ValueError):
 
 
 # ----------------------------------------------------------------- saving
-def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) -> None:
+def save_model(
+    model: FIRGaussianProcess | LeastSquaresFIR | MultiOutputFIR, path: PathOrFile
+) -> None:
     """Write a fitted model to a portable ``.npz`` file.
 
     The file holds the training data, the fitted hyperparameters and the
@@ -157,10 +176,11 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
 
     Parameters
     ----------
-    model : FIRGaussianProcess or LeastSquaresFIR
-        A fitted model.  Its kernels must be built from
-        :data:`KERNEL_CLASSES`, and its parameters must be numbers, strings,
-        tuples, arrays, kernels or a ``numpy.random.RandomState``.
+    model : FIRGaussianProcess, LeastSquaresFIR or MultiOutputFIR
+        A fitted model (a MultiOutputFIR of one of the two others).  Its
+        kernels must be built from :data:`KERNEL_CLASSES`, and its
+        parameters must be numbers, strings, tuples, arrays, kernels or a
+        ``numpy.random.RandomState``.
     path : str, path-like or binary file object
         Destination, written exactly as named (no ``.npz`` is appended).
 
@@ -171,7 +191,7 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
     ValueError
         If a kernel or parameter cannot be stored; the message names it.
     TypeError
-        If ``model`` is not one of the two estimators.
+        If ``model`` is not one of the three estimators.
 
     Examples
     --------
@@ -193,11 +213,29 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
     >>> bool(np.array_equal(loaded.predict(u), model.predict(u)))
     True
     """
+    if type(model) is MultiOutputFIR:
+        header, arrays = _multi_output_members(model)
+    else:
+        header, arrays = _single_members(model)
+    header["sha256"] = _checksum(header, arrays)
+    encoded = json.dumps(header, sort_keys=True, allow_nan=False).encode("utf-8")
+    members = {"header": np.frombuffer(encoded, dtype=np.uint8), **arrays}
+    if hasattr(path, "write"):
+        if isinstance(path, io.TextIOBase):
+            raise TypeError("path must be a file name or a binary file object; got a text file")
+        np.savez(path, **members)
+    else:
+        with open(_check_path(path), "wb") as file:
+            np.savez(file, **members)
+
+
+def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
+    """The header (without checksum) and the arrays of a single-output model file."""
     name = type(model).__name__
     if _ESTIMATORS.get(name) is not type(model):
         raise TypeError(
-            "model must be a FIRGaussianProcess or LeastSquaresFIR (not a subclass); "
-            f"got {type(model).__qualname__}"
+            "model must be a FIRGaussianProcess, LeastSquaresFIR or MultiOutputFIR (not a "
+            f"subclass); got {type(model).__qualname__}"
         )
     check_is_fitted(model, "coef_")
     operator = model.operator_
@@ -269,16 +307,46 @@ def save_model(model: FIRGaussianProcess | LeastSquaresFIR, path: PathOrFile) ->
     }
     # little-endian float64 everywhere, whatever the machine
     arrays = {key: np.ascontiguousarray(value, dtype="<f8") for key, value in arrays.items()}
-    header["sha256"] = _checksum(header, arrays)
-    encoded = json.dumps(header, sort_keys=True, allow_nan=False).encode("utf-8")
-    members = {"header": np.frombuffer(encoded, dtype=np.uint8), **arrays}
-    if hasattr(path, "write"):
-        if isinstance(path, io.TextIOBase):
-            raise TypeError("path must be a file name or a binary file object; got a text file")
-        np.savez(path, **members)
-    else:
-        with open(_check_path(path), "wb") as file:
-            np.savez(file, **members)
+    return header, arrays
+
+
+def _multi_output_members(model) -> tuple[dict, dict[str, np.ndarray]]:
+    """Version 3: each output's model as in versions 1 and 2, arrays stored once by content."""
+    check_is_fitted(model, "estimators_")
+    template = model.estimator
+    if _ESTIMATORS.get(type(template).__name__) is not type(template):
+        raise TypeError(
+            "the estimator of a MultiOutputFIR must be a FIRGaussianProcess or "
+            f"LeastSquaresFIR to be saved; got {type(template).__qualname__}"
+        )
+    outputs, arrays, names = [], {}, {}
+    for estimator in model.estimators_:
+        header, own = _single_members(estimator)
+        members = {}
+        for key, array in own.items():
+            # identical arrays (the inputs every output shares) are stored once
+            content = (array.shape, hashlib.sha256(array.tobytes()).hexdigest())
+            if content not in names:
+                names[content] = f"array_{len(names)}"
+                arrays[names[content]] = array
+            members[key] = names[content]
+        outputs.append({**{key: header[key] for key in _OUTPUT_ENTRIES}, "arrays": members})
+    header = {
+        "format": FORMAT_NAME,
+        "format_version": 3,
+        "library_version": __version__,
+        "estimator": "MultiOutputFIR",
+        "params": {"n_jobs": _encode(model.n_jobs, "parameter 'n_jobs'")},
+        "template": {
+            "estimator": type(template).__name__,
+            "params": {
+                key: _encode(value, f"estimator parameter {key!r}")
+                for key, value in template.get_params(deep=False).items()
+            },
+        },
+        "fitted": {"n_outputs": len(outputs), "outputs": outputs},
+    }
+    return header, arrays
 
 
 def describe_kernel(kernel: Kernel) -> dict:
@@ -401,7 +469,7 @@ def _check_path(path):
     return path
 
 
-def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
+def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR | MultiOutputFIR:
     """Load a model written by :func:`save_model`.
 
     The archive is read with ``allow_pickle=False`` and kernels are
@@ -412,7 +480,8 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
     bit on the same platform (a warning reports any difference, which can
     only come from different numerical libraries).  The loaded model has the
     original constructor parameters, so ``get_params`` and refitting behave
-    as for the saved model.
+    as for the saved model.  A :class:`MultiOutputFIR` is loaded output by
+    output in the same way.
 
     Parameters
     ----------
@@ -420,7 +489,7 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
 
     Returns
     -------
-    FIRGaussianProcess or LeastSquaresFIR
+    FIRGaussianProcess, LeastSquaresFIR or MultiOutputFIR
         The fitted model.
 
     Raises
@@ -459,24 +528,91 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR:
             "the model file is corrupted: its SHA-256 checksum does not match its contents"
         )
     name = header.get("estimator")
-    if name not in _ESTIMATORS:
-        raise ModelFileError(f"unknown estimator {name!r} in the model file")
-    expected = _ARRAYS[name] if header["format_version"] == 1 else _record_arrays(header, name)
-    if sorted(members) != sorted(expected):
-        raise ModelFileError(
-            f"a {name} file must hold the arrays {sorted(expected)}; got {sorted(members)}"
-        )
     try:
-        arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
-        if header["format_version"] == 2:
-            return _load_records(header, arrays, _ESTIMATORS[name])
-        if name == "FIRGaussianProcess":
-            return _load_gaussian_process(header, arrays)
-        return _load_least_squares(header, arrays)
+        if name == "MultiOutputFIR" and header["format_version"] == 3:
+            return _load_multi_output(header, members)
+        return _load_single(header, members)
     except ModelFileError:
         raise
     except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as exc:
         raise ModelFileError(f"the {name} model file is invalid: {exc}") from exc
+
+
+def _load_single(header: dict, members: dict[str, np.ndarray]):
+    """A FIRGaussianProcess or LeastSquaresFIR from its header and arrays (versions 1, 2)."""
+    name = header.get("estimator")
+    version = header.get("format_version")
+    if name not in _ESTIMATORS:
+        raise ModelFileError(f"unknown estimator {name!r} in the model file")
+    if version not in (1, 2):
+        raise ModelFileError(f"a {name} is stored in format version 1 or 2; got {version!r}")
+    expected = _ARRAYS[name] if version == 1 else _record_arrays(header, name)
+    if sorted(members) != sorted(expected):
+        raise ModelFileError(
+            f"a {name} file must hold the arrays {sorted(expected)}; got {sorted(members)}"
+        )
+    arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
+    if version == 2:
+        return _load_records(header, arrays, _ESTIMATORS[name])
+    if name == "FIRGaussianProcess":
+        return _load_gaussian_process(header, arrays)
+    return _load_least_squares(header, arrays)
+
+
+def _load_multi_output(header: dict, members: dict[str, np.ndarray]) -> MultiOutputFIR:
+    """Version 3: every output's model loaded as a single model, under fit's BLAS limit."""
+    template = _section(header, "template")
+    estimator = _ESTIMATORS.get(template.get("estimator"))
+    if estimator is None:
+        raise ModelFileError(
+            f"unknown estimator {template.get('estimator')!r} in the MultiOutputFIR file"
+        )
+    params = _decode_params(template, estimator)
+    params_of_model = _section(header, "params")
+    if set(params_of_model) != {"n_jobs"}:
+        raise ModelFileError(
+            f"a MultiOutputFIR file must hold the parameter n_jobs only; got "
+            f"{sorted(params_of_model)}"
+        )
+    n_jobs = _decode(params_of_model["n_jobs"])
+    fitted = _section(header, "fitted")
+    outputs = fitted.get("outputs")
+    n_outputs = _integer(fitted, "n_outputs")
+    if not isinstance(outputs, list) or not 1 <= n_outputs == len(outputs):
+        raise ModelFileError(
+            f"a MultiOutputFIR file must describe n_outputs >= 1 outputs; got n_outputs="
+            f"{n_outputs!r} and {len(outputs) if isinstance(outputs, list) else outputs!r}"
+        )
+    used = set()
+    estimators = []
+    for j, output in enumerate(outputs):
+        if not isinstance(output, dict) or set(output) != {*_OUTPUT_ENTRIES, "arrays"}:
+            raise ModelFileError(
+                f"output {j} of the MultiOutputFIR file must hold exactly the entries "
+                f"{sorted({*_OUTPUT_ENTRIES, 'arrays'})}"
+            )
+        names = output["arrays"]
+        if not isinstance(names, dict) or any(
+            not isinstance(stored, str) or stored not in members for stored in names.values()
+        ):
+            raise ModelFileError(f"output {j} of the MultiOutputFIR file names missing arrays")
+        used.update(names.values())
+        with one_blas_thread():  # as in MultiOutputFIR.fit, so that the fit is reproduced
+            estimators.append(_load_single(
+                {key: output[key] for key in _OUTPUT_ENTRIES},
+                {key: members[stored] for key, stored in names.items()},
+            ))
+    if used != set(members):
+        raise ModelFileError(
+            f"the MultiOutputFIR file holds arrays no output uses: {sorted(set(members) - used)}"
+        )
+    model = MultiOutputFIR(estimator(**params), n_jobs=n_jobs)
+    _check_n_jobs(n_jobs)
+    model.estimators_ = estimators
+    model.n_outputs_ = len(estimators)
+    model.n_inputs_ = int(estimators[0].n_inputs_)
+    model.coef_ = np.stack([e.coef_ for e in estimators])
+    return model
 
 
 def _read_archive(file: BinaryIO) -> dict[str, np.ndarray]:

@@ -32,3 +32,13 @@ def test_readme_python_block_runs_as_printed(code, tmp_path, monkeypatch):
     if "validation GoF" in code:
         gof = float(re.search(r"validation GoF ([-\d.]+) %", printed.getvalue()).group(1))
         assert gof > 99.0
+
+
+def test_ci_runs_the_readme_test_command():
+    """The README's install-and-test command is the one continuous integration runs."""
+    command = re.search(r'pip install "(\.\[[^\]]*\])" && (python -m pytest)\n',
+                        README.read_text(encoding="utf-8"))
+    assert command, "the README gives no install-and-test command"
+    ci = (README.parent / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert f'pip install "{command.group(1)}"' in ci
+    assert command.group(2) in ci
