@@ -500,7 +500,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     >>> rng = np.random.default_rng(0)
     >>> g = 0.9 ** np.arange(60) * np.cos(0.5 * np.arange(60))
     >>> u = rng.standard_normal(120)
-    >>> y_slow = np.convolve(u, g)[:120][::3] + 1e-3 * rng.standard_normal(40)
+    >>> y_slow = np.convolve(u, g)[:120][::3] + 0.05 * rng.standard_normal(40)
     >>> model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=60).fit(u, y_slow)
     >>> model.coef_.shape
     (60,)
@@ -512,10 +512,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
 
     >>> u2 = rng.standard_normal((120, 2))
     >>> y2 = (np.convolve(u2[:, 0], g)[:120] + np.convolve(u2[:, 1], -g)[:120])[::3]
+    >>> y2 += 1e-2 * rng.standard_normal(40)
     >>> y2[5] = np.nan
-    >>> model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=60).fit(u2, y2)
+    >>> model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=20).fit(u2, y2)
     >>> model.coef_.shape, model.frequency_response(input=1).magnitude.shape
-    ((2, 60), (61,))
+    ((2, 20), (61,))
     """
 
     continuous_lags = True
