@@ -11,7 +11,6 @@ backend runs them: processes (loky, the default), or a Dask cluster under
 
 from __future__ import annotations
 
-import numbers
 
 import joblib
 import numpy as np
@@ -21,7 +20,7 @@ from threadpoolctl import threadpool_limits
 
 from gpmultirate.observations.experiment import is_record_list
 from gpmultirate.responses import FrequencyResponse
-from gpmultirate.validation import as_real_array, check_int
+from gpmultirate.validation import as_real_array, check_int, check_n_jobs
 
 __all__ = ["MultiOutputFIR"]
 
@@ -128,7 +127,7 @@ class MultiOutputFIR(BaseEstimator):
             notes which output).
         """
         estimator = self._check_estimator()
-        n_jobs = _check_n_jobs(self.n_jobs)
+        n_jobs = check_n_jobs(self.n_jobs)
         columns = _output_columns(y_slow, several_records=is_record_list(u))
         tasks = (
             joblib.delayed(_fit_output)(clone(estimator), u, y_j, sample_indices, j)
@@ -247,17 +246,6 @@ def _fit_output(estimator, u, y_slow, sample_indices, output: int):
 def one_blas_thread():
     """The BLAS thread limit under which each output's model is fitted (and loaded again)."""
     return threadpool_limits(limits=1, user_api="blas")
-
-
-def _check_n_jobs(n_jobs):
-    if n_jobs is None:
-        return None
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, numbers.Integral) or n_jobs == 0:
-        raise ValueError(
-            f"n_jobs must be None or a non-zero integer (negative counts back from all "
-            f"CPUs, as in joblib); got {n_jobs!r}"
-        )
-    return int(n_jobs)
 
 
 def _output_columns(y_slow, several_records: bool) -> list:

@@ -96,9 +96,10 @@ from gpmultirate.inference import GaussianCoefficients
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
-from gpmultirate.multioutput import MultiOutputFIR, _check_n_jobs, one_blas_thread
+from gpmultirate.multioutput import MultiOutputFIR, one_blas_thread
 from gpmultirate.observations import DownsampledConvolution, build_experiment
 from gpmultirate.resonances import Resonance
+from gpmultirate.validation import check_n_jobs
 
 __all__ = [
     "FORMAT_NAME",
@@ -607,7 +608,7 @@ def _load_multi_output(header: dict, members: dict[str, np.ndarray]) -> MultiOut
             f"the MultiOutputFIR file holds arrays no output uses: {sorted(set(members) - used)}"
         )
     model = MultiOutputFIR(estimator(**params), n_jobs=n_jobs)
-    _check_n_jobs(n_jobs)
+    check_n_jobs(n_jobs)
     model.estimators_ = estimators
     model.n_outputs_ = len(estimators)
     model.n_inputs_ = int(estimators[0].n_inputs_)

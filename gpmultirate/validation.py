@@ -206,3 +206,15 @@ def check_sample_indices(indices, n_samples: int, name: str = "sample_indices") 
     if np.any(np.diff(index) <= 0):
         raise ValueError(f"{name} must be strictly increasing")
     return index
+
+
+def check_n_jobs(n_jobs):
+    """Return ``n_jobs`` as joblib takes it: None or a non-zero integer."""
+    if n_jobs is None:
+        return None
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, numbers.Integral) or n_jobs == 0:
+        raise ValueError(
+            f"n_jobs must be None or a non-zero integer (negative counts back from all "
+            f"CPUs, as in joblib); got {n_jobs!r}"
+        )
+    return int(n_jobs)
