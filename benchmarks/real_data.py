@@ -367,7 +367,7 @@ def summary_table(entries):
         return f"{r['fit_percent']:.1f} ({r['order']})" if order else f"{r['fit_percent']:.1f}"
 
     def yes(value):
-        return "" if value is None else ("yes" if value else "**no**")
+        return "" if value is None else ("yes" if value else "no")
 
     body = []
     for e in entries:
@@ -457,14 +457,19 @@ _FLOAT_FIELDS = ("fit_percent", "gof", "time min", "time median", "time max", "c
 def read_rows(paths) -> list[dict]:
     """The rows of ``real_data.csv`` files, typed; a single-rate row copied to every factor.
 
-    Runs of separate factors (``--factors 2``, ``--factors 3``, ...) are
-    merged this way; a single-rate row, the same fit for every factor, needs
-    to be in one of them only.
+    Runs of separate factors (``--factors 2``, ``--factors 3``, ...) or
+    orders are merged this way; a single-rate row, the same fit for every
+    factor, needs to be in one of them only, and a cell found in several
+    files is taken from the first.
     """
-    rows = []
+    rows, kept = [], set()
     for path in paths:
         with open(path, newline="") as stream:
             for row in csv.DictReader(stream):
+                cell = (row["record"], row["method"], row["factor"], row["order"])
+                if cell in kept:
+                    continue  # the same cell from two runs: the first is kept
+                kept.add(cell)
                 for name in _INT_FIELDS:
                     row[name] = int(row[name])
                 for name in _FLOAT_FIELDS:  # "cpu median": not in older files

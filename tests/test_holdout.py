@@ -242,3 +242,47 @@ def test_benchmark_order_grid_and_plan(bench):
         robot, by_name["DC + resonances"], 3, 682]
     assert cells[robot, by_name["single-rate DC"], 2, 50] == cells[
         robot, by_name["single-rate DC"], 3, 50]
+
+
+def _row(method, factor, order, fit, fit_factor=None, status="ok"):
+    return {"record": "robot arm", "method": method, "factor": factor,
+            "fit factor": factor if fit_factor is None else fit_factor, "order": order,
+            "requested order": order, "M": 10, "n_inputs": 1, "N estimation": 682,
+            "N validation": 342, "status": status, "fit_percent": fit, "gof": fit,
+            "time min": 1.0, "time median": 1.0, "time max": 1.0, "cpu median": 1.0,
+            "warnings": 0, "resonances": ""}
+
+
+def test_benchmark_summary_checks_the_targets(bench):
+    robot = bench.RECORDS[:1]
+    rows = [_row("DC", 3, 100, 80.0), _row("DC", 3, 682, 84.0),
+            _row("LS", 3, 100, 70.0), _row("LS", 3, 682, np.nan, status="not identifiable"),
+            _row("default", 3, 682, 82.5),
+            _row("DC", 2, 682, 90.0), _row("LS", 2, 100, 89.0), _row("default", 2, 682, 88.5)]
+    entries = {e["factor"]: e for e in bench.summary(rows, robot, (2, 3))}
+    # F = 3: 82.5 >= 84 - 2 and >= 70; F = 2: 88.5 >= 90 - 2 but below LS's 89
+    assert entries[3]["best DC"]["order"] == 682 and entries[3]["best LS"]["order"] == 100
+    assert entries[3]["within 2 of DC"] and entries[3]["not below LS"]
+    assert entries[2]["within 2 of DC"] and not entries[2]["not below LS"]
+    rows.append(_row("default", 4, 682, 50.0))
+    rows.append(_row("DC", 4, 682, 52.1))
+    entry = bench.summary(rows, robot, (4,))[0]
+    assert not entry["within 2 of DC"] and entry["not below LS"]  # no LS at F = 4
+
+
+def test_benchmark_tables_round_trip_through_csv(bench, tmp_path):
+    rows = [_row("DC", 3, 100, 80.0), _row("single-rate DC", 3, 100, 85.0, fit_factor=1),
+            _row("LS", 3, 100, np.nan, status="not identifiable")]
+    first = tmp_path / "first"
+    bench.report(rows, first, bench.RECORDS[:1], bench.METHODS, (3,))
+    second = tmp_path / "second"
+    bench.report([_row("DC", 2, 100, 70.0), _row("DC", 3, 100, 1.0)], second,
+                 bench.RECORDS[:1], bench.METHODS, (2, 3))
+    merged = bench.read_rows([first / "real_data.csv", second / "real_data.csv"])
+    cells = {(r["method"], r["factor"]): r for r in merged}
+    assert len(merged) == 5  # the repeated DC cell at F = 3 kept once, from the first file
+    assert cells["DC", 3]["fit_percent"] == 80.0 and cells["DC", 2]["fit_percent"] == 70.0
+    assert cells["single-rate DC", 2]["fit_percent"] == 85.0  # one fit, every factor
+    assert cells["LS", 3]["status"] == "not identifiable" and np.isnan(cells["LS", 3]["gof"])
+    text = (first / "real_data_results.rst").read_text()
+    assert "not identifiable" in text and "80.0 / 80.0" in text
