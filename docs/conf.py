@@ -54,6 +54,8 @@ exclude_patterns = ["_build", "generated/*.md", "Thumbs.db", ".DS_Store"]
 # generated/study.rst is pulled into results.rst with ``.. include::``; it is
 # not a page of its own
 exclude_patterns.append("generated/study.rst")
+# so are the real-data benchmark's tables, into real_data.rst
+exclude_patterns.append("generated/real_data_*.rst")
 root_doc = "index"
 default_role = "literal"
 nitpicky = False

@@ -56,6 +56,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 
 import gpmultirate as gm  # noqa: E402
 from gpmultirate.datasets import load_cd_player_arm  # noqa: E402
+from gpmultirate.holdout import holdout_split  # noqa: E402
 from gpmultirate.kernels import DC  # noqa: E402
 from gpmultirate.plotting import plot_bode  # noqa: E402
 
@@ -124,35 +125,32 @@ def main() -> None:
 
     data = load_cd_player_arm()
     n_total = data.u.shape[0]
-    n_est = 2 * n_total // 3  # 1365 = 455 * 3: the slow grid continues into validation
+    # Two thirds for estimation, every third output sample of them; the
+    # means of the estimation data subtracted (the inputs' at the fast rate,
+    # the output's from its slow samples): the models see centred signals,
+    # and their predictions get the output mean back.
+    splits = [holdout_split(data.u, data.y[:, j], FACTOR, center=True) for j in range(2)]
+    n_est = splits[0].n_estimation  # 1365 = 455 * 3: the slow grid continues into validation
     validation = np.arange(n_est, n_total)
     slow_validation = np.arange(n_est, n_total, FACTOR)  # held-out slow samples
     print(f"CD-player arm: {n_total} samples, 2 inputs, 2 outputs; estimation 0..{n_est - 1} "
           f"(every {FACTOR}rd output sample), validation {n_est}..{n_total - 1} (every sample)")
-
-    # Means of the estimation data only: the inputs' at the fast rate, the
-    # output's from its slow samples.  The models see centred signals; their
-    # predictions get the output mean back.
-    u_mean = data.u[:n_est].mean(axis=0)
-    u = data.u - u_mean
-    u_est = u[:n_est]
+    u = splits[0].u  # both inputs, centred (the same for either output)
+    u_est = splits[0].u_estimation
 
     rows, models = [], {}
     for j in range(2):
         y = data.y[:, j]
-        y_slow_raw = y[:n_est:FACTOR]  # keep every third output sample
-        y_mean = float(np.mean(y_slow_raw))
-        y_slow = y_slow_raw - y_mean
-
-        def fit_on_validation(model, inputs, y=y, y_mean=y_mean):
-            # simulated over the whole record: the estimation inputs are the
-            # model's past at the start of the validation third
-            return nrmse_fit(y[validation], model.predict(inputs)[validation] + y_mean)
+        both = splits[j]
+        first = holdout_split(data.u[:, 0], y, FACTOR, center=True)  # the first input only
+        y_slow, y_mean = both.y_slow, both.y_mean
 
         # Gaussian processes: both inputs, from the default start only and
         # from the three starts (the reported fit), and the first input only.
-        two, default = fit_gp(u_est, y_slow)
-        one, _ = fit_gp(u_est[:, 0], y_slow)
+        # Each is simulated over the whole record, so the estimation inputs
+        # are its past at the start of the validation third.
+        two, default = fit_gp(both.u_estimation, y_slow)
+        one, _ = fit_gp(first.u_estimation, first.y_slow)
 
         # Least squares of both inputs: 2 P below the used slow samples M(P)
         # (fewer for larger P with "discard"); the order chosen on the held-out
@@ -176,9 +174,9 @@ def main() -> None:
         row = {
             "output": j, "M": two.y_slow_.shape[0],
             "LS": (ls_chosen[0], ls_chosen[2]), "LS best": (ls_best[0], ls_best[2]),
-            "one": fit_on_validation(one, u[:, 0]),
-            "default": fit_on_validation(default, u),
-            "two": fit_on_validation(two, u),
+            "one": first.evaluate(one).fit_percent,
+            "default": both.evaluate(default).fit_percent,
+            "two": both.evaluate(two).fit_percent,
             "evidence": (default.log_marginal_likelihood_value_,
                          two.log_marginal_likelihood_value_),
         }
