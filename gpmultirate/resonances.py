@@ -67,8 +67,9 @@ from gpmultirate.kernels import (
 )
 from gpmultirate.validation import check_positive
 
-__all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "SEARCH_THRESHOLD", "Resonance",
-           "ResonanceSearch", "damping_ratio", "resonance_scan", "search_resonances",
+__all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "MIN_EXCITATION", "SEARCH_THRESHOLD", "Resonance",
+           "ResonanceSearch", "damping_ratio", "excitation", "resonance_scan",
+           "search_resonances",
            "slowest_decay"]
 
 #: log evidence gain (nats) a PK term must bring to be kept
@@ -77,6 +78,8 @@ EVIDENCE_THRESHOLD = 12.0
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
+#: excitation (relative to its mean over the band) below which no resonance is searched
+MIN_EXCITATION = 1e-2
 # decay rates of the scan's candidates, in units of 1 / P (the envelope
 # alpha^(t/2) falls by e^-r at lag P), and the amplitude grid (standard
 # deviations relative to the data's scale)
@@ -221,7 +224,8 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     Returns
     -------
     gain : ndarray of shape (n_alphas, n_omegas)
-        The best gain (nats) over the amplitudes, at least 0.
+        The best gain (nats) over the amplitudes, at least 0; 0 at the
+        frequencies the input does not excite (:func:`excitation`).
     sigma : ndarray of shape (n_alphas, n_omegas)
         The amplitude of the best gain.
     omegas, alphas : ndarray
@@ -299,7 +303,42 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         best = np.argmax(values, axis=1)
         gain[a] = np.maximum(values[np.arange(omegas.size), best], 0.0)
         sigma[a] = np.sqrt(s2[best])
+    # where the input has (almost) no power the data cannot locate a resonance:
+    # a large amplitude there only fits noise, and the response beyond the record
+    gain[:, excitation(Phi, omegas) < MIN_EXCITATION] = 0.0
     return gain, sigma, omegas, alphas
+
+
+def excitation(Phi: np.ndarray, omegas) -> np.ndarray:
+    """How strongly the data see a sinusoidal response at each frequency, relative to the mean.
+
+    ``||Phi w cos(omega t)||^2 + ||Phi w sin(omega t)||^2`` over the lags
+    ``t`` of the regressor ``Phi``, with ``w(t)`` a Hann taper over the lags
+    (against leakage from strong bands), divided by its mean over
+    ``omegas``: the power
+    of the input near ``omega`` as the slow samples receive it (aliased or
+    not).  A resonance is only searched where this is at least
+    :data:`MIN_EXCITATION`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> u = np.cos(0.3 * np.arange(300))  # one frequency only
+    >>> e = excitation(DownsampledConvolution(u, 3, 60).matrix, [0.3, 2.0])
+    >>> bool(e[0] > 1.9 and e[1] < 0.1)
+    True
+    """
+    omegas = np.asarray(omegas, dtype=float)
+    P = Phi.shape[1]
+    lags = np.arange(P, dtype=float)
+    # a Hann taper over the lags keeps the leakage of strong bands low (below 1e-4)
+    taper = (0.5 - 0.5 * np.cos(2.0 * np.pi * (lags + 0.5) / P))[:, None]
+    phase = np.outer(lags, omegas)
+    seen = (np.sum((Phi @ (taper * np.cos(phase))) ** 2, axis=0)
+            + np.sum((Phi @ (taper * np.sin(phase))) ** 2, axis=0))
+    mean = float(np.mean(seen))
+    return seen / mean if mean > 0 else np.zeros_like(seen)
 
 
 def search_resonances(observation, y, base_kernel, noise_level: float, noise_bounds, *,

@@ -321,3 +321,36 @@ def test_modes_of_random_two_mass_systems_are_found():
         found = sorted(r.frequency_hz for r in model.resonances_)
         assert len(found) == 2, (system.natural_frequencies, found)
         np.testing.assert_allclose(found, system.natural_frequencies, rtol=0.03)
+
+
+def test_excitation_is_the_input_power_the_slow_samples_see():
+    rng = np.random.default_rng(2)
+    # low-pass input: (almost) no power above 0.25 pi rad/sample
+    b, a = signal.butter(8, 0.25)
+    u = signal.lfilter(b, a, rng.standard_normal(900))
+    op = gm.DownsampledConvolution(u, 3, 120)
+    omegas = np.linspace(0.05, np.pi, 60)
+    e = gm.resonances.excitation(op.matrix, omegas)
+    # against the definition written out with explicit sums
+    t = np.arange(120)
+    hann = np.sin(np.pi * (t + 0.5) / 120) ** 2
+    direct = np.array([sum(np.dot(row, hann * np.cos(w * t)) ** 2
+                           + np.dot(row, hann * np.sin(w * t)) ** 2
+                           for row in op.matrix) for w in omegas])
+    np.testing.assert_allclose(e, direct / direct.mean(), rtol=1e-10)
+    assert np.all(e[omegas < 0.15 * np.pi] > 0.5) and np.all(e[omegas > 0.5 * np.pi] < 1e-3)
+
+
+def test_no_resonance_is_searched_where_the_input_has_no_power():
+    rng = np.random.default_rng(3)
+    b, a = signal.butter(8, 0.25)
+    u = signal.lfilter(b, a, rng.standard_normal(900))
+    g = 0.9 ** np.arange(120)
+    op = gm.DownsampledConvolution(u, 3, 120)
+    # output noise with a strong component at 0.7 pi, where u has no power
+    y = op.matvec(g) + 0.05 * rng.standard_normal(op.n_outputs) \
+        + 0.5 * np.cos(0.7 * np.pi * 3 * np.arange(op.n_outputs))
+    gain, _, omegas, _ = resonance_scan(op, y, C(1.0) * DC(), 0.01)
+    unexcited = gm.resonances.excitation(op.matrix, omegas) < gm.resonances.MIN_EXCITATION
+    assert unexcited.any() and np.all(gain[:, unexcited] == 0.0)
+    assert np.all(omegas[unexcited] > 0.25 * np.pi)
