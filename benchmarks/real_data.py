@@ -128,6 +128,8 @@ METHODS = (
     Method("DC + resonances", lambda F, P: gm.FIRGaussianProcess(kernel="auto", factor=F, order=P)),
     Method("single-rate DC", lambda F, P: gm.FIRGaussianProcess(_dc(), factor=1, order=P)),
     Method("default", lambda F, P: gm.FIRGaussianProcess(factor=F, kernel="auto"), sweep=False),
+    Method("DC, order auto (CV)", lambda F, P: gm.FIRGaussianProcess(
+        factor=F, order="auto", tuning="cross_validation"), sweep=False),
 )
 
 

@@ -233,9 +233,9 @@ def test_benchmark_order_grid_and_plan(bench):
     robot = bench.RECORDS[0]
     cells, fits = bench.plan([robot], bench.METHODS, (2, 3), orders=(50,))
     # orders 50 and N = 682; LS, DC, DC + resonances at both factors and both orders,
-    # single-rate DC once per order, the default once per factor
-    assert len(cells) == 3 * 2 * 2 + 2 * 2 + 2
-    assert len(fits) == 3 * 2 * 2 + 2
+    # single-rate DC once per order, the default and the order selection once per factor
+    assert len(cells) == 3 * 2 * 2 + 2 * 2 + 2 + 2
+    assert len(fits) == 3 * 2 * 2 + 2 + 2
     by_name = {m.name: m for m in bench.METHODS}
     # the default is the same fit as DC + resonances at order N
     assert cells[robot, by_name["default"], 3, None] == cells[
