@@ -357,6 +357,19 @@ class DC(ShiftScaledKernel):
     def shift_scale(self):
         return self.checked_values()["alpha"], {"alpha": 1.0, "beta": 0.0}
 
+    def beta_chain(self) -> float:
+        """``d beta / d theta_beta``: ``beta``, since ``theta_beta = log(beta)``.
+
+        Derivatives in ``theta_beta`` written through this factor follow a
+        change of the parametrization of ``beta``.
+
+        Examples
+        --------
+        >>> DC(0.8, 0.5).beta_chain()
+        0.5
+        """
+        return self.checked_values()["beta"]
+
     def right_multiply(self, X):
         # K = D T D, D = diag(alpha^(j/2)), T = beta^|i - j|: a two-sided AR(1) filter
         alpha, beta = self.checked_values().values()

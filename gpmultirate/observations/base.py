@@ -114,6 +114,8 @@ class Observation:
             state["_matrix"] = None
         if "_blocks" in state:
             state["_blocks"] = {}
+        if "_gram" in state:
+            state["_gram"] = None
         return state
 
     # ------------------------------------------------------------- products
@@ -185,9 +187,17 @@ class Observation:
             y = check_array(y, "y", rows=self.n_outputs)
             if y.ndim != 1:
                 raise ValueError(f"y must be one-dimensional; got shape {y.shape}")
+        if y is None and getattr(self, "_gram", None) is not None:
+            return self._gram, None
         found = self.structured_gram(y)
-        if found is not None:
-            return found
+        if found is None:
+            found = self._dense_gram(y, block_rows)
+        if y is None:  # kept: the evidence by the prior precision asks for it repeatedly
+            found[0].setflags(write=False)
+            self._gram = found[0]
+        return found
+
+    def _dense_gram(self, y, block_rows):
         P = self.n_coefficients
         block = block_rows or max(2 * P, 1024)
         gram = np.zeros((P, P))

@@ -161,6 +161,18 @@ class ReducedObservation(Observation):
         # W is symmetric, so its transpose is a Fortran-ordered view of W
         return blas.dtrmm(1.0, G.T, W.T, side=1, lower=1, trans_a=1)
 
+    def gram(self, y=None, block_rows=None):
+        """``R^T R`` (kept) and ``R^T y``: the Gram matrix of ``Phi`` and ``Phi^T y`` for ``y = z``."""
+        if getattr(self, "_gram", None) is None:
+            R = self._matrix
+            gram = R.T @ R
+            gram += gram.T
+            gram *= 0.5
+            gram.setflags(write=False)
+            self._gram = gram
+        projection = None if y is None else self._matrix.T @ y
+        return self._gram, projection
+
     def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
         """Value, derivative and Fisher information in ``log(noise_level)`` of the rest.
 
