@@ -269,3 +269,13 @@ def test_a_million_samples_stay_small():
                                    rtol=0, atol=1e-10 * np.abs(G).max())
         np.testing.assert_allclose(b[i : i + 10], columns(i).T @ y, rtol=0,
                                    atol=1e-10 * np.abs(b).max())
+
+
+def test_an_input_block_does_not_inherit_the_gram_of_all_inputs():
+    rng = np.random.default_rng(8)
+    u = rng.standard_normal((200, 2))
+    op = SampledConvolution(u, np.arange(0, 200, 2), 15)
+    op.gram()  # kept on the observation
+    block = op.input_block(1)
+    Phi = np.array(block.matrix)
+    np.testing.assert_allclose(block.gram()[0], Phi.T @ Phi, atol=1e-10 * np.abs(Phi.T @ Phi).max())

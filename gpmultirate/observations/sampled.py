@@ -211,7 +211,7 @@ class SampledConvolution(Observation):
             block = SampledConvolution.__new__(SampledConvolution)
             block.__dict__.update(
                 self.__dict__, u=self._inputs[:, k], _inputs=self._inputs[:, k : k + 1],
-                n_inputs=1, _matrix=None, _blocks={},
+                n_inputs=1, _matrix=None, _blocks={}, _gram=None,
             )
             self._blocks[k] = block
         return self._blocks[k]
