@@ -321,6 +321,14 @@ def log_marginal_likelihood(
     true, the derivative with respect to ``log(noise_level)`` last.
     """
     term = observe(kernel, operator)
+    if operator.n_outputs == operator.n_coefficients:
+        precision = term.precision()
+        if precision is not None:
+            found = _log_marginal_likelihood_by_precision(
+                operator, precision, noise_level, y, eval_gradient, noise_free
+            )
+            if found is not None:
+                return found
     if eval_gradient:
         S, contract = term.covariance_with_contractor()
     else:
@@ -339,6 +347,65 @@ def log_marginal_likelihood(
     grad = 0.5 * contract(W)
     if noise_free:
         grad = np.append(grad, 0.5 * np.trace(W) * noise_level + rest_grad)
+    return value, grad
+
+
+def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, eval_gradient,
+                                          noise_free):
+    """The evidence of a square (or reduced) observation through a tridiagonal ``K^{-1}``.
+
+    With ``Q = K^{-1}``, ``A = Phi^T Phi`` and ``C = Q + A / gamma`` (the
+    posterior precision), ``mu = C^{-1} Phi^T y / gamma`` and
+    ``Sigma = C^{-1}``:
+
+    * ``y^T Ky^{-1} y = |y - Phi mu|^2 / gamma + mu^T Q mu``;
+    * ``log det Ky = M log gamma + log det K + log det C`` (``M = P``);
+    * ``d/d theta_j = -1/2 (mu^T dQ_j mu + tr(Sigma dQ_j) + d log det K / d theta_j)``;
+    * ``d/d log gamma = 1/2 |y - Phi mu|^2 / gamma - 1/2 tr(Sigma Q)``.
+
+    ``dQ_j`` and ``Q`` are tridiagonal, so only the tridiagonal band of
+    ``Sigma`` is needed: a Cholesky factorisation and a triangular inverse,
+    about a quarter of the flops of the data-space route.  None when ``C``
+    is not numerically positive definite (the data-space route then answers).
+    """
+    A, b = operator.gram(y)
+    C = A / noise_level
+    P = C.shape[0]
+    C.flat[:: P + 1] += precision.diagonal
+    C.flat[1 :: P + 1] += precision.off_diagonal
+    C.flat[P :: P + 1] += precision.off_diagonal
+    try:
+        L = linalg.cholesky(C, lower=True, overwrite_a=True, check_finite=False)
+    except linalg.LinAlgError:
+        return None
+    mu = linalg.cho_solve((L, True), b / noise_level, check_finite=False)
+    residual = y - operator.matvec(mu)
+    Q_mu = precision.diagonal * mu
+    Q_mu[:-1] += precision.off_diagonal * mu[1:]
+    Q_mu[1:] += precision.off_diagonal * mu[:-1]
+    squares = float(residual @ residual)
+    quadratic = squares / noise_level + float(mu @ Q_mu)
+    log_det = (P * np.log(noise_level) + precision.log_det_covariance
+               + 2.0 * np.log(np.diag(L)).sum())
+    rest_value, rest_grad, _ = operator.discarded_log_likelihood(noise_level)
+    value = log_gaussian(quadratic, log_det, P) + rest_value
+    if not eval_gradient:
+        return value
+    inverse, info = linalg.lapack.dtrtri(L, lower=1)
+    if info != 0:
+        return None
+    # the band of Sigma = L^{-T} L^{-1}, and of Sigma + mu mu^T
+    sigma_diagonal = np.einsum("ki,ki->i", inverse, inverse)
+    sigma_off = np.einsum("ki,ki->i", inverse[:, :-1], inverse[:, 1:])
+    band_diagonal = sigma_diagonal + mu * mu
+    band_off = sigma_off + mu[:-1] * mu[1:]
+    grad = np.array([
+        -0.5 * (d @ band_diagonal + 2.0 * (o @ band_off) + log_det_j)
+        for (d, o), log_det_j in zip(precision.derivatives, precision.log_det_gradient)
+    ])
+    if noise_free:
+        trace = precision.diagonal @ sigma_diagonal + 2.0 * (precision.off_diagonal @ sigma_off)
+        grad = np.append(grad, 0.5 * squares / noise_level - 0.5 * trace + rest_grad)
     return value, grad
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from gpmultirate.kernels.precision import dc_precision
 from gpmultirate.kernels.structure import ObservedTerm, symmetrize
 
 __all__ = ["DCFilterTerm", "suffix_after", "two_sided"]
@@ -117,6 +118,12 @@ class DCFilterTerm(ObservedTerm):
             return np.array([values[name] for name in free])
 
         return K, contract
+
+    def precision(self):
+        """The tridiagonal ``K^{-1}`` (:func:`~gpmultirate.kernels.precision.dc_precision`), or None."""
+        values = self.kernel.checked_values()
+        return dc_precision(values["alpha"], values["beta"], self.kernel.beta_chain(),
+                            self.observation.order, tuple(self._free()))
 
     def covariance(self):
         _, _, G, H = self._filtered()

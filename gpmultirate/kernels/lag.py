@@ -523,6 +523,20 @@ class DC(ShiftScaledKernel):
     def shift_scale(self):
         return self.checked_values()["alpha"], {"alpha": 1.0, "beta": 0.0}
 
+    def beta_chain(self) -> float:
+        """``d beta / d theta_beta`` (``1 - beta^2``, since ``theta_beta = artanh(beta)``).
+
+        Derivatives in ``theta_beta`` written through this factor follow the
+        declared transform of ``beta``.
+
+        Examples
+        --------
+        >>> DC(0.8, 0.5).beta_chain()
+        0.75
+        """
+        beta = self.checked_values()["beta"]
+        return float(self.theta_transform("beta").derivative(beta))
+
     def right_multiply(self, X):
         # K = D T D, D = diag(alpha^(j/2)), T = beta^|i - j|: a two-sided AR(1) filter
         alpha, beta = self.checked_values().values()

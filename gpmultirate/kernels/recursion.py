@@ -348,6 +348,9 @@ class ShiftScaledTerm(ObservedTerm):
     def kernel_matrix(self):
         return self.other.kernel_matrix()
 
+    def precision(self):
+        return self.other.precision()
+
     def parameter_contractor(self):
         return self.other.parameter_contractor()
 

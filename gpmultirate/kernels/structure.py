@@ -202,6 +202,15 @@ class ObservedTerm:
         """``(V, D)`` with ``K = V D V^T`` (``V`` of shape ``(P, r)``), or None."""
         return None
 
+    def precision(self):
+        """``K^{-1}`` when it is tridiagonal, with its derivatives, or None.
+
+        A :class:`~gpmultirate.kernels.precision.TridiagonalPrecision`;
+        the evidence of a square or reduced observation then needs only the
+        band of the posterior covariance.
+        """
+        return None
+
     def candidate_factors(self, kernel: Kernel, name: str, values):
         """Low-rank factors of the summand ``kernel`` with ``name`` set to each of ``values``.
 
@@ -379,6 +388,12 @@ class ScaledTerm(ObservedTerm):
 
     def covariance(self):
         return self.value * self.inner.covariance()
+
+    def precision(self):
+        inner = self.inner.precision()
+        if inner is None or not self.value > 0.0:
+            return None
+        return inner.scaled(self.value, self.free, self.constant_first)
 
     def covariance_with_contractor(self):
         S_inner, c_inner = self.inner.covariance_with_contractor()

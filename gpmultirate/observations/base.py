@@ -114,6 +114,8 @@ class Observation:
             state["_matrix"] = None
         if "_blocks" in state:
             state["_blocks"] = {}
+        if "_gram" in state:
+            state["_gram"] = None
         return state
 
     # ------------------------------------------------------------- products
@@ -154,6 +156,60 @@ class Observation:
     def regressor_rows(self, start: int, stop: int) -> np.ndarray:
         """Rows ``start..stop-1`` of ``Phi`` (the reduction reads them block by block)."""
         return self.matrix[start:stop]
+
+    def structured_gram(self, y=None):
+        """``(Phi^T Phi, Phi^T y)`` from the structure of ``Phi``, or None without one.
+
+        Members whose regressor has a structure that makes the Gram matrix
+        cheaper than ``O(M P^2)`` override this (a convolution on a uniform
+        grid: FFTs, :mod:`~gpmultirate.observations.gram`); the second entry
+        is None without ``y``.
+        """
+        return None
+
+    def gram(self, y=None, block_rows: int | None = None):
+        """``Phi^T Phi`` and ``Phi^T y`` (None without ``y``), exactly symmetric.
+
+        By the structure of ``Phi`` where its member has one
+        (:meth:`structured_gram`), else by blocks of ``block_rows`` rows of
+        ``Phi`` (never the whole regressor at once).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from gpmultirate import DownsampledConvolution
+        >>> op = DownsampledConvolution(np.arange(1.0, 7.0), factor=2, order=2)
+        >>> op.gram(np.ones(3))
+        (array([[35., 26.],
+               [26., 20.]]), array([9., 6.]))
+        """
+        if y is not None:
+            y = check_array(y, "y", rows=self.n_outputs)
+            if y.ndim != 1:
+                raise ValueError(f"y must be one-dimensional; got shape {y.shape}")
+        if y is None and getattr(self, "_gram", None) is not None:
+            return self._gram, None
+        found = self.structured_gram(y)
+        if found is None:
+            found = self._dense_gram(y, block_rows)
+        if y is None:  # kept: the evidence by the prior precision asks for it repeatedly
+            found[0].setflags(write=False)
+            self._gram = found[0]
+        return found
+
+    def _dense_gram(self, y, block_rows):
+        P = self.n_coefficients
+        block = block_rows or max(2 * P, 1024)
+        gram = np.zeros((P, P))
+        projection = None if y is None else np.zeros(P)
+        for start in range(0, self.n_outputs, block):
+            rows = self.regressor_rows(start, start + block)
+            gram += rows.T @ rows
+            if y is not None:
+                projection += rows.T @ y[start : start + block]
+        gram += gram.T
+        gram *= 0.5
+        return gram, projection
 
     def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
         """Evidence of the samples a reduction left out: value, derivative, Fisher information.

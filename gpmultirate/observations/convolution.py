@@ -17,6 +17,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from gpmultirate.observations.base import Observation, UniformSampling
+from gpmultirate.observations.gram import extended_input, uniform_gram
 from gpmultirate.validation import check_int, check_signal
 
 __all__ = ["DownsampledConvolution", "convolution_matrix", "regressor_rows"]
@@ -110,6 +111,13 @@ class DownsampledConvolution(Observation):
         if self._matrix is not None:
             return self._matrix[start:stop]
         return regressor_rows(self.u, self.order, self.sample_indices[start:stop])
+
+    def structured_gram(self, y=None):
+        """``Phi^T Phi`` and ``Phi^T y`` by FFT: ``O(F N log N + P^2)`` (see :mod:`~gpmultirate.observations.gram`)."""
+        return uniform_gram(
+            extended_input(self.u, self.order)[None], self.offset, self.factor,
+            self.n_outputs, self.order, y,
+        )
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, DownsampledConvolution):

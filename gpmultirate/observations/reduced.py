@@ -18,6 +18,11 @@ squares problems in system identification", Automatica 49(7), 2013).
 
 The factor is accumulated over blocks of rows of ``Phi``, so the ``M x P``
 regressor is never held in memory: ``O(M P^2)`` time once, ``O(P^2)`` memory.
+When the observation offers a structured Gram matrix (a convolution on a
+uniform grid, by FFT in ``O(F N log N + P^2)``), the factor is instead its
+Cholesky factor, ``[[R, z], [0, rho]]`` being the Cholesky factor of
+``[Phi y]^T [Phi y]`` as well; that route is taken only where it keeps the
+accuracy of the QR route (:func:`factor_from_gram`).
 Each evaluation of the evidence then costs ``O(P^3)`` instead of ``O(M^3)``.
 """
 
@@ -25,11 +30,18 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import linalg
-from scipy.linalg import blas
+from scipy.linalg import blas, lapack
 
 from gpmultirate.observations.base import ColumnBlock, Observation
 
-__all__ = ["ReducedObservation", "reduce_observation"]
+__all__ = ["ReducedObservation", "factor_by_qr", "factor_from_gram", "reduce_observation"]
+
+#: largest condition number of the Cholesky factor the Gram route accepts
+#: (that of the Gram matrix is its square)
+MAX_CONDITION = 1e6
+#: smallest ``rho^2 / y^T y`` the Gram route accepts: ``rho^2`` keeps about
+#: ``16 + log10(MIN_RESIDUAL)`` digits
+MIN_RESIDUAL = 1e-8
 
 
 def reduce_observation(observation: Observation, y: np.ndarray):
@@ -66,11 +78,25 @@ class ReducedObservation(Observation):
     Parameters
     ----------
     observation : Observation
-        Any observation with more outputs than coefficients; its rows are
-        read block by block (:meth:`~Observation.regressor_rows`).
+        Any observation with more outputs than coefficients.
     y : ndarray of shape (M,)
     block_rows : int, optional
-        Rows of ``Phi`` per block; by default ``max(2 P, 1024)``.
+        Rows of ``Phi`` per block of the QR route; by default ``max(2 P, 1024)``.
+    method : {"auto", "qr"}, default="auto"
+        ``"auto"``: from the Gram matrix when the observation offers a
+        structured one (:meth:`~Observation.structured_gram`, a convolution
+        on a uniform grid: ``O(F N log N + P^2)``) and it is well enough
+        conditioned (:func:`factor_from_gram`), else by QR; ``"qr"``: the
+        QR factorisation of ``[Phi y]`` read block by block
+        (:meth:`~Observation.regressor_rows`), ``O(M P^2)``.
+
+    Attributes
+    ----------
+    z : ndarray of shape (P,)
+    residual : float
+        ``rho^2``.
+    route : str
+        ``"gram"`` or ``"qr"``: how the factor was computed.
 
     Examples
     --------
@@ -86,25 +112,24 @@ class ReducedObservation(Observation):
     True
     """
 
-    def __init__(self, observation: Observation, y: np.ndarray, block_rows: int | None = None):
+    def __init__(self, observation: Observation, y: np.ndarray, block_rows: int | None = None,
+                 method: str = "auto"):
+        if method not in ("auto", "qr"):
+            raise ValueError(f"method must be 'auto' or 'qr'; got {method!r}")
         P = observation.n_coefficients
         M = observation.n_outputs
-        block = block_rows or max(2 * P, 1024)
-        top = np.zeros((0, P + 1))
-        for start in range(0, M, block):
-            rows = observation.regressor_rows(start, start + block)
-            stacked = np.empty((top.shape[0] + rows.shape[0], P + 1), order="F")
-            stacked[: top.shape[0]] = top
-            stacked[top.shape[0] :, :P] = rows
-            stacked[top.shape[0] :, P] = y[start : start + block]
-            top = linalg.qr(stacked, mode="r", overwrite_a=True, check_finite=False)[0]
-            top = top[: P + 1]
-        if top.shape[0] < P + 1:  # fewer rows than columns so far
-            top = np.vstack([top, np.zeros((P + 1 - top.shape[0], P + 1))])
-        self._matrix = np.ascontiguousarray(top[:P, :P])
+        factor = None
+        if method == "auto":
+            found = observation.structured_gram(y)
+            if found is not None:
+                factor = factor_from_gram(*found, float(y @ y))
+        #: how the factor was computed: "gram" (structured Gram, Cholesky) or "qr"
+        self.route = "qr" if factor is None else "gram"
+        if factor is None:
+            factor = factor_by_qr(observation, y, block_rows)
+        R, self.z, self.residual = factor
+        self._matrix = np.ascontiguousarray(R)
         self._matrix.setflags(write=False)
-        self.z = top[:P, P].copy()
-        self.residual = float(top[P, P] ** 2)
         self.n_discarded = M - P
         self.order = observation.order
         self.n_inputs = observation.n_inputs
@@ -136,6 +161,18 @@ class ReducedObservation(Observation):
         # W is symmetric, so its transpose is a Fortran-ordered view of W
         return blas.dtrmm(1.0, G.T, W.T, side=1, lower=1, trans_a=1)
 
+    def gram(self, y=None, block_rows=None):
+        """``R^T R`` (kept) and ``R^T y``: the Gram matrix of ``Phi`` and ``Phi^T y`` for ``y = z``."""
+        if getattr(self, "_gram", None) is None:
+            R = self._matrix
+            gram = R.T @ R
+            gram += gram.T
+            gram *= 0.5
+            gram.setflags(write=False)
+            self._gram = gram
+        projection = None if y is None else self._matrix.T @ y
+        return self._gram, projection
+
     def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
         """Value, derivative and Fisher information in ``log(noise_level)`` of the rest.
 
@@ -152,3 +189,51 @@ class ReducedObservation(Observation):
             f"ReducedObservation(order={self.order}, n_inputs={self.n_inputs}, "
             f"n_discarded={self.n_discarded})"
         )
+
+
+def factor_by_qr(observation: Observation, y: np.ndarray, block_rows: int | None = None):
+    """``(R, z, rho^2)`` from the QR factorisation of ``[Phi y]``, accumulated over blocks of rows.
+
+    ``O(M P^2)``; exact for any regressor, of full rank or not.
+    """
+    P = observation.n_coefficients
+    M = observation.n_outputs
+    block = block_rows or max(2 * P, 1024)
+    top = np.zeros((0, P + 1))
+    for start in range(0, M, block):
+        rows = observation.regressor_rows(start, start + block)
+        stacked = np.empty((top.shape[0] + rows.shape[0], P + 1), order="F")
+        stacked[: top.shape[0]] = top
+        stacked[top.shape[0] :, :P] = rows
+        stacked[top.shape[0] :, P] = y[start : start + block]
+        top = linalg.qr(stacked, mode="r", overwrite_a=True, check_finite=False)[0]
+        top = top[: P + 1]
+    if top.shape[0] < P + 1:  # fewer rows than columns so far
+        top = np.vstack([top, np.zeros((P + 1 - top.shape[0], P + 1))])
+    return top[:P, :P], top[:P, P].copy(), float(top[P, P] ** 2)
+
+
+def factor_from_gram(gram: np.ndarray, projection: np.ndarray, sum_of_squares: float):
+    """``(R, z, rho^2)`` from ``Phi^T Phi``, ``Phi^T y`` and ``y^T y``, or None.
+
+    ``R`` is the Cholesky factor of the Gram matrix, ``R^T z = Phi^T y`` and
+    ``rho^2 = y^T y - z^T z``: the same factor as the QR route up to the
+    signs of rows.  The Gram route squares the condition number and computes
+    the residual by a difference, so it gives up (None: use
+    :func:`factor_by_qr`) where that would cost accuracy: a Gram matrix that
+    is not numerically positive definite or whose factor has a condition
+    number above :data:`MAX_CONDITION`, and a residual below
+    :data:`MIN_RESIDUAL` times ``y^T y`` (more digits cancelled than kept).
+    """
+    try:
+        R = linalg.cholesky(gram, lower=False, check_finite=False)
+    except linalg.LinAlgError:
+        return None
+    rcond, info = lapack.dtrcon(R, norm="1", uplo="U", diag="N")
+    if info != 0 or not rcond * MAX_CONDITION > 1.0:
+        return None
+    z = linalg.solve_triangular(R, projection, trans="T", check_finite=False)
+    residual = sum_of_squares - float(z @ z)
+    if not residual > MIN_RESIDUAL * sum_of_squares:
+        return None
+    return R, z, residual

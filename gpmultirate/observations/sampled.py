@@ -18,6 +18,7 @@ import numpy as np
 
 from gpmultirate.observations.base import Observation, UniformSampling
 from gpmultirate.observations.convolution import regressor_rows
+from gpmultirate.observations.gram import extended_input, uniform_gram
 from gpmultirate.validation import check_int, check_sample_indices, check_inputs
 
 __all__ = ["INITIAL_CONDITIONS", "RecordStack", "SampledConvolution"]
@@ -145,6 +146,34 @@ class SampledConvolution(Observation):
             return UniformSampling(self.u, step, offset, n_grid)
         return UniformSampling(self.u, step, offset, n_grid, (index - offset) // step)
 
+    def structured_gram(self, y=None):
+        """``Phi^T Phi`` and ``Phi^T y`` by FFT when the instants lie on a uniform grid.
+
+        The grid is ``first + m * step`` with ``step`` the greatest common
+        divisor of the spacings; when at least half of it is observed, the
+        Gram of the whole grid (:mod:`~gpmultirate.observations.gram`) less
+        the rows of the missing instants, else None (no structure).
+        """
+        index = self.sample_indices
+        if index.shape[0] < 2:
+            return None
+        step = int(np.gcd.reduce(np.diff(index)))
+        first = int(index[0])
+        n_grid = (int(index[-1]) - first) // step + 1
+        if n_grid > 2 * index.shape[0]:
+            return None
+        on_grid = (index - first) // step
+        skip = np.setdiff1d(np.arange(n_grid), on_grid)
+        grid_y = None
+        if y is not None:
+            grid_y = np.zeros(n_grid)
+            grid_y[on_grid] = y
+        periodic = self.initial_conditions == "periodic"
+        extended = np.stack(
+            [extended_input(self._inputs[:, k], self.order, periodic) for k in range(self.n_inputs)]
+        )
+        return uniform_gram(extended, first, step, n_grid, self.order, grid_y, skip=skip)
+
     def _rows(self, rows, k: int, view: bool = False) -> np.ndarray:
         return regressor_rows(
             self._inputs[:, k], self.order, rows, view=view,
@@ -182,7 +211,7 @@ class SampledConvolution(Observation):
             block = SampledConvolution.__new__(SampledConvolution)
             block.__dict__.update(
                 self.__dict__, u=self._inputs[:, k], _inputs=self._inputs[:, k : k + 1],
-                n_inputs=1, _matrix=None, _blocks={},
+                n_inputs=1, _matrix=None, _blocks={}, _gram=None,
             )
             self._blocks[k] = block
         return self._blocks[k]
@@ -293,6 +322,18 @@ class RecordStack(Observation):
         if not parts:
             return np.zeros((0, self.n_coefficients))
         return np.vstack(parts)
+
+    def structured_gram(self, y=None):
+        """The sum of the records' Gram matrices when every record has a structured one, else None."""
+        gram, projection = 0.0, None if y is None else 0.0
+        for record, start, stop in zip(self._records, self.starts[:-1], self.starts[1:]):
+            found = record.structured_gram(None if y is None else y[start:stop])
+            if found is None:
+                return None
+            gram = gram + found[0]
+            if y is not None:
+                projection = projection + found[1]
+        return gram, projection
 
     def input_block(self, k: int) -> "RecordStack":
         """The records' observations of input ``k`` alone."""
