@@ -33,7 +33,7 @@ CHUNK_ENTRIES = 1 << 22
 
 
 def extended_input(u: np.ndarray, order: int, periodic: bool = False) -> np.ndarray:
-    """The input at the fast instants ``-(order - 1) .. N - 1``: zero, or periodic, before the record.
+    """The input at the fast instants ``-(order - 1)`` to ``N - 1``: zero, or periodic, before the record.
 
     Entry ``n + order - 1`` is ``u(n)``.
 
