@@ -299,9 +299,12 @@ def _initial_kernel(kernel, experiment, normalize: bool = True):
     return kernels[0] if n == 1 else PerInputKernel(kernels)
 
 
-# the held-out check after evidence tuning: its shortest order and margin
+# the held-out check after evidence tuning: its shortest order; the margins in
+# percentage points of held-out fit by which a shorter order must predict better
+# to replace the default order N, and to be named in a warning for an explicit order
 MIN_CHECKED_ORDER = 10
-HELD_OUT_MARGIN = 5.0  # percentage points of fit
+ORDER_MARGIN = 1.0
+HELD_OUT_MARGIN = 5.0
 
 
 def auto_orders(longest: int) -> list[int]:
@@ -580,10 +583,13 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         candidates = _order_candidates(self.order)
         if candidates is not None:
             return self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
-        return self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
+        experiment = self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
+        if criterion == "evidence" and self.optimizer is not None:
+            self._check_shorter_orders(u, y_slow, sample_indices, experiment, n_folds)
+        return self
 
-    def _fit_order(self, u, y_slow, sample_indices, order, criterion, n_folds, check=True):
-        """Fit at one order; ``check``: compare the held-out fit with shorter orders."""
+    def _fit_order(self, u, y_slow, sample_indices, order, criterion, n_folds):
+        """Fit at one order; returns the experiment (observation and used samples)."""
         experiment = build_experiment(
             u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
             order=order, initial_conditions=self.initial_conditions,
@@ -655,11 +661,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.noise_level_ = noise
         self.coef_ = self._shaped(self.posterior_.coef)
         self.log_marginal_likelihood_value_ = self.posterior_.log_marginal_likelihood
-        if check and criterion == "evidence" and self.optimizer is not None:
-            self._warn_if_a_shorter_order_predicts_better(
-                u, y_slow, sample_indices, experiment, n_folds
-            )
-        return self
+        return experiment
 
     def _fit_order_selection(self, u, y_slow, sample_indices, candidates, criterion):
         """Fit every candidate order and keep the one the criterion prefers."""
@@ -675,7 +677,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             model = clone(self)
             with warnings.catch_warnings(record=True) as record:
                 warnings.simplefilter("always")
-                model._fit_order(u, y_slow, sample_indices, order, criterion, n_folds, False)
+                model._fit_order(u, y_slow, sample_indices, order, criterion, n_folds)
             fits.append(model)
             caught.append(record)
         if criterion == "evidence":
@@ -699,15 +701,21 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         return self
 
-    def _warn_if_a_shorter_order_predicts_better(self, u, y_slow, sample_indices, experiment,
-                                                  n_folds):
-        """Warn when held-out slow samples are predicted clearly better at a shorter order.
+    def _check_shorter_orders(self, u, y_slow, sample_indices, experiment, n_folds):
+        """Compare the held-out fit of the tuned model with that of shorter orders; act on it.
 
         The same hyperparameters, the same folds (as ``tuning="cross_validation"``);
-        only the order is cut to ``P/2, P/4, P/8``.  Skipped where it would cost
-        more than the fit (more slow samples than coefficients: the fit then
-        works on the ``P x P`` reduction, the check would need ``M x M``) or is
-        not comparable (``"discard"`` uses other samples at other orders).
+        only the order is cut.  With the default order (``order=None``) the
+        candidates are :func:`auto_orders` of ``N``, and when one predicts the
+        held-out slow samples more than ``ORDER_MARGIN`` points of fit better
+        than ``N``, the model is fitted again at that order;
+        ``order_selection_`` reports every candidate's held-out fit.  With an
+        explicit order ``P`` the candidates are ``P/2, P/4, P/8`` and a
+        :class:`~gpmultirate.HeldOutWarning` names one that predicts more than
+        ``HELD_OUT_MARGIN`` points better.  Skipped where it would cost more
+        than the fit (more slow samples than coefficients: the fit then works
+        on the ``P x P`` reduction, the check would need ``M x M``) or is not
+        comparable (``"discard"`` uses other samples at other orders).
         """
         operator, y = experiment.observation, experiment.y
         order = operator.order
@@ -718,8 +726,13 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             folds = contiguous_folds([r.n_outputs for r in operator.records], n_folds)
         except ValueError:
             return  # fewer samples than folds: nothing to hold out
+        default_order = self.order is None
+        if default_order:
+            orders = auto_orders(order)
+        else:
+            orders = [order // d for d in (8, 4, 2) if order // d >= MIN_CHECKED_ORDER] + [order]
         fits = {}
-        for shorter in [order] + [order // d for d in (2, 4, 8) if order // d >= MIN_CHECKED_ORDER]:
+        for shorter in orders:
             observation = operator if shorter == order else build_experiment(
                 u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
                 order=shorter, initial_conditions=self.initial_conditions,
@@ -728,11 +741,21 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 mean, _ = held_out_predictions(
                     observation, self.kernel_, self.noise_level_, y, folds
                 )
-                fits[shorter] = fit_percent(y, mean)
             except ValueError:
                 return
-        best = max(fits, key=fits.get)
-        if fits[best] > fits[order] + HELD_OUT_MARGIN:
+            fits[shorter] = fit_percent(y, mean)
+        best = max(fits, key=fits.get)  # the shortest of equal fits
+        if default_order:
+            chosen = best if fits[best] > fits[order] + ORDER_MARGIN else order
+            if chosen != order:
+                self._fit_order(u, y_slow, sample_indices, chosen, "evidence", n_folds)
+            self.order_selection_ = {
+                "order": np.array(orders),
+                "score": np.array([fits[o] for o in orders]),
+                "criterion": "held_out_fit",
+                "best_order": int(chosen),
+            }
+        elif fits[best] > fits[order] + HELD_OUT_MARGIN:
             warnings.warn(
                 f"held-out slow samples are predicted clearly better at a shorter order: "
                 f"order={best} fits {fits[best]:.1f} % of them, order={order} "

@@ -172,22 +172,76 @@ def test_bad_arguments_name_themselves(small, bad, match):
         gm.FIRGaussianProcess(factor=3, **bad).fit(u, y)
 
 
-def test_held_out_check_names_a_shorter_order_when_it_predicts_better():
-    # a prior fixed far too long for a fast system in heavy noise: only the noise is
-    # tuned, and the coefficients at long lags fit noise that held-out blocks expose
+def _too_long_prior():
+    """A prior fixed far too long for a fast system in heavy noise: only the noise is
+    tuned, and the coefficients at long lags fit noise that held-out blocks expose."""
     rng = np.random.default_rng(4)
     u = rng.standard_normal(600)
     y = np.convolve(u, 0.6 ** np.arange(20))[:600] + 0.5 * rng.standard_normal(600)
     kernel = C(1.0, "fixed") * DC(alpha=0.999, beta=0.5, alpha_bounds="fixed",
                                   beta_bounds="fixed")
+    return u, y, kernel
+
+
+def test_held_out_check_names_a_shorter_order_when_it_predicts_better():
+    u, y, kernel = _too_long_prior()
     with pytest.warns(gm.HeldOutWarning, match=r"order=75 fits [\d.]+ % of them, order=600 -"):
-        model = gm.FIRGaussianProcess(kernel, factor=3).fit(u, y[::3])
+        model = gm.FIRGaussianProcess(kernel, factor=3, order=600).fit(u, y[::3])
+    assert model.coef_.shape == (600,)  # an explicit order is kept
+    assert not hasattr(model, "order_selection_")
     # the warning's numbers are those of the held-out predictions at the two orders
     folds = contiguous_folds([200], 5)
     for order, sign in ((600, -1), (75, 1)):
         op = gm.DownsampledConvolution(u, 3, order)
         mean, _ = held_out_predictions(op, model.kernel_, model.noise_level_, y[::3], folds)
         assert np.sign(gm.fit_percent(y[::3], mean)) == sign
+
+
+def test_default_order_is_cut_where_held_out_samples_are_predicted_better(tmp_path):
+    u, y, kernel = _too_long_prior()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gm.HeldOutWarning)  # acted on, not warned about
+        model = gm.FIRGaussianProcess(kernel, factor=3).fit(u, y[::3])
+    # independently: the fit at the default order N = 600 and the held-out fit of
+    # every candidate order at its tuned values, on the same folds
+    full = gm.FIRGaussianProcess(kernel, factor=3, order=600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", gm.HeldOutWarning)
+        full.fit(u, y[::3])
+    folds = contiguous_folds([200], 5)
+    orders = [18, 37, 75, 150, 300, 600]
+    expected = []
+    for order in orders:
+        op = gm.DownsampledConvolution(u, 3, order)
+        mean, _ = held_out_predictions(op, full.kernel_, full.noise_level_, y[::3], folds)
+        expected.append(gm.fit_percent(y[::3], mean))
+    selection = model.order_selection_
+    assert selection["criterion"] == "held_out_fit"
+    np.testing.assert_array_equal(selection["order"], orders)
+    np.testing.assert_allclose(selection["score"], expected, rtol=1e-9, atol=1e-9)
+    best = orders[int(np.argmax(expected))]
+    assert expected[-1] + gm.estimators.ORDER_MARGIN < max(expected)
+    assert selection["best_order"] == best == model.coef_.shape[0]
+    # the kept model is the fit at that order
+    explicit = gm.FIRGaussianProcess(kernel, factor=3, order=best).fit(u, y[::3])
+    np.testing.assert_allclose(model.coef_, explicit.coef_, rtol=1e-10, atol=1e-12)
+    assert model.noise_level_ == pytest.approx(explicit.noise_level_, rel=1e-10)
+    gm.save_model(model, tmp_path / "m.npz")
+    loaded = gm.load_model(tmp_path / "m.npz")
+    assert loaded.get_params()["order"] is None
+    np.testing.assert_array_equal(loaded.coef_, model.coef_)
+    for key in ("order", "score"):
+        np.testing.assert_array_equal(loaded.order_selection_[key], selection[key])
+    assert loaded.order_selection_["criterion"] == "held_out_fit"
+
+
+def test_default_order_stays_at_n_on_an_fir_system(paper):
+    data, _, _ = paper
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3).fit(data.u, data.y_slow)
+    n = data.u.shape[0]
+    assert model.coef_.shape == (n,)
+    assert model.order_selection_["best_order"] == n
+    assert model.order_selection_["order"][-1] == n
 
 
 def test_held_out_check_is_silent_on_an_fir_system(paper):
