@@ -172,7 +172,8 @@ def _add_fit_parser(commands) -> None:
                           "cycles per sample)")
     fit.add_argument("--order", type=_order_or_auto, default=None, metavar="P",
                      help="FIR order in 1..N, N the number of rows, or 'auto': the best of "
-                          "N, N/2, ..., N/32 by the tuning criterion (default: N)")
+                          "N, N/2, ..., N/32 by the tuning criterion (default: N, or a "
+                          "shorter N/2^k that predicts held-out slow samples clearly better)")
     fit.add_argument("--tuning", choices=("evidence", "cross_validation"), default="evidence",
                      help="criterion of the hyperparameters (and of --order auto): the "
                           "marginal likelihood, or the log density of held-out blocks of slow "
@@ -825,10 +826,13 @@ def _summary_markdown(summary: dict) -> str:
                   json.dumps(summary["resonances"], indent=1), "```"]
     selection = summary.get("order_selection")
     if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
-        lines += ["", f"## Order selection ({selection.get('criterion')} per slow sample)", "",
-                  "| order | score |", "|---|---|"]
+        criterion = selection.get("criterion")
+        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
+                else f"{criterion} per slow sample")
+        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
+                  "", "| order | score |", "|---|---|"]
         lines += [f"| {o} | {_cell_text(v)} |"
-                  for o, v in zip(selection["orders"], selection.get("score_per_sample", []))]
+                  for o, v in zip(selection["orders"], selection.get("score", []))]
     if "state_space" in summary:
         lines += ["", "## State-space model", "",
                   f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
@@ -966,7 +970,8 @@ def _fit(parser, args) -> int:
         summary["order_selection"] = {
             "criterion": selection["criterion"],
             "orders": [int(o) for o in selection["order"]],
-            "score_per_sample": [float(v) for v in selection["score"]],
+            "score": [float(v) for v in selection["score"]],
+            "best_order": int(selection["best_order"]),
         }
     files = {}
     buffer = io.BytesIO()

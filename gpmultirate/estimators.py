@@ -305,6 +305,8 @@ def _initial_kernel(kernel, experiment, normalize: bool = True):
 MIN_CHECKED_ORDER = 10
 ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
+# the most slow samples it checks: each candidate order needs M x M matrices
+MAX_CHECKED_SAMPLES = 4000
 
 
 def auto_orders(longest: int) -> list[int]:
@@ -391,12 +393,17 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     factor : int, default=1
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, "auto" or sequence of int, optional
-        FIR order ``P`` in ``1..N``, shared by all inputs; default ``N``, the
-        length of the (longest) record.  ``"auto"`` or a list of candidate
-        orders: fit each candidate and keep the one the tuning criterion
-        (``tuning``) prefers, per used slow sample; ``"auto"`` tries
-        ``N, N/2, N/4, ..., N/32`` (at least 10).  The candidates and their
-        criteria are reported in ``order_selection_``.
+        FIR order ``P`` in ``1..N``, shared by all inputs.  Default: ``N``,
+        the length of the (longest) record, unless the held-out check after
+        evidence tuning finds that a shorter order ``N/2, ..., N/32`` (at
+        least 10) predicts held-out slow samples more than one point of fit
+        better at the tuned hyperparameters; the model is then fitted again
+        at the best of them (see *Tuning that generalizes* in the user
+        guide).  An integer is used as given.  ``"auto"`` or a list of
+        candidate orders: fit each candidate and keep the one the tuning
+        criterion (``tuning``) prefers, per used slow sample; ``"auto"``
+        tries ``N, N/2, N/4, ..., N/32`` (at least 10).  The candidates and
+        their scores are reported in ``order_selection_``.
     offset : int, default=0
         Fast index of the first slow sample, ``0..F-1``.
     noise_level : float, default=1.0
@@ -420,8 +427,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         works in data space: ``O(M^3)`` per evaluation for ``M`` slow
         samples.  After evidence tuning, the held-out fit of the tuned model
         is compared with that of shorter orders (same folds, same
-        hyperparameters) and a warning names a shorter order that predicts
-        clearly better.
+        hyperparameters): with the default order a clearly better shorter
+        order replaces ``N``, with an explicit order a warning names it.
     cv : int, default=5
         The number of folds of ``"cross_validation"`` (and of the held-out
         check after evidence tuning): contiguous blocks of slow samples of
@@ -492,7 +499,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         With ``order="auto"`` or a list: ``"order"`` (the candidates),
         ``"score"`` (the criterion per used slow sample, higher is better),
         ``"criterion"`` (``"log_evidence"`` or ``"cv_log_predictive"``) and
-        ``"best_order"``.
+        ``"best_order"`` (the fitted order).  With the default order, where
+        the held-out check ran: the candidates ``N/32, ..., N``, their
+        held-out fit in percent (``"criterion"`` ``"held_out_fit"``) and the
+        fitted order.
 
     Examples
     --------
@@ -713,20 +723,27 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         explicit order ``P`` the candidates are ``P/2, P/4, P/8`` and a
         :class:`~gpmultirate.HeldOutWarning` names one that predicts more than
         ``HELD_OUT_MARGIN`` points better.  Skipped where it would cost more
-        than the fit (more slow samples than coefficients: the fit then works
-        on the ``P x P`` reduction, the check would need ``M x M``) or is not
-        comparable (``"discard"`` uses other samples at other orders).
+        than the fit (at least as many slow samples as coefficients, where
+        the fit works on the ``P x P`` problem and the check would need
+        ``M x M`` matrices; as many is checked for the default order, the
+        single-rate case), beyond ``MAX_CHECKED_SAMPLES`` slow samples, or
+        where it is not comparable (``"discard"`` uses other samples at other
+        orders).
         """
         operator, y = experiment.observation, experiment.y
-        order = operator.order
-        if (self.initial_conditions == "discard" or y.shape[0] > operator.n_coefficients
-                or order < 2 * MIN_CHECKED_ORDER):
+        order, n_samples = operator.order, y.shape[0]
+        default_order = self.order is None
+        # the fit works in data space for M < P; at M = P (single rate) only the
+        # default order is checked, and never with M x M matrices beyond the limit
+        data_space = n_samples < operator.n_coefficients or (
+            default_order and n_samples == operator.n_coefficients)
+        if (self.initial_conditions == "discard" or not data_space
+                or n_samples > MAX_CHECKED_SAMPLES or order < 2 * MIN_CHECKED_ORDER):
             return
         try:
             folds = contiguous_folds([r.n_outputs for r in operator.records], n_folds)
         except ValueError:
             return  # fewer samples than folds: nothing to hold out
-        default_order = self.order is None
         if default_order:
             orders = auto_orders(order)
         else:

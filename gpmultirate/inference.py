@@ -368,7 +368,8 @@ def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, e
     about a quarter of the flops of the data-space route.  None when ``C``
     is not numerically positive definite (the data-space route then answers).
     """
-    A, b = operator.gram(y)
+    A, _ = operator.gram()  # kept by the observation: the same in every evaluation
+    b = operator.rmatvec(y)
     C = A / noise_level
     P = C.shape[0]
     C.flat[:: P + 1] += precision.diagonal

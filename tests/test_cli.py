@@ -512,7 +512,8 @@ def test_fit_auto_order_by_cross_validation(tmp_path):
     selection = summary["order_selection"]
     assert selection["criterion"] == "cv_log_predictive"
     assert selection["orders"] == gm.estimators.auto_orders(N_FAST)
-    best = selection["orders"][int(np.argmax(selection["score_per_sample"]))]
+    best = selection["orders"][int(np.argmax(selection["score"]))]
+    assert selection["best_order"] == best
     assert summary["model"]["order"] == best == model.coef_.shape[0]
     assert summary["model"]["tuning"] == "cross_validation"
     prediction = np.convolve(u_val[:, 0], model.coef_)[:N_FAST]
