@@ -220,16 +220,14 @@ def _job(record: Record, method: Method, factor: int, order, repeats: int) -> di
 
 
 def _identity(record: Record, method: Method, factor: int, order, n_estimation: int):
-    """What is fitted: the record, the estimator class and its parameters (order resolved).
+    """What is fitted: the record, the estimator class and its parameters.
 
     Two cells with the same identity are one fit: the single-rate rows of
-    every factor, and the default at order N and the same estimator with
-    ``order=N``.
+    every factor.  The default order is not ``order=N``: the held-out check
+    may cut it (``n_estimation`` is kept in the signature for callers).
     """
     estimator = method.make(factor, order)
     params = estimator.get_params(deep=False)
-    if params.get("order", 0) is None:
-        params["order"] = n_estimation  # the estimators' default order
     return (record.name, type(estimator).__name__,
             tuple(sorted((name, repr(value)) for name, value in params.items())))
 

@@ -235,10 +235,10 @@ def test_benchmark_order_grid_and_plan(bench):
     # orders 50 and N = 682; LS, DC, DC + resonances at both factors and both orders,
     # single-rate DC once per order, the default and the order selection once per factor
     assert len(cells) == 3 * 2 * 2 + 2 * 2 + 2 + 2
-    assert len(fits) == 3 * 2 * 2 + 2 + 2
+    assert len(fits) == 3 * 2 * 2 + 2 + 2 + 2
     by_name = {m.name: m for m in bench.METHODS}
-    # the default is the same fit as DC + resonances at order N
-    assert cells[robot, by_name["default"], 3, None] == cells[
+    # the default order is not order N: the held-out check may cut it
+    assert cells[robot, by_name["default"], 3, None] != cells[
         robot, by_name["DC + resonances"], 3, 682]
     assert cells[robot, by_name["single-rate DC"], 2, 50] == cells[
         robot, by_name["single-rate DC"], 3, 50]
