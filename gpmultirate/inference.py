@@ -350,23 +350,19 @@ def log_marginal_likelihood(
     return value, grad
 
 
-def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, eval_gradient,
-                                          noise_free):
-    """The evidence of a square (or reduced) observation through a tridiagonal ``K^{-1}``.
+def _solve_by_precision(operator, precision, noise_level, y):
+    """The posterior precision's Cholesky factor, the posterior mean and the evidence, or None.
 
-    With ``Q = K^{-1}``, ``A = Phi^T Phi`` and ``C = Q + A / gamma`` (the
-    posterior precision), ``mu = C^{-1} Phi^T y / gamma`` and
-    ``Sigma = C^{-1}``:
+    For a square (or reduced, ``M = P``) observation and a tridiagonal
+    ``Q = K^{-1}``, with ``A = Phi^T Phi`` and ``C = Q + A / gamma`` (the
+    posterior precision), ``mu = C^{-1} Phi^T y / gamma`` (eq. 15 by the
+    matrix inversion lemma) and
 
     * ``y^T Ky^{-1} y = |y - Phi mu|^2 / gamma + mu^T Q mu``;
-    * ``log det Ky = M log gamma + log det K + log det C`` (``M = P``);
-    * ``d/d theta_j = -1/2 (mu^T dQ_j mu + tr(Sigma dQ_j) + d log det K / d theta_j)``;
-    * ``d/d log gamma = 1/2 |y - Phi mu|^2 / gamma - 1/2 tr(Sigma Q)``.
+    * ``log det Ky = M log gamma + log det K + log det C`` (``M = P``).
 
-    ``dQ_j`` and ``Q`` are tridiagonal, so only the tridiagonal band of
-    ``Sigma`` is needed: a Cholesky factorisation and a triangular inverse,
-    about a quarter of the flops of the data-space route.  None when ``C``
-    is not numerically positive definite (the data-space route then answers).
+    Returns ``(L, mu, |y - Phi mu|^2, log N(y; 0, Ky))`` with ``C = L L^T``,
+    or None when ``C`` is not numerically positive definite.
     """
     A, _ = operator.gram()  # kept by the observation: the same in every evaluation
     b = operator.rmatvec(y)
@@ -381,15 +377,33 @@ def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, e
         return None
     mu = linalg.cho_solve((L, True), b / noise_level, check_finite=False)
     residual = y - operator.matvec(mu)
-    Q_mu = precision.diagonal * mu
-    Q_mu[:-1] += precision.off_diagonal * mu[1:]
-    Q_mu[1:] += precision.off_diagonal * mu[:-1]
     squares = float(residual @ residual)
-    quadratic = squares / noise_level + float(mu @ Q_mu)
+    quadratic = squares / noise_level + float(mu @ precision.times(mu))
     log_det = (P * np.log(noise_level) + precision.log_det_covariance
                + 2.0 * np.log(np.diag(L)).sum())
+    return L, mu, squares, log_gaussian(quadratic, log_det, P)
+
+
+def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, eval_gradient,
+                                          noise_free):
+    """The evidence of a square (or reduced) observation through a tridiagonal ``K^{-1}``.
+
+    With ``Q = K^{-1}`` and ``Sigma = C^{-1}`` (:func:`_solve_by_precision`):
+
+    * ``d/d theta_j = -1/2 (mu^T dQ_j mu + tr(Sigma dQ_j) + d log det K / d theta_j)``;
+    * ``d/d log gamma = 1/2 |y - Phi mu|^2 / gamma - 1/2 tr(Sigma Q)``.
+
+    ``dQ_j`` and ``Q`` are tridiagonal, so only the tridiagonal band of
+    ``Sigma`` is needed: a Cholesky factorisation and a triangular inverse,
+    about a quarter of the flops of the data-space route.  None when ``C``
+    is not numerically positive definite (the data-space route then answers).
+    """
+    found = _solve_by_precision(operator, precision, noise_level, y)
+    if found is None:
+        return None
+    L, mu, squares, value = found
     rest_value, rest_grad, _ = operator.discarded_log_likelihood(noise_level)
-    value = log_gaussian(quadratic, log_det, P) + rest_value
+    value += rest_value
     if not eval_gradient:
         return value
     inverse, info = linalg.lapack.dtrtri(L, lower=1)
