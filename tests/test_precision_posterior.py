@@ -44,7 +44,7 @@ def convolution(u, order):
 
 
 def dc(constant, alpha, beta):
-    """``c alpha^((t+s)/2) rho(|t-s|)`` with ``rho(d) = beta^d``, or ``|beta|^d cos(pi d)`` for beta < 0."""
+    """``c alpha^((t+s)/2) rho(|t-s|)``: ``rho(d) = beta^d``, ``|beta|^d cos(pi d)`` if beta < 0."""
 
     def k(t, s):
         d = np.abs(np.subtract.outer(t, s))
