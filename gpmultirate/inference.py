@@ -41,6 +41,7 @@ __all__ = [
     "GaussianCoefficients",
     "LogEvidence",
     "ParameterSpacePosterior",
+    "PrecisionPosterior",
     "blas_threads_for",
     "gaussian_samples",
     "inverse_from_cholesky",
@@ -222,7 +223,34 @@ class DataSpacePosterior(GaussianCoefficients):
         return mean, np.maximum(var, 0.0)
 
 
-class ParameterSpacePosterior(GaussianCoefficients):
+class _FactoredCoefficients(GaussianCoefficients):
+    """Coefficients whose covariance ``Sigma = S S^T`` is used through products ``A S``.
+
+    Subclasses provide :meth:`times_root`; variances of linear functionals
+    are then row norms of ``A S``.
+    """
+
+    def times_root(self, A: np.ndarray) -> np.ndarray:
+        """``A S`` for a ``(q, P)`` matrix ``A``."""
+        raise NotImplementedError
+
+    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
+        F1 = self.times_root(A1)
+        var1 = np.einsum("ij,ij->i", F1, F1)
+        if A2 is None:
+            return var1, None, None
+        F2 = self.times_root(A2)
+        return var1, np.einsum("ij,ij->i", F2, F2), np.einsum("ij,ij->i", F1, F2)
+
+    def linear_map(self, A: np.ndarray, full_cov: bool = False):
+        mean = A @ self.coef
+        AF = self.times_root(A)
+        if full_cov:
+            return mean, AF @ AF.T
+        return mean, np.einsum("ij,ij->i", AF, AF)
+
+
+class ParameterSpacePosterior(_FactoredCoefficients):
     """Posterior of the FIR coefficients in the parameter space, for ``M > P``.
 
     With ``K = F F^T`` (eigen-decomposition, dropping directions of
@@ -262,20 +290,8 @@ class ParameterSpacePosterior(GaussianCoefficients):
         self.factor = linalg.solve_triangular(R, F.T, trans="T", check_finite=False).T
         super().__init__(F @ z, K, None)
 
-    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
-        F1 = A1 @ self.factor
-        var1 = np.einsum("ij,ij->i", F1, F1)
-        if A2 is None:
-            return var1, None, None
-        F2 = A2 @ self.factor
-        return var1, np.einsum("ij,ij->i", F2, F2), np.einsum("ij,ij->i", F1, F2)
-
-    def linear_map(self, A: np.ndarray, full_cov: bool = False):
-        mean = A @ self.coef
-        AF = A @ self.factor
-        if full_cov:
-            return mean, AF @ AF.T
-        return mean, np.einsum("ij,ij->i", AF, AF)
+    def times_root(self, A: np.ndarray) -> np.ndarray:
+        return A @ self.factor
 
     def covariance(self) -> np.ndarray:
         return self.factor @ self.factor.T
@@ -296,18 +312,111 @@ class ParameterSpacePosterior(GaussianCoefficients):
         return mean, np.maximum(var, 0.0)
 
 
+class PrecisionPosterior(_FactoredCoefficients):
+    """Posterior of the FIR coefficients through a tridiagonal ``K^{-1}``, for ``M > P``.
+
+    For a prior whose precision ``Q = K^{-1}`` is tridiagonal (DC, a
+    constant times DC: :mod:`gpmultirate.kernels.precision`), the posterior
+    precision of the reduced observation ``C = Q + Phi^T Phi / gamma`` is
+    factored once, ``C = L L^T`` (:func:`_solve_by_precision`, shared with
+    the evidence): the mean is ``mu = C^{-1} Phi^T y / gamma``, eq. (15),
+    and the covariance ``Sigma = C^{-1} = S S^T`` with ``S = L^{-T}``,
+    applied by triangular solves.  One Cholesky factorization replaces the
+    two ``eigh`` and the QR of :class:`ParameterSpacePosterior`.  Built by
+    :meth:`attempt`, which gives None where that route does not apply.
+
+    Parameters
+    ----------
+    coef : ndarray of shape (P,)
+        The posterior mean ``mu``.
+    K : ndarray of shape (P, P)
+        The prior covariance at the lags ``0..P-1``.
+    L : ndarray of shape (P, P)
+        Lower Cholesky factor of ``C``.
+    precision : TridiagonalPrecision
+        ``Q = K^{-1}``.
+    log_marginal_likelihood : float
+        The evidence of the (reduced) observation.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(300), factor=2, order=20)
+    >>> y = op.matvec(0.8 ** np.arange(20)) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> type(posterior(op, C(1.0) * DC(0.8, 0.5), 1e-4, y)).__name__
+    'PrecisionPosterior'
+    """
+
+    def __init__(self, coef, K, L, precision, log_marginal_likelihood: float):
+        super().__init__(coef, K, None)
+        self.L = L
+        self.precision = precision
+        self.log_marginal_likelihood = log_marginal_likelihood
+
+    @classmethod
+    def attempt(cls, operator, kernel, noise_level: float, y: np.ndarray):
+        """The posterior of a square or reduced observation through ``K^{-1}``, or None.
+
+        None when the kernel's term offers no precision
+        (:meth:`~gpmultirate.kernels.ObservedTerm.precision`) or ``C`` is not
+        numerically positive definite.
+        """
+        precision = observe(kernel, operator).precision()
+        found = None if precision is None else _solve_by_precision(
+            operator, precision, noise_level, y)
+        if found is None:
+            return None
+        L, mu, _, value = found
+        return cls(mu, operator.kernel_matrix(kernel), L, precision, value)
+
+    def times_root(self, A: np.ndarray) -> np.ndarray:
+        # A L^{-T} = (L^{-1} A^T)^T
+        return linalg.solve_triangular(self.L, A.T, lower=True, check_finite=False).T
+
+    def covariance(self) -> np.ndarray:
+        return inverse_from_cholesky(self.L)
+
+    def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
+        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
+        return kernel(X, operator.lags) @ self.precision.times(self.coef)
+
+    def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
+        """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged.
+
+        With ``J = k(X, lags) K^{-1}`` (``K^{-1}`` tridiagonal): mean ``J mu``,
+        covariance ``k(X, X) - J k(lags, X) + J Sigma J^T``.
+        """
+        cross = kernel(X, operator.lags)
+        J = self.precision.times(cross.T).T
+        mean = J @ self.coef
+        JS = self.times_root(J)
+        if full_cov:
+            cov = kernel(X) - J @ cross.T + JS @ JS.T
+            return mean, 0.5 * (cov + cov.T)
+        var = kernel.diag(X) - np.einsum("ij,ij->i", J, cross) + np.einsum("ij,ij->i", JS, JS)
+        return mean, np.maximum(var, 0.0)
+
+
 def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
     """The posterior in whichever space is smaller: data (``M <= P``) or parameters.
 
     For ``M > P`` the data are first reduced to the ``P x P`` factor of
     :class:`~gpmultirate.observations.ReducedObservation` (never holding
     ``Phi``), whose least-squares form gives the same posterior; ``operator``
-    may be such a reduction already (``y`` is then its ``z``).
+    may be such a reduction already (``y`` is then its ``z``).  The posterior
+    of the reduction is :class:`PrecisionPosterior` where the prior has a
+    tridiagonal precision, else :class:`ParameterSpacePosterior`.
     """
     data, z = reduce_observation(operator, y)
     if data.n_discarded == 0:
         return DataSpacePosterior(data, kernel, noise_level, z)
-    result = ParameterSpacePosterior(data, kernel, noise_level, z)
+    result = PrecisionPosterior.attempt(data, kernel, noise_level, z)
+    if result is None:
+        result = ParameterSpacePosterior(data, kernel, noise_level, z)
     result.log_marginal_likelihood += data.discarded_log_likelihood(noise_level)[0]
     return result
 
@@ -350,23 +459,19 @@ def log_marginal_likelihood(
     return value, grad
 
 
-def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, eval_gradient,
-                                          noise_free):
-    """The evidence of a square (or reduced) observation through a tridiagonal ``K^{-1}``.
+def _solve_by_precision(operator, precision, noise_level, y):
+    """The posterior precision's Cholesky factor, the posterior mean and the evidence, or None.
 
-    With ``Q = K^{-1}``, ``A = Phi^T Phi`` and ``C = Q + A / gamma`` (the
-    posterior precision), ``mu = C^{-1} Phi^T y / gamma`` and
-    ``Sigma = C^{-1}``:
+    For a square (or reduced, ``M = P``) observation and a tridiagonal
+    ``Q = K^{-1}``, with ``A = Phi^T Phi`` and ``C = Q + A / gamma`` (the
+    posterior precision), ``mu = C^{-1} Phi^T y / gamma`` (eq. 15 by the
+    matrix inversion lemma) and
 
     * ``y^T Ky^{-1} y = |y - Phi mu|^2 / gamma + mu^T Q mu``;
-    * ``log det Ky = M log gamma + log det K + log det C`` (``M = P``);
-    * ``d/d theta_j = -1/2 (mu^T dQ_j mu + tr(Sigma dQ_j) + d log det K / d theta_j)``;
-    * ``d/d log gamma = 1/2 |y - Phi mu|^2 / gamma - 1/2 tr(Sigma Q)``.
+    * ``log det Ky = M log gamma + log det K + log det C`` (``M = P``).
 
-    ``dQ_j`` and ``Q`` are tridiagonal, so only the tridiagonal band of
-    ``Sigma`` is needed: a Cholesky factorisation and a triangular inverse,
-    about a quarter of the flops of the data-space route.  None when ``C``
-    is not numerically positive definite (the data-space route then answers).
+    Returns ``(L, mu, |y - Phi mu|^2, log N(y; 0, Ky))`` with ``C = L L^T``,
+    or None when ``C`` is not numerically positive definite.
     """
     A, _ = operator.gram()  # kept by the observation: the same in every evaluation
     b = operator.rmatvec(y)
@@ -381,15 +486,33 @@ def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, e
         return None
     mu = linalg.cho_solve((L, True), b / noise_level, check_finite=False)
     residual = y - operator.matvec(mu)
-    Q_mu = precision.diagonal * mu
-    Q_mu[:-1] += precision.off_diagonal * mu[1:]
-    Q_mu[1:] += precision.off_diagonal * mu[:-1]
     squares = float(residual @ residual)
-    quadratic = squares / noise_level + float(mu @ Q_mu)
+    quadratic = squares / noise_level + float(mu @ precision.times(mu))
     log_det = (P * np.log(noise_level) + precision.log_det_covariance
                + 2.0 * np.log(np.diag(L)).sum())
+    return L, mu, squares, log_gaussian(quadratic, log_det, P)
+
+
+def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, eval_gradient,
+                                          noise_free):
+    """The evidence of a square (or reduced) observation through a tridiagonal ``K^{-1}``.
+
+    With ``Q = K^{-1}`` and ``Sigma = C^{-1}`` (:func:`_solve_by_precision`):
+
+    * ``d/d theta_j = -1/2 (mu^T dQ_j mu + tr(Sigma dQ_j) + d log det K / d theta_j)``;
+    * ``d/d log gamma = 1/2 |y - Phi mu|^2 / gamma - 1/2 tr(Sigma Q)``.
+
+    ``dQ_j`` and ``Q`` are tridiagonal, so only the tridiagonal band of
+    ``Sigma`` is needed: a Cholesky factorisation and a triangular inverse,
+    about a quarter of the flops of the data-space route.  None when ``C``
+    is not numerically positive definite (the data-space route then answers).
+    """
+    found = _solve_by_precision(operator, precision, noise_level, y)
+    if found is None:
+        return None
+    L, mu, squares, value = found
     rest_value, rest_grad, _ = operator.discarded_log_likelihood(noise_level)
-    value = log_gaussian(quadratic, log_det, P) + rest_value
+    value += rest_value
     if not eval_gradient:
         return value
     inverse, info = linalg.lapack.dtrtri(L, lower=1)
