@@ -265,3 +265,23 @@ def test_selected_model_round_trips_through_a_file(paper, tmp_path):
         np.testing.assert_array_equal(loaded.order_selection_[key], model.order_selection_[key])
     assert loaded.order_selection_["best_order"] == model.order_selection_["best_order"]
     assert loaded.order_selection_["criterion"] == "cv_log_predictive"
+
+
+@pytest.mark.slow
+def test_default_order_on_measured_data_stops_a_wrong_model_from_extrapolating():
+    # the CD arm's second output is driven by the second input: from the first alone
+    # a long response fits disturbances and extrapolates far below 0 % on later data
+    from gpmultirate.datasets import load_cd_player_arm
+    from gpmultirate.holdout import holdout_split
+
+    data = load_cd_player_arm()
+    split = holdout_split(data.u[:, 0], data.y[:, 1], 3, center=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        full = gm.FIRGaussianProcess(factor=3, kernel="auto", order=split.n_estimation)
+        full.fit(split.u_estimation, split.y_slow)
+        default = gm.FIRGaussianProcess(factor=3, kernel="auto")
+        default.fit(split.u_estimation, split.y_slow)
+    assert split.evaluate(full).fit_percent < -10.0
+    assert default.order_selection_["best_order"] < split.n_estimation // 4
+    assert abs(split.evaluate(default).fit_percent) < 2.0
