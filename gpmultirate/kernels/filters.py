@@ -97,6 +97,11 @@ class DCFilterTerm(ObservedTerm):
             self._filtered_parts = cached
         return cached
 
+    def kernel_matrix(self):
+        # not kept: S and Phi K come from the filters, so K is asked for once, and at
+        # the orders of long records a kept copy would double the largest array
+        return self.kernel(self.observation.lags)
+
     def _free(self):
         return [h.name for h in self.kernel.hyperparameters if not h.fixed]
 

@@ -294,11 +294,6 @@ def _is_grid(t: np.ndarray) -> bool:
     return t.shape[0] > 0 and t[0] == 0 and np.array_equal(t, np.arange(t.shape[0]))
 
 
-def _envelope_outer(t, s, alpha):
-    """``alpha**((t_i + s_j)/2)`` as an outer product of two vectors."""
-    return np.outer(alpha ** (t / 2.0), alpha ** (s / 2.0))
-
-
 def correlation(distance, beta: float, eval_gradient: bool = False):
     r"""DC's correlation at lag distances ``d >= 0``, and its derivative in ``beta``.
 
@@ -506,7 +501,11 @@ class DC(ShiftScaledKernel):
     def lag_covariance(self, t, s, eval_gradient=False):
         alpha, beta = self.checked_values().values()
         if not eval_gradient:
-            return _envelope_outer(t, s, alpha) * _power_of_distance(t, s, beta)
+            # scaled in place: one P x P array at a time at the orders of long records
+            K = _power_of_distance(t, s, beta)
+            K *= (alpha ** (t / 2.0))[:, None]
+            K *= alpha ** (s / 2.0)
+            return K
         mean_lag = np.add.outer(t, s) / 2.0
         envelope = alpha**mean_lag
         rho, d_rho = correlation(np.abs(np.subtract.outer(t, s)), beta, eval_gradient=True)
