@@ -79,7 +79,9 @@ def fit_memory_estimate(n_outputs: int, n_coefficients: int, n_hyperparameters: 
     ``min(M, n_coefficients)``: the covariance, its Cholesky factor and
     inverse, and one derivative per hyperparameter; the posterior holds the
     ``P x P`` prior covariance and two ``M x P`` products; the reduction, the
-    factor of ``[Phi y]`` built block by block.
+    factor of ``[Phi y]`` built block by block.  For a long record it covers
+    the general posterior (eigendecomposition and QR); a prior with a
+    tridiagonal precision (DC) needs less.
 
     Examples
     --------

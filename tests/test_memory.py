@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import gpmultirate as gm
+from gpmultirate.inference import ParameterSpacePosterior, PrecisionPosterior
 from gpmultirate.memory import (
     LIMIT_VARIABLE,
     MemoryLimitError,
@@ -45,6 +46,39 @@ def test_the_estimate_is_the_measured_peak(n, factor, order, optimizer):
     finally:
         tracemalloc.stop()
     estimate = fit_memory_estimate(y.shape[0], order, model.kernel_.theta.shape[0] + 1)
+    assert peak < 1.5 * estimate
+    if optimizer is None and y.shape[0] > order:
+        # untuned long record: the default DC prior's posterior goes through its
+        # tridiagonal precision and needs less than the estimate, which covers the
+        # general route (test_the_estimate_covers_the_general_long_record_posterior)
+        assert isinstance(model.posterior_, PrecisionPosterior)
+        assert peak < 0.5 * estimate
+    else:
+        assert 0.5 * estimate < peak
+
+
+@pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
+def test_the_estimate_covers_the_general_long_record_posterior(optimizer):
+    # a prior without a tridiagonal precision: the eigendecomposition and QR route
+    import tracemalloc
+
+    from sklearn.gaussian_process.kernels import ConstantKernel
+
+    from gpmultirate.kernels import TC
+
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(3000)
+    y = np.convolve(u, 0.9 ** np.arange(300))[:3000:3] + 0.01 * rng.standard_normal(1000)
+    model = gm.FIRGaussianProcess(ConstantKernel(1.0) * TC(), factor=3, order=300,
+                                  optimizer=optimizer)
+    tracemalloc.start()
+    try:
+        model.fit(u, y)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert isinstance(model.posterior_, ParameterSpacePosterior)
+    estimate = fit_memory_estimate(y.shape[0], 300, model.kernel_.theta.shape[0] + 1)
     assert 0.5 * estimate < peak < 1.5 * estimate
 
 
