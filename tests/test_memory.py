@@ -27,24 +27,28 @@ def problem():
     return u, y
 
 
+def _peak_of_fit(model, u, y) -> int:
+    """The peak of numpy's allocations during ``model.fit(u, y)``, measured by tracemalloc."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        model.fit(u, y)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
 @pytest.mark.parametrize("n, factor, order", [(600, 3, 600), (3000, 3, 300), (1200, 2, 1200)])
 @pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
 def test_the_estimate_is_the_measured_peak(n, factor, order, optimizer):
-    # the data space (M <= P), the long-record reduction (M > P) and a larger P:
-    # the peak of numpy's allocations during the fit, measured by tracemalloc
-    import tracemalloc
-
+    # the data space (M <= P), the long-record reduction (M > P) and a larger P
     rng = np.random.default_rng(1)
     u = rng.standard_normal(n)
     y = np.convolve(u, 0.9 ** np.arange(order))[:n:factor]
     y = y + 0.01 * rng.standard_normal(y.shape[0])
     model = gm.FIRGaussianProcess(factor=factor, order=order, optimizer=optimizer)
-    tracemalloc.start()
-    try:
-        model.fit(u, y)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    peak = _peak_of_fit(model, u, y)
     estimate = fit_memory_estimate(y.shape[0], order, model.kernel_.theta.shape[0] + 1)
     assert peak < 1.5 * estimate
     if optimizer is None and y.shape[0] > order:
@@ -60,8 +64,6 @@ def test_the_estimate_is_the_measured_peak(n, factor, order, optimizer):
 @pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
 def test_the_estimate_covers_the_general_long_record_posterior(optimizer):
     # a prior without a tridiagonal precision: the eigendecomposition and QR route
-    import tracemalloc
-
     from sklearn.gaussian_process.kernels import ConstantKernel
 
     from gpmultirate.kernels import TC
@@ -71,12 +73,7 @@ def test_the_estimate_covers_the_general_long_record_posterior(optimizer):
     y = np.convolve(u, 0.9 ** np.arange(300))[:3000:3] + 0.01 * rng.standard_normal(1000)
     model = gm.FIRGaussianProcess(ConstantKernel(1.0) * TC(), factor=3, order=300,
                                   optimizer=optimizer)
-    tracemalloc.start()
-    try:
-        model.fit(u, y)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    peak = _peak_of_fit(model, u, y)
     assert isinstance(model.posterior_, ParameterSpacePosterior)
     estimate = fit_memory_estimate(y.shape[0], 300, model.kernel_.theta.shape[0] + 1)
     assert 0.5 * estimate < peak < 1.5 * estimate
