@@ -591,6 +591,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         criterion = _check_tuning(self.tuning)
         n_folds = check_int(self.cv, "cv", low=2)
         candidates = _order_candidates(self.order)
+        for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_"):
+            self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
         if candidates is not None:
             return self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
         experiment = self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)

@@ -285,3 +285,13 @@ def test_default_order_on_measured_data_stops_a_wrong_model_from_extrapolating()
     assert split.evaluate(full).fit_percent < -10.0
     assert default.order_selection_["best_order"] < split.n_estimation // 4
     assert abs(split.evaluate(default).fit_percent) < 2.0
+
+
+def test_a_refit_leaves_no_order_selection_of_an_earlier_fit(paper):
+    data, _, _ = paper
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=[40, 80], cv=4)
+    model.fit(data.u, data.y_slow)
+    assert model.order_selection_["criterion"] == "log_evidence"
+    # the held-out check runs after tuning only: nothing to report
+    model.set_params(order=None, optimizer=None).fit(data.u, data.y_slow)
+    assert not hasattr(model, "order_selection_")
