@@ -22,7 +22,23 @@ from gpmultirate.observations.experiment import is_record_list
 from gpmultirate.responses import FrequencyResponse
 from gpmultirate.validation import as_real_array, check_int, check_n_jobs
 
-__all__ = ["MultiOutputFIR"]
+__all__ = ["MultiOutputFIR", "stacked_coefficients"]
+
+
+def stacked_coefficients(coefs) -> np.ndarray:
+    """The outputs' coefficients on a common lag axis, zero beyond each one's order.
+
+    Examples
+    --------
+    >>> stacked_coefficients([np.array([1.0, 2.0, 3.0]), np.array([4.0])])
+    array([[1., 2., 3.],
+           [4., 0., 0.]])
+    """
+    longest = max(c.shape[-1] for c in coefs)
+    stacked = np.zeros((len(coefs), *coefs[0].shape[:-1], longest))
+    for j, c in enumerate(coefs):
+        stacked[j, ..., : c.shape[-1]] = c
+    return stacked
 
 
 class MultiOutputFIR(BaseEstimator):
@@ -55,7 +71,11 @@ class MultiOutputFIR(BaseEstimator):
     n_outputs_ : int
     n_inputs_ : int
     coef_ : ndarray of shape (n_outputs, P), or (n_outputs, n_inputs, P)
-        The estimators' ``coef_`` stacked along a first axis.
+        The estimators' ``coef_`` stacked along a first axis.  Where the
+        outputs' orders differ (the default order may be cut per output by
+        the held-out check), ``P`` is the longest and the shorter responses
+        are padded with zeros: an FIR model of order ``P_j`` has no
+        coefficient at lags ``P_j`` and beyond.
 
     Notes
     -----
@@ -136,7 +156,7 @@ class MultiOutputFIR(BaseEstimator):
         self.estimators_ = list(joblib.Parallel(n_jobs=n_jobs)(tasks))
         self.n_outputs_ = len(self.estimators_)
         self.n_inputs_ = int(self.estimators_[0].n_inputs_)
-        self.coef_ = np.stack([e.coef_ for e in self.estimators_])
+        self.coef_ = stacked_coefficients([e.coef_ for e in self.estimators_])
         return self
 
     def _check_estimator(self):

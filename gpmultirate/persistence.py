@@ -96,7 +96,7 @@ from gpmultirate.inference import GaussianCoefficients
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
-from gpmultirate.multioutput import MultiOutputFIR, one_blas_thread
+from gpmultirate.multioutput import MultiOutputFIR, one_blas_thread, stacked_coefficients
 from gpmultirate.observations import DownsampledConvolution, build_experiment
 from gpmultirate.resonances import Resonance
 from gpmultirate.validation import check_n_jobs
@@ -612,7 +612,7 @@ def _load_multi_output(header: dict, members: dict[str, np.ndarray]) -> MultiOut
     model.estimators_ = estimators
     model.n_outputs_ = len(estimators)
     model.n_inputs_ = int(estimators[0].n_inputs_)
-    model.coef_ = np.stack([e.coef_ for e in estimators])
+    model.coef_ = stacked_coefficients([e.coef_ for e in estimators])
     return model
 
 

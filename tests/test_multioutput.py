@@ -435,3 +435,36 @@ def test_predict_command_writes_every_output(fitted, data, tmp_path):
     for j in range(3):
         np.testing.assert_array_equal(table[f"y_{j}"], mean[:, j])
         np.testing.assert_array_equal(table[f"y_std_{j}"], std[:, j])
+
+
+def test_outputs_whose_default_order_is_cut_differently_share_one_lag_axis(tmp_path):
+    # the same fixed long prior for a slow response measured with little noise and a
+    # fast one in heavy noise: the held-out check cuts the second order further
+    from sklearn.gaussian_process.kernels import ConstantKernel
+
+    from gpmultirate.kernels import DC
+
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(600)
+    y_long = np.convolve(u, 0.99 ** np.arange(600))[:600] + 0.01 * rng.standard_normal(600)
+    y_short = np.convolve(u, 0.6 ** np.arange(20))[:600] + 0.5 * rng.standard_normal(600)
+    y_slow = np.column_stack([y_long, y_short])[::3]
+    kernel = ConstantKernel(1.0, "fixed") * DC(alpha=0.999, beta=0.5, alpha_bounds="fixed",
+                                               beta_bounds="fixed")
+    model = gm.MultiOutputFIR(gm.FIRGaussianProcess(kernel, factor=3)).fit(u, y_slow)
+    orders = [e.coef_.shape[0] for e in model.estimators_]
+    assert orders[0] > orders[1]
+    assert model.coef_.shape == (2, orders[0])
+    np.testing.assert_array_equal(model.coef_[0], model.estimators_[0].coef_)
+    np.testing.assert_array_equal(model.coef_[1, : orders[1]], model.estimators_[1].coef_)
+    assert not np.any(model.coef_[1, orders[1]:])
+    # the padded coefficients are the model: the same prediction as the short FIR
+    u_new = rng.standard_normal(300)
+    prediction = model.predict(u_new)
+    for j in range(2):
+        np.testing.assert_allclose(prediction[:, j], np.convolve(u_new, model.coef_[j])[:300],
+                                   rtol=1e-10, atol=1e-12)
+    gm.save_model(model, tmp_path / "m.npz")
+    loaded = gm.load_model(tmp_path / "m.npz")
+    np.testing.assert_array_equal(loaded.coef_, model.coef_)
+    np.testing.assert_array_equal(loaded.predict(u_new), prediction)
