@@ -492,6 +492,7 @@ def test_fit_out_must_be_a_directory(tmp_path, capsys):
     assert "--out" in line and "not a directory" in line
 
 
+@pytest.mark.slow
 def test_fit_auto_order_by_cross_validation(tmp_path):
     import json
 

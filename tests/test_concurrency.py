@@ -105,6 +105,7 @@ def state(model):
 
 
 # ------------------------------------------------------------------ threads
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["gp", "ls"])
 def test_threads_sharing_a_fitted_model_get_the_serial_answers(name, problem, request):
     _, u_new = problem
@@ -155,6 +156,7 @@ def answers_of_saved_model(path: str):
     return answers(load_model(path), u_new)
 
 
+@pytest.mark.slow
 def test_processes_loading_a_saved_model_get_the_parents_answers(gp, ls, problem, tmp_path):
     _, u_new = problem
     paths = []

@@ -133,6 +133,7 @@ def test_cross_validation_tuning_maximizes_its_objective(paper):
     assert model.score(u_val, y_val) > evidence.score(u_val, y_val) - 1.0
 
 
+@pytest.mark.slow
 def test_auto_order_is_the_best_of_a_brute_force_sweep(paper):
     data, _, _ = paper
     orders = [20, 40, 80, 160]

@@ -39,6 +39,7 @@ def _peak_of_fit(model, u, y) -> int:
         tracemalloc.stop()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n, factor, order", [(600, 3, 600), (3000, 3, 300), (1200, 2, 1200)])
 @pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
 def test_the_estimate_is_the_measured_peak(n, factor, order, optimizer):
@@ -61,6 +62,7 @@ def test_the_estimate_is_the_measured_peak(n, factor, order, optimizer):
         assert 0.5 * estimate < peak
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
 def test_the_estimate_covers_the_general_long_record_posterior(optimizer):
     # a prior without a tridiagonal precision: the eigendecomposition and QR route

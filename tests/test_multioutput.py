@@ -139,6 +139,7 @@ def test_the_fit_recovers_the_true_responses(data):
 
 
 # ------------------------------------------------------------ parallel
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["gp kernel", "ls"])
 def test_serial_and_two_processes_identical(fitted, data, name):
     u, y_slow, u_new = data
@@ -345,6 +346,7 @@ def test_saving_refuses_a_template_it_cannot_store(fitted):
         gm.save_model(model, io.BytesIO())
 
 
+@pytest.mark.slow
 def test_importing_the_package_imports_no_dask():
     code = ("import sys, gpmultirate, gpmultirate.multioutput, gpmultirate.persistence; "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")

@@ -330,6 +330,7 @@ def test_vanishing_noise_gives_least_squares(problem, spec):
 @examples(60)
 @given(problems(), kernel_specs(), log_uniform(-3, 1), log_uniform(-3, 3),
        st.lists(st.floats(0.0, 20.0), min_size=1, max_size=4))
+@pytest.mark.slow
 def test_input_scaling_with_matched_amplitude(problem, spec, noise, c, lags):
     lags = np.array(lags)
     model = fit_gp(problem, spec, noise)

@@ -262,6 +262,7 @@ def test_no_resonance_in_a_system_without_one(kind):
         assert not any(isinstance(p, PK) for p in model.kernel_.get_params().values())
 
 
+@pytest.mark.slow
 def test_several_inputs_get_their_own_resonances():
     rng = np.random.default_rng(2)
     n = 300
