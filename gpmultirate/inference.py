@@ -795,6 +795,18 @@ class LogEvidence:
         reusing._work = clone(self.kernel)
         return reusing
 
+    @property
+    def by_precision(self) -> bool:
+        """Whether evaluations go through the prior's tridiagonal precision.
+
+        So they do for square or reduced data (``M = P``) and a prior that
+        offers one (DC, a constant times DC): each evaluation is then a
+        ``P x P`` Cholesky factor and a triangular inverse, much cheaper than
+        the data-space Fisher information.
+        """
+        return (self.data.n_outputs == self.data.n_coefficients
+                and observe(self.kernel, self.data).precision() is not None)
+
     def covariance(self) -> np.ndarray:
         """``S = Phi K Phi^T`` of the (reduced) data at the initial kernel."""
         return observe(self.kernel, self.data).covariance()

@@ -175,3 +175,28 @@ def test_the_precision_route_does_not_modify_its_inputs():
     log_marginal_likelihood(data, C(1.0) * DC(0.9, 0.8), 0.05, z, True, True)
     np.testing.assert_array_equal(z, before_z)
     np.testing.assert_array_equal(data.gram()[0], before_gram)
+
+
+def test_tuning_through_the_precision_reaches_the_fisher_scoring_optimum(monkeypatch):
+    # a reduced long record above PRECISION_LBFGS_ABOVE coefficients: L-BFGS-B through
+    # DC's precision, against Fisher scoring in the data space of the reduction
+    from gpmultirate import inference, tuning
+
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(3000)
+    g = 0.97 ** np.arange(300) * np.cos(0.3 * np.arange(300))
+    y = np.convolve(u, g)[:3000:3] + 0.05 * rng.standard_normal(1000)
+    assert 300 > tuning.PRECISION_LBFGS_ABOVE
+
+    def fit():
+        return gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(u, y)
+
+    by_precision = fit()
+    assert "hess_inv" in by_precision.optimizer_result_  # L-BFGS-B's result
+    monkeypatch.setattr(inference.LogEvidence, "by_precision", property(lambda self: False))
+    by_fisher = fit()
+    assert "hess_inv" not in by_fisher.optimizer_result_
+    assert by_precision.log_marginal_likelihood_value_ == pytest.approx(
+        by_fisher.log_marginal_likelihood_value_, abs=1e-5)
+    np.testing.assert_allclose(by_precision.coef_, by_fisher.coef_, rtol=1e-3,
+                               atol=1e-4 * np.abs(by_fisher.coef_).max())
