@@ -414,9 +414,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     optimizer : "marginal_likelihood" or None, default="marginal_likelihood"
         Tune the free hyperparameters and the noise level by maximising the
         log marginal likelihood (Fisher scoring up to 1000 slow samples after
-        the reduction of long records, L-BFGS-B above; see the theory
-        page and :mod:`gpmultirate.tuning`); ``None`` uses them exactly as
-        given.
+        the reduction of long records, L-BFGS-B above and, above 200
+        coefficients, where the evidence goes through DC's precision; see
+        the theory page and :mod:`gpmultirate.tuning`); ``None`` uses them
+        exactly as given.
     tuning : {"evidence", "cross_validation"}, default="evidence"
         The criterion the hyperparameters (and an ``"auto"`` order)
         maximize: ``"evidence"``, the log marginal likelihood (eq. 19);
