@@ -219,12 +219,12 @@ def _job(record: Record, method: Method, factor: int, order, repeats: int) -> di
     return {"record": record.name, **row}
 
 
-def _identity(record: Record, method: Method, factor: int, order, n_estimation: int):
+def _identity(record: Record, method: Method, factor: int, order):
     """What is fitted: the record, the estimator class and its parameters.
 
     Two cells with the same identity are one fit: the single-rate rows of
     every factor.  The default order is not ``order=N``: the held-out check
-    may cut it (``n_estimation`` is kept in the signature for callers).
+    may cut it.
     """
     estimator = method.make(factor, order)
     params = estimator.get_params(deep=False)
@@ -249,7 +249,7 @@ def plan(records, methods, factors, orders=None):
         for method in methods:
             for factor in factors:
                 for order in (grid if method.sweep else (None,)):
-                    identity = _identity(record, method, factor, order, n_estimation)
+                    identity = _identity(record, method, factor, order)
                     cells[record, method, factor, order] = identity
                     fits.setdefault(identity, (record, method, factor, order))
     return cells, fits

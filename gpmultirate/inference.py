@@ -329,8 +329,6 @@ class PrecisionPosterior(_FactoredCoefficients):
     ----------
     coef : ndarray of shape (P,)
         The posterior mean ``mu``.
-    K : ndarray of shape (P, P)
-        The prior covariance at the lags ``0..P-1``.
     L : ndarray of shape (P, P)
         Lower Cholesky factor of ``C``.
     precision : TridiagonalPrecision
@@ -351,8 +349,9 @@ class PrecisionPosterior(_FactoredCoefficients):
     'PrecisionPosterior'
     """
 
-    def __init__(self, coef, K, L, precision, log_marginal_likelihood: float):
-        super().__init__(coef, K, None)
+    def __init__(self, coef, L, precision, log_marginal_likelihood: float):
+        # every use of the covariance goes through L: no P x P prior matrix is kept
+        super().__init__(coef, None, None)
         self.L = L
         self.precision = precision
         self.log_marginal_likelihood = log_marginal_likelihood
@@ -371,7 +370,7 @@ class PrecisionPosterior(_FactoredCoefficients):
         if found is None:
             return None
         L, mu, _, value = found
-        return cls(mu, operator.kernel_matrix(kernel), L, precision, value)
+        return cls(mu, L, precision, value)
 
     def times_root(self, A: np.ndarray) -> np.ndarray:
         # A L^{-T} = (L^{-1} A^T)^T
