@@ -752,6 +752,13 @@ class LogEvidence:
         roles = term.roles()
         return [(i, roles[i].power) for i in positions]
 
+    def amplitude_couplings(self):
+        """``[(correlation, amplitude, power)]`` positions in ``theta`` (see
+        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`)."""
+        term = observe(self.kernel)
+        roles = term.roles()
+        return [(j, a, roles[a].power) for j, a in term.amplitude_couplings()]
+
     def scale_groups(self, theta):
         """``[(positions, powers, S_part)]`` of independently scaled parts of ``S`` at ``theta``, or None."""
         kernel, _ = self.split(theta)

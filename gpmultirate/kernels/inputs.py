@@ -17,7 +17,9 @@ from scipy import linalg
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
-from gpmultirate.kernels.structure import ObservedTerm, StructuredKernel, observe
+from gpmultirate.kernels.structure import (
+    ObservedTerm, StructuredKernel, concatenated_couplings, observe,
+)
 from gpmultirate.validation import as_real_array, check_kernel
 
 __all__ = ["BlockTerm", "PerInputKernel", "input_kernels", "kernel_for_inputs", "like_inputs"]
@@ -281,6 +283,9 @@ class BlockTerm(ObservedTerm):
 
     def roles(self):
         return [role for block in self.blocks for role in block.roles()]
+
+    def amplitude_couplings(self):
+        return concatenated_couplings(self.blocks)
 
     def scale_groups(self):
         groups, start = [], 0

@@ -271,6 +271,17 @@ class ObservedTerm:
             return None
         return amplitudes
 
+    def amplitude_couplings(self) -> list[tuple[int, int]]:
+        """``[(correlation, amplitude)]``: positions (in :meth:`roles`) of a
+        correlation and of the one amplitude that scales the term owning it.
+
+        DC's prior precision scales with ``1 / (c (1 - beta^2))``, so along
+        the evidence's valleys ``c`` and ``beta`` move together; tuning
+        measures such an amplitude against its correlation.  Empty unless a
+        free constant multiplies a term with exactly one correlation.
+        """
+        return []
+
 
 class StructuredKernel:
     """Mixin of kernels that answer for their own structure: the extension point.
@@ -353,6 +364,18 @@ class SumTerm(ObservedTerm):
         if first is None or second is None:
             return None
         return first + [len(self.first.roles()) + i for i in second]
+
+    def amplitude_couplings(self):
+        return concatenated_couplings([self.first, self.second])
+
+
+def concatenated_couplings(terms) -> list[tuple[int, int]]:
+    """The amplitude couplings of terms whose roles are concatenated in order."""
+    found, start = [], 0
+    for term in terms:
+        found += [(j + start, a + start) for j, a in term.amplitude_couplings()]
+        start += len(term.roles())
+    return found
 
 
 class ScaledTerm(ObservedTerm):
@@ -437,6 +460,16 @@ class ScaledTerm(ObservedTerm):
             return own if own is not None else inner
         return inner if inner is not None else own
 
+    def amplitude_couplings(self):
+        inner_roles = self.inner.roles()
+        shift = 1 if (self.free and self.constant_first) else 0
+        found = [(j + shift, a + shift) for j, a in self.inner.amplitude_couplings()]
+        correlations = [j for j, role in enumerate(inner_roles) if role.kind == "correlation"]
+        if self.free and not found and len(correlations) == 1:
+            own = 0 if self.constant_first else len(inner_roles)
+            found = [(correlations[0] + shift, own)]
+        return found
+
 
 class ProductTerm(ObservedTerm):
     """A general product ``k1 * k2``: dense, with the product rule in parameter space.
@@ -468,6 +501,9 @@ class ProductTerm(ObservedTerm):
         if second is None:
             return None
         return [len(self.first.roles()) + i for i in second]
+
+    def amplitude_couplings(self):
+        return concatenated_couplings([self.first, self.second])
 
 
 class LowRankTerm(ObservedTerm):

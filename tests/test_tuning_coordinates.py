@@ -1,0 +1,152 @@
+"""The optimizer's coordinates: amplitudes measured against the correlation they scale.
+
+The couplings are read from the kernel's structure; the transform is checked
+by its round trip, its gradient against finite differences of the composed
+function, and its invariance along ``c (1 - beta^2) = const``; tuning in the
+coupled coordinates against tuning in plain ones (same optimum), also where
+the amplitude's bound binds.
+"""
+
+import numpy as np
+import pytest
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+import gpmultirate as gm
+from gpmultirate import inference, tuning
+from gpmultirate.kernels import DC, PK, TC, observe
+
+
+@pytest.mark.parametrize(
+    "kernel, expected",
+    [
+        (C(1.0) * DC(), [(2, 0)]),  # roles: c, alpha, beta
+        (DC() * C(1.0), [(1, 2)]),  # roles: alpha, beta, c
+        (C(1.0) * DC() + PK(), [(2, 0)]),
+        (PK() + C(1.0) * DC(), [(6, 4)]),
+        (C(1.0) * (DC() + PK()), [(2, 0)]),
+        (C(1.0) * TC(), []),  # no correlation
+        (DC(), []),  # no amplitude
+        (C(1.0, "fixed") * DC(), []),  # the constant is not tuned
+        (C(1.0) * (DC() + DC()), []),  # two correlations: no single partner
+    ],
+)
+def test_couplings_follow_the_kernel_structure(kernel, expected):
+    term = observe(kernel)
+    found = term.amplitude_couplings()
+    assert found == expected
+    roles = term.roles()
+    for j, a in found:
+        assert roles[j].kind == "correlation" and roles[a].kind == "amplitude"
+
+
+def test_couplings_of_several_inputs_are_offset_per_input():
+    from gpmultirate.kernels import PerInputKernel
+
+    kernel = PerInputKernel([C(1.0) * DC(), C(2.0) * TC(), DC() * C(3.0)])
+    term = observe(kernel)
+    roles = term.roles()  # (c, alpha, beta), (c, alpha), (alpha, beta, c)
+    found = term.amplitude_couplings()
+    assert len(found) == 2
+    for j, a in found:
+        assert roles[j].kind == "correlation" and roles[a].kind == "amplitude"
+        assert roles[j].owner is not roles[a].owner
+    first, second = found
+    assert found == [(2, 0), (6, 7)]
+
+
+def transform():
+    # theta: log c, log alpha, artanh beta, log noise; a second amplitude of power 1/2
+    return tuning.CorrelationScaleTransform([1], [(2, 0, 1.0), (2, 4, 0.5)])
+
+
+def test_transform_round_trip():
+    t = transform()
+    theta = np.array([-3.0, -0.02, 2.5, -9.0, 1.5])
+    z = t.to_z(theta)
+    np.testing.assert_allclose(t.to_theta(z), theta, rtol=1e-13)
+    # the amplitude coordinate: log c + log(1 - beta^2), with half of it for power 1/2
+    beta = np.tanh(2.5)
+    assert z[0] == pytest.approx(-3.0 + np.log(1.0 - beta**2), rel=1e-12)
+    assert z[4] == pytest.approx(1.5 + 0.5 * np.log(1.0 - beta**2), rel=1e-12)
+    assert z[1] == pytest.approx(np.log(0.02))  # the decay rate, as before
+    # large artanh beta: no overflow in log cosh
+    far = t.to_z(np.array([0.0, -0.02, 400.0, 0.0, 0.0]))
+    assert np.all(np.isfinite(far))
+
+
+def test_transform_is_constant_along_the_valley():
+    t = transform()
+    betas = np.array([0.5, 0.9, 0.99, 0.9999])
+    zs = [t.to_z(np.array([-np.log(1 - b**2), -0.1, np.arctanh(b), 0.0, 0.0]))[0]
+          for b in betas]
+    np.testing.assert_allclose(zs, 0.0, atol=1e-10)
+
+
+def test_transform_gradient_against_finite_differences():
+    t = transform()
+    weights = np.array([0.7, -1.3, 0.4, 2.0, -0.5])
+
+    def f(theta):
+        return float(np.sum(weights * np.sin(theta)) + theta[0] * theta[2])
+
+    def grad(theta):
+        g = weights * np.cos(theta)
+        g[0] += theta[2]
+        g[2] += theta[0]
+        return g
+
+    theta = np.array([-1.0, -0.3, 1.2, 0.5, 0.8])
+    z = t.to_z(theta)
+    analytic = t.gradient(grad(theta), theta)
+    h = 1e-6
+    numeric = [(f(t.to_theta(z + h * e)) - f(t.to_theta(z - h * e))) / (2 * h)
+               for e in np.eye(z.size)]
+    np.testing.assert_allclose(analytic, numeric, rtol=1e-6, atol=1e-8)
+
+
+def long_record(seed=3, n=3000, order=300):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    g = 0.97 ** np.arange(order) * np.cos(0.3 * np.arange(order))
+    y = np.convolve(u, g)[:n:3] + 0.05 * rng.standard_normal(n // 3)
+    return u, y
+
+
+def fit_both(monkeypatch, kernel, order=300):
+    u, y = long_record(order=order)
+
+    def fit():
+        return gm.FIRGaussianProcess(kernel, factor=3, order=order).fit(u, y)
+
+    coupled = fit()
+    assert "hess_inv" in coupled.optimizer_result_  # L-BFGS-B, where the couplings apply
+    with monkeypatch.context() as m:
+        m.setattr(inference.LogEvidence, "amplitude_couplings", lambda self: [])
+        plain = fit()
+    return coupled, plain
+
+
+def test_coupled_coordinates_reach_the_plain_optimum(monkeypatch):
+    coupled, plain = fit_both(monkeypatch, C(1.0) * DC(0.9, 0.99))
+    assert coupled.log_marginal_likelihood_value_ == pytest.approx(
+        plain.log_marginal_likelihood_value_, abs=1e-5)
+    np.testing.assert_allclose(coupled.coef_, plain.coef_, rtol=1e-3,
+                               atol=1e-4 * np.abs(plain.coef_).max())
+
+
+def test_an_amplitude_bound_that_binds_is_kept(monkeypatch):
+    # the unbounded amplitude coordinate leaves the bound; the polish brings the
+    # result back onto it, where the plain run also ends (the kernel is a prior
+    # in normalized units: its bounds are read from the fitted kernel)
+    free, _ = fit_both(monkeypatch, C(1.0, (1e-12, 1e12)) * DC(0.9, 0.99))
+    value = free.kernel.k1.constant_value * free.kernel_.k1.constant_value / (
+        free.kernel_.k1.hyperparameter_constant_value.bounds[0, 0] / 1e-12)
+    bounds = (value * 10.0, value * 1e3)
+    with pytest.warns(Warning, match="constant_value .* on its lower bound"):
+        coupled, plain = fit_both(monkeypatch, C(value * 100, bounds) * DC(0.9, 0.99))
+    lower = coupled.kernel_.k1.hyperparameter_constant_value.bounds[0, 0]
+    assert coupled.kernel_.k1.constant_value == pytest.approx(lower, rel=1e-9)
+    assert plain.kernel_.k1.constant_value == pytest.approx(lower, rel=1e-9)
+    assert coupled.log_marginal_likelihood_value_ == pytest.approx(
+        plain.log_marginal_likelihood_value_, abs=1e-5)
+    assert coupled.log_marginal_likelihood_value_ < free.log_marginal_likelihood_value_
