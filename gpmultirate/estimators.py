@@ -598,7 +598,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             return self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
         experiment = self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
         if criterion == "evidence" and self.optimizer is not None:
-            self._check_shorter_orders(u, y_slow, sample_indices, experiment, n_folds)
+            with blas_threads_for(experiment.observation):
+                self._check_shorter_orders(u, y_slow, sample_indices, experiment, n_folds)
         return self
 
     def _fit_order(self, u, y_slow, sample_indices, order, criterion, n_folds):

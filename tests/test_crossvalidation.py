@@ -297,3 +297,23 @@ def test_a_refit_leaves_no_order_selection_of_an_earlier_fit(paper):
     # the held-out check runs after tuning only: nothing to report
     model.set_params(order=None, optimizer=None).fit(data.u, data.y_slow)
     assert not hasattr(model, "order_selection_")
+
+
+def test_held_out_check_of_a_small_problem_runs_on_one_blas_thread(paper, monkeypatch):
+    # as tuning does: on 2 cores a 200 x 200 factorization is 4-5 times slower
+    # on two BLAS threads than on one
+    from threadpoolctl import threadpool_info
+
+    from gpmultirate import estimators
+
+    seen = []
+    original = estimators.held_out_predictions
+
+    def spy(*args, **kwargs):
+        seen.append([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(estimators, "held_out_predictions", spy)
+    data, _, _ = paper
+    gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(data.u, data.y_slow)
+    assert seen and all(threads == [1] * len(threads) and threads for threads in seen)
