@@ -218,3 +218,15 @@ class CrossValidation(LogEvidence):
 
     def with_fisher(self, theta):
         raise NotImplementedError("the cross-validation objective has no Fisher information")
+
+    def amplitude_couplings(self):
+        """No couplings: the optimizer keeps plain coordinates for cross-validation.
+
+        The valley ``c (1 - beta^2) = const`` that
+        :class:`~gpmultirate.tuning.CorrelationScaleTransform` straightens is
+        the evidence's (through the prior precision); on the measured CD arm
+        (two inputs, ``y2``, ``F = 3``, ``order="auto"``) the coupled
+        coordinates ended cross-validation at a lower optimum (464 against
+        519 at 42 lags).
+        """
+        return []

@@ -753,8 +753,11 @@ class LogEvidence:
         return [(i, roles[i].power) for i in positions]
 
     def amplitude_couplings(self):
-        """``[(correlation, amplitude, power)]`` positions in ``theta`` (see
-        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`)."""
+        """Correlations and the amplitudes scaling their terms, as positions in ``theta``.
+
+        ``[(correlation, amplitude, power)]`` with the amplitude's power (see
+        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`).
+        """
         term = observe(self.kernel)
         roles = term.roles()
         return [(j, a, roles[a].power) for j, a in term.amplitude_couplings()]

@@ -22,7 +22,10 @@ user's initial values is fragile.  The strategy is:
    ``FISHER_MAX_OUTPUTS`` (reduced) slow samples and by L-BFGS-B with
    analytic gradients above, and above ``PRECISION_LBFGS_ABOVE`` where the
    evidence goes through the prior's tridiagonal precision (DC on square or
-   reduced data), from that point and from optional random restarts.
+   reduced data), from that point and from optional random restarts.  The
+   L-BFGS-B runs measure an amplitude that scales a correlation's term
+   against it (:class:`CorrelationScaleTransform`), which straightens the
+   valley of DC's evidence.
 """
 
 from __future__ import annotations
@@ -378,6 +381,22 @@ class CorrelationScaleTransform(DecayRateTransform):
         Positions of the decay parameters.
     couplings : sequence of (int, int, float)
         ``(correlation position, amplitude position, power)``.
+
+    Examples
+    --------
+    ``theta`` of ``C * DC`` with a free noise level: ``log c``, ``log alpha``,
+    ``artanh beta``, ``log gamma``.  Points with the same ``c (1 - beta^2)``
+    share the amplitude coordinate:
+
+    >>> import numpy as np
+    >>> t = CorrelationScaleTransform([1], [(2, 0, 1.0)])
+    >>> for beta in (0.9, 0.99):
+    ...     theta = np.array([-np.log(1 - beta**2), np.log(0.95), np.arctanh(beta), -4.0])
+    ...     print(t.to_z(theta).round(4) + 0.0)
+    [ 0.     -2.9702  1.4722 -4.    ]
+    [ 0.     -2.9702  2.6467 -4.    ]
+    >>> bool(np.allclose(t.to_theta(t.to_z(theta)), theta))
+    True
     """
 
     def __init__(self, indices, couplings=()):

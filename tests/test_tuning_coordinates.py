@@ -150,3 +150,16 @@ def test_an_amplitude_bound_that_binds_is_kept(monkeypatch):
     assert coupled.log_marginal_likelihood_value_ == pytest.approx(
         plain.log_marginal_likelihood_value_, abs=1e-5)
     assert coupled.log_marginal_likelihood_value_ < free.log_marginal_likelihood_value_
+
+
+def test_cross_validation_keeps_plain_coordinates():
+    # the valley is the evidence's; cross-validation is tuned in plain coordinates
+    from gpmultirate.crossvalidation import CrossValidation
+
+    u, y = long_record(n=300, order=30)
+    operator = gm.DownsampledConvolution(u, 3, 30)
+    kernel = C(1.0) * DC()
+    evidence = inference.LogEvidence(operator, y, kernel, 1e-2, (1e-6, 1.0))
+    assert evidence.amplitude_couplings() == [(2, 0, 1.0)]
+    objective = CrossValidation(operator, y, kernel, 1e-2, (1e-6, 1.0), n_folds=5)
+    assert objective.amplitude_couplings() == []

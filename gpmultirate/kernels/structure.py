@@ -272,13 +272,13 @@ class ObservedTerm:
         return amplitudes
 
     def amplitude_couplings(self) -> list[tuple[int, int]]:
-        """``[(correlation, amplitude)]``: positions (in :meth:`roles`) of a
-        correlation and of the one amplitude that scales the term owning it.
+        """Positions (in :meth:`roles`) of correlations and of the amplitudes scaling their terms.
 
-        DC's prior precision scales with ``1 / (c (1 - beta^2))``, so along
-        the evidence's valleys ``c`` and ``beta`` move together; tuning
-        measures such an amplitude against its correlation.  Empty unless a
-        free constant multiplies a term with exactly one correlation.
+        ``[(correlation, amplitude)]``, one amplitude per correlation.  DC's
+        prior precision scales with ``1 / (c (1 - beta^2))``, so along the
+        evidence's valleys ``c`` and ``beta`` move together; tuning measures
+        such an amplitude against its correlation.  Empty unless a free
+        constant multiplies a term with exactly one correlation.
         """
         return []
 
