@@ -30,7 +30,7 @@ import numpy as np
 from scipy import linalg
 
 from sklearn.base import clone
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.kernels import observe
@@ -59,6 +59,22 @@ LOG_2PI = np.log(2.0 * np.pi)
 SINGLE_THREAD_SIZE = 1500
 
 
+_controller = None
+
+
+def _blas_controller() -> ThreadpoolController:
+    """One controller per process: finding the loaded libraries costs milliseconds.
+
+    ``threadpool_limits`` scans every loaded shared library on each call
+    (8 ms with scipy and scikit-learn loaded, twice per fit); the BLAS
+    libraries a fit uses are loaded with numpy and scipy, before it.
+    """
+    global _controller
+    if _controller is None:
+        _controller = ThreadpoolController()
+    return _controller
+
+
 def blas_threads_for(observation):
     """A context with one BLAS thread for small problems, no limit otherwise.
 
@@ -70,7 +86,7 @@ def blas_threads_for(observation):
     ...     pass
     """
     if max(observation.n_outputs, observation.n_coefficients) <= SINGLE_THREAD_SIZE:
-        return threadpool_limits(limits=1, user_api="blas")
+        return _blas_controller().limit(limits=1, user_api="blas")
     return contextlib.nullcontext()
 
 
