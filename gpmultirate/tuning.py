@@ -327,6 +327,8 @@ class DecayRateTransform:
 
     # decay rates below this are treated as zero (a = 1 within rounding)
     MIN_RATE = 1e-10
+    # coordinates whose bounds are not a box in z (see CorrelationScaleTransform)
+    couplings = ()
 
     def __init__(self, indices):
         self.indices = np.array(indices, dtype=int)
@@ -354,6 +356,10 @@ class DecayRateTransform:
         g = np.array(grad_theta, dtype=float)
         g[self.indices] *= theta[self.indices]  # d theta / d z = theta
         return g
+
+    def plain(self) -> "DecayRateTransform":
+        """These coordinates without couplings: the bounds of ``theta`` are a box in them."""
+        return self
 
 
 class CorrelationScaleTransform(DecayRateTransform):
@@ -505,7 +511,7 @@ def minimize_lbfgs(objective_and_gradient, theta0, bounds, transform=None):
     )
     theta = transform.to_theta(result.x)
     result.x = np.clip(theta, bounds[:, 0], bounds[:, 1])
-    if getattr(transform, "couplings", None) and not np.allclose(result.x, theta, 0.0, 1e-9):
+    if transform.couplings and not np.allclose(result.x, theta, 0.0, 1e-9):
         # a coupled amplitude left its bounds: polish the clipped point in plain coordinates
         polished = minimize_lbfgs(objective_and_gradient, result.x, bounds, transform.plain())
         polished.nfev += result.nfev
