@@ -70,12 +70,19 @@ def journal_lines(path):
         return 0
 
 
+def _default_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def interrupt(out, sig, n_jobs):
     """Start the study, send ``sig`` once two runs are in the journal, wait for the end."""
     argv = [sys.executable, "-m", "gpmultirate", "demo", *STUDY, "--n-jobs", str(n_jobs),
             "--output", str(out)]
+    # the default SIGINT action in the child: a shell without job control starts
+    # background commands (``pytest &``, ``nohup``) with SIGINT ignored, which
+    # the child would inherit and the study would then run to its end
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True)
+                               text=True, preexec_fn=_default_sigint)
     journal = out / JOURNAL_NAME
     deadline = time.monotonic() + 60
     try:
