@@ -48,6 +48,7 @@ __all__ = [
     "log_gaussian",
     "log_marginal_likelihood",
     "log_marginal_likelihood_fisher",
+    "one_blas_thread",
     "posterior",
     "robust_cholesky",
 ]
@@ -75,6 +76,17 @@ def _blas_controller() -> ThreadpoolController:
     return _controller
 
 
+def one_blas_thread():
+    """A context with one BLAS thread (the process's one thread controller).
+
+    Examples
+    --------
+    >>> with one_blas_thread():
+    ...     pass
+    """
+    return _blas_controller().limit(limits=1, user_api="blas")
+
+
 def blas_threads_for(observation):
     """A context with one BLAS thread for small problems, no limit otherwise.
 
@@ -86,7 +98,7 @@ def blas_threads_for(observation):
     ...     pass
     """
     if max(observation.n_outputs, observation.n_coefficients) <= SINGLE_THREAD_SIZE:
-        return _blas_controller().limit(limits=1, user_api="blas")
+        return one_blas_thread()
     return contextlib.nullcontext()
 
 
@@ -380,7 +392,7 @@ class PrecisionPosterior(_FactoredCoefficients):
         (:meth:`~gpmultirate.kernels.ObservedTerm.precision`) or ``C`` is not
         numerically positive definite.
         """
-        precision = observe(kernel, operator).precision()
+        precision = _square_precision(observe(kernel, operator), operator)
         found = None if precision is None else _solve_by_precision(
             operator, precision, noise_level, y)
         if found is None:
@@ -445,14 +457,13 @@ def log_marginal_likelihood(
     true, the derivative with respect to ``log(noise_level)`` last.
     """
     term = observe(kernel, operator)
-    if operator.n_outputs == operator.n_coefficients:
-        precision = term.precision()
-        if precision is not None:
-            found = _log_marginal_likelihood_by_precision(
-                operator, precision, noise_level, y, eval_gradient, noise_free
-            )
-            if found is not None:
-                return found
+    precision = _square_precision(term, operator)
+    if precision is not None:
+        found = _log_marginal_likelihood_by_precision(
+            operator, precision, noise_level, y, eval_gradient, noise_free
+        )
+        if found is not None:
+            return found
     if eval_gradient:
         S, contract = term.covariance_with_contractor()
     else:
@@ -472,6 +483,17 @@ def log_marginal_likelihood(
     if noise_free:
         grad = np.append(grad, 0.5 * np.trace(W) * noise_level + rest_grad)
     return value, grad
+
+
+def _square_precision(term, operator):
+    """The prior's tridiagonal precision where the evidence and posterior go through it.
+
+    Square (or reduced, ``M = P``) data and a term that offers one
+    (:meth:`~gpmultirate.kernels.ObservedTerm.precision`); None otherwise.
+    """
+    if operator.n_outputs != operator.n_coefficients:
+        return None
+    return term.precision()
 
 
 def _solve_by_precision(operator, precision, noise_level, y):
@@ -829,8 +851,7 @@ class LogEvidence:
         ``P x P`` Cholesky factor and a triangular inverse, much cheaper than
         the data-space Fisher information.
         """
-        return (self.data.n_outputs == self.data.n_coefficients
-                and observe(self.kernel, self.data).precision() is not None)
+        return _square_precision(observe(self.kernel, self.data), self.data) is not None
 
     def covariance(self) -> np.ndarray:
         """``S = Phi K Phi^T`` of the (reduced) data at the initial kernel."""

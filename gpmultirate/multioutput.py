@@ -16,8 +16,7 @@ import joblib
 import numpy as np
 from sklearn.base import BaseEstimator, clone
 from sklearn.utils.validation import check_is_fitted
-from threadpoolctl import threadpool_limits
-
+from gpmultirate.inference import one_blas_thread
 from gpmultirate.observations.experiment import is_record_list
 from gpmultirate.responses import FrequencyResponse
 from gpmultirate.validation import as_real_array, check_int, check_n_jobs
@@ -261,11 +260,6 @@ def _fit_output(estimator, u, y_slow, sample_indices, output: int):
         if hasattr(exc, "add_note"):  # Python >= 3.11
             exc.add_note(f"while fitting output {output} (column {output} of y_slow)")
         raise
-
-
-def one_blas_thread():
-    """The BLAS thread limit under which each output's model is fitted (and loaded again)."""
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _output_columns(y_slow, several_records: bool) -> list:

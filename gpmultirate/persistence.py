@@ -92,11 +92,11 @@ from sklearn.gaussian_process.kernels import (
 )
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate.inference import GaussianCoefficients
+from gpmultirate.inference import GaussianCoefficients, one_blas_thread
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
-from gpmultirate.multioutput import MultiOutputFIR, one_blas_thread, stacked_coefficients
+from gpmultirate.multioutput import MultiOutputFIR, stacked_coefficients
 from gpmultirate.observations import DownsampledConvolution, build_experiment
 from gpmultirate.resonances import Resonance
 from gpmultirate.validation import check_n_jobs

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 import joblib
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
-from threadpoolctl import threadpool_limits
 
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
+from gpmultirate.inference import one_blas_thread
 from gpmultirate.study.journal import StudyJournal, read_journal, study_settings
 from gpmultirate.study.results import StudyResult
 from gpmultirate.study.simulation import (
@@ -98,7 +98,7 @@ def fit_method(method: str, order: int, data: RunData):
     start = time.perf_counter()
     # One BLAS thread: the study is parallel over runs, multithreaded BLAS on these small
     # matrices costs far more than it saves, and the result must not depend on n_jobs.
-    with threadpool_limits(limits=1, user_api="blas"), \
+    with one_blas_thread(), \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         warnings.simplefilter("always", NumericalWarning)
