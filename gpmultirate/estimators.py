@@ -15,8 +15,10 @@ or several (lists), slow samples at ``offset + m * factor`` or at any
 from __future__ import annotations
 
 
+import logging
+import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import linalg
@@ -26,7 +28,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import orders, tuning
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
-from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError
+from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, OrderWarning
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import (
@@ -347,6 +349,23 @@ def prior_in_data_units(kernel, experiment, noise_level: float, noise_level_boun
     return kernel, noise_level, bounds
 
 
+#: the logger of a fit's progress (the default order's pilot fits, the resonance search)
+_LOG = logging.getLogger("gpmultirate.fit")
+
+#: residual lag-one autocorrelation above which a too-short order is reported
+RESIDUAL_CORRELATION = 0.3
+
+
+def _input_powers_of(inputs) -> list[float]:
+    """``mean(u_k**2)`` of each input over all records (1 for an all-zero input)."""
+    stacked = np.vstack([x[:, None] if x.ndim == 1 else x for x in inputs])
+    return [float(np.mean(stacked[:, k] ** 2)) or 1.0 for k in range(stacked.shape[1])]
+
+
+def _input_powers(experiment) -> list[float]:
+    return _input_powers_of(_record_inputs(experiment))
+
+
 # the margins in percentage points of held-out fit by which a shorter order
 # must predict better to replace the default order N, and to be named in a
 # warning for an explicit order
@@ -440,13 +459,22 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     factor : int, default=1
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, "auto" or sequence of int, optional
-        FIR order ``P`` in ``1..N``, shared by all inputs.  Default: ``N``,
-        the length of the (longest) record, unless the held-out check after
+        FIR order ``P`` in ``1..N``, shared by all inputs.  Default: chosen
+        from the data.  For a record of at most 1024 fast samples
+        (``orders.SHORT_RECORD``, e.g. the paper's ``N = 600``): ``N``, the
+        length of the (longest) record, unless the held-out check after
         evidence tuning finds that a shorter order ``N/2, ..., N/32`` (at
         least 10) predicts held-out slow samples more than one point of fit
         better at the tuned hyperparameters; the model is then fitted again
         at the best of them (see *Tuning that generalizes* in the user
-        guide).  An integer is used as given.  ``"auto"`` or a list of
+        guide).  For a longer record: the lag beyond which the prior, tuned
+        at a pilot order of 512 (doubled while it has not decayed within the
+        order), is negligible against the noise
+        (:func:`~gpmultirate.orders.default_order`); it costs the pilot
+        fits and at most one refit, and a response that decays well within
+        the record gets fewer coefficients than slow samples (the
+        long-record route).  An integer is used as given (a too short one
+        is reported with an :class:`~gpmultirate.OrderWarning`).  ``"auto"`` or a list of
         candidate orders: fit each candidate and keep the one the tuning
         criterion (``tuning``) prefers, per used slow sample; ``"auto"``
         tries ``N, N/2, N/4, ..., N/32`` (at least 10).  The candidates and
@@ -550,7 +578,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         ``"best_order"`` (the fitted order).  With the default order, where
         the held-out check ran: the candidates ``N/32, ..., N``, their
         held-out fit in percent (``"criterion"`` ``"held_out_fit"``) and the
-        fitted order.
+        fitted order; where the order was read from the tuned prior (a
+        record longer than 1024 samples): the pilot orders, the lag read at
+        each (``"score"``), ``"criterion"`` ``"prior_tail"`` and the order.
 
     Examples
     --------
@@ -650,12 +680,117 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             self._adopt(selection.fit)
             self.order_selection_ = selection.table
             return self
-        fitted = self._fit_at(data, self.order, settings)
+        order, fitted, rule = self.order, None, None
+        if order is None:
+            rule = self._default_order(data, settings)
+            if rule is not None:
+                order, fitted = rule.order, rule.fit
+        if fitted is None:
+            start = time.perf_counter()
+            fitted = self._fit_at(data, order, settings)
+            if rule is not None:
+                _LOG.info("fitted order %d in %.1f s", fitted.operator_.order,
+                          time.perf_counter() - start)
         self._adopt(fitted)
+        if rule is not None:
+            self.order_selection_ = rule.table
         if settings.criterion == "evidence" and self.optimizer is not None:
             with blas_threads_for(fitted.experiment.observation):
                 self._check_shorter_orders(data, fitted.experiment, settings)
+        self._check_long_enough()
         return self
+
+    def _default_order(self, data, settings: _Settings):
+        """The default order of a record longer than ``SHORT_RECORD``: :func:`~gpmultirate.orders.default_order`.
+
+        None for a shorter record (its default order is ``N``).  The pilot
+        fits tune the plain prior (the user's kernel, or the default without
+        the resonance search) by the evidence; the last one is kept as the
+        fit when the rule keeps its order and the fit asks for nothing more.
+        Their warnings are those of the kept fit only.
+        """
+        whole = self._experiment(data, None)
+        longest = whole.observation.order
+        if longest <= orders.SHORT_RECORD:
+            return None
+        powers = _input_powers(whole)
+        pilot = replace(settings, auto=False, criterion="evidence")
+        caught = {}
+
+        def fit_at(order):
+            with warnings.catch_warnings(record=True) as record:
+                warnings.simplefilter("always")
+                fitted = self._fit_at(data, order, pilot)
+            caught[order] = record
+            return fitted
+
+        def tail_lag(fitted):
+            # over twice the order: a prior cut by the order has not decayed
+            return orders.prior_tail_lag(fitted.kernel_, powers, fitted.noise_level_,
+                                         2 * fitted.operator_.order)
+
+        rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
+                                    whole.n_inputs, log=_LOG.info)
+        if rule.fit is not None and (settings.auto or settings.criterion != "evidence"):
+            rule = replace(rule, fit=None)  # the fit at that order goes on from here
+        if rule.fit is not None:
+            for w in caught[rule.order]:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        _LOG.info("default order: %d", rule.order)
+        return rule
+
+    def _check_long_enough(self) -> None:
+        """Warn when the fitted order is too short for the data's memory.
+
+        Where the fit has more slow samples than coefficients (the held-out
+        check does not run there), two signs together: the tuned prior,
+        continued beyond the order, is not negligible against the noise from
+        the last lag on
+        (:func:`~gpmultirate.orders.prior_tail_lag` reaches the order), and
+        the residuals of the slow samples are correlated from one slow
+        sample to the next (lag-one autocorrelation above
+        ``RESIDUAL_CORRELATION`` and four standard errors).  The
+        :class:`~gpmultirate.OrderWarning` names a longer order.
+        """
+        operator = self.operator_
+        order = operator.order
+        if (operator.n_outputs <= operator.n_coefficients
+                or self.initial_conditions == "periodic"):
+            return
+        experiment_inputs = [np.asarray(r.u, dtype=float) for r in operator.records]
+        longest = max(x.shape[0] for x in experiment_inputs)
+        if order >= longest:
+            return
+        powers = _input_powers_of(experiment_inputs)
+        if orders.prior_tail_lag(self.kernel_, powers, self.noise_level_, 2 * order) < order:
+            return
+        coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
+        products = squares = 0.0
+        start = 0
+        for record, x in zip(operator.records, experiment_inputs):
+            x = x[:, None] if x.ndim == 1 else x
+            n = x.shape[0]
+            fitted = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+            y = self.y_slow_[start : start + record.n_outputs]
+            start += record.n_outputs
+            residual = y - fitted[record.sample_indices]
+            products += float(residual[1:] @ residual[:-1])
+            squares += float(residual @ residual)
+        if squares == 0.0:
+            return
+        correlation = products / squares
+        if correlation <= max(RESIDUAL_CORRELATION, 4.0 / np.sqrt(operator.n_outputs)):
+            return
+        longer = min(2 * order, longest)
+        default = "" if self.order is None else " (or the default order=None, which reads it from the data)"
+        warnings.warn(
+            f"order={order} looks too short for the data's memory: the tuned prior has not "
+            f"decayed against the noise by lag {order} and the residuals of the slow samples "
+            f"are correlated from one to the next ({correlation:.2f} at lag one); the noise "
+            f"level and the bands are then too large. Try order={longer}{default}.",
+            OrderWarning,
+            stacklevel=3,
+        )
 
     def _check_params(self) -> _Settings:
         """Check every parameter, before the data are built (as scikit-learn does)."""
@@ -721,7 +856,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         )
         # refuse now what would be killed for lack of memory halfway
         n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
-        check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1)
+        check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1,
+                         n_inputs=experiment.n_inputs)
         optimizer_result = resonances_found = cv_value = None
         with blas_threads_for(operator):
             if settings.auto:
@@ -1003,7 +1139,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         )
         operator, y = experiment.observation, experiment.y
         M, P = operator.n_outputs, operator.n_coefficients
-        check_fit_memory(M, P, 0)
+        check_fit_memory(M, P, 0, n_inputs=operator.n_inputs)
         if P >= M:
             inputs = f" x {operator.n_inputs} inputs" if operator.n_inputs > 1 else ""
             raise IdentifiabilityError(

@@ -18,6 +18,7 @@ The estimator turns these results into its attributes
 from __future__ import annotations
 
 import numbers
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -29,12 +30,15 @@ from gpmultirate.metrics import fit_percent
 from gpmultirate.validation import check_int
 
 __all__ = [
+    "DefaultOrder",
     "MAX_CHECKED_SAMPLES",
     "MIN_CHECKED_ORDER",
     "OrderSelection",
     "auto_orders",
+    "default_order",
     "held_out_fits",
     "order_candidates",
+    "prior_tail_lag",
     "select_order",
 ]
 
@@ -222,3 +226,202 @@ def held_out_fits(
         fits[order] = fit_percent(y, mean)
     return fits
 
+
+# ---------------------------------------------------------------- the default order
+#: records of at most this many fast samples keep the default order ``P = N``
+SHORT_RECORD = 1024
+#: the first order the default rule fits on a longer record; it doubles from there
+PILOT_ORDER = 512
+#: the prior's tail beyond the chosen order adds at most this fraction of the
+#: noise variance to the output (for an input of the record's power)
+TAIL_TOLERANCE = 1e-2
+#: the shortest order the default rule chooses
+MIN_DEFAULT_ORDER = 10
+
+
+def prior_tail_lag(kernel, input_power, noise_level: float, n_lags: int,
+                   tolerance: float = TAIL_TOLERANCE) -> int:
+    """The lag beyond which the prior's impulse response is negligible against the noise.
+
+    The smallest ``L`` such that, for every input ``k``,
+    ``power_k * sum_{L <= t < n_lags} k_k(t, t) <= tolerance * noise_level``:
+    the output variance the prior gives the lags ``L..n_lags-1`` for an
+    input of power ``power_k`` (white) is a small fraction of the noise
+    variance.  ``n_lags`` when no such lag is within the window (the prior
+    has not decayed: the window is too short).
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        The tuned prior over lag: one input, or a
+        :class:`~gpmultirate.kernels.PerInputKernel` (points ``(input, lag)``).
+    input_power : sequence of float
+        ``mean(u_k**2)`` of each input.
+    noise_level : float
+        The noise variance.
+    n_lags : int
+        The window, usually the order the prior was tuned at.
+    tolerance : float, default=TAIL_TOLERANCE
+
+    Returns
+    -------
+    int in ``1..n_lags``
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate.kernels import DC
+    >>> # variance 0.9**t: the tail from L sums to 10 * 0.9**L, below 1e-2 * 1e-2 from L = 110
+    >>> prior_tail_lag(C(1.0) * DC(alpha=0.9, beta=0.5), [1.0], 1e-2, 400)
+    110
+    >>> prior_tail_lag(C(1.0) * DC(alpha=0.9, beta=0.5), [1.0], 1e-2, 50)
+    50
+    """
+    lags = np.arange(n_lags, dtype=float)
+    powers = [float(p) for p in input_power]
+    if len(powers) == 1:
+        variances = [kernel.diag(lags[:, None])]
+    else:
+        variances = [
+            kernel.diag(np.column_stack([np.full(n_lags, float(k)), lags]))
+            for k in range(len(powers))
+        ]
+    lag = 1
+    for power, variance in zip(powers, variances):
+        tail = power * np.cumsum(np.maximum(variance, 0.0)[::-1])[::-1]
+        small = np.flatnonzero(tail <= tolerance * noise_level)
+        lag = max(lag, int(small[0]) if small.size else n_lags)
+    return lag
+
+
+@dataclass(frozen=True)
+class DefaultOrder:
+    """The result of :func:`default_order`.
+
+    Attributes
+    ----------
+    order : int
+        The chosen order.
+    table : dict
+        ``"order"`` (the orders fitted, in turn), ``"score"`` (the lag
+        beyond which each one's tuned prior is negligible against the
+        noise, :func:`prior_tail_lag`), ``"criterion"``
+        (``"prior_tail"``) and ``"best_order"``: the estimator's
+        ``order_selection_``.
+    fit : object or None
+        What ``fit_at`` returned at the chosen order, when it was fitted
+        there (None when the chosen order is shorter than the last fit).
+
+    Examples
+    --------
+    >>> DefaultOrder(order=300, table={}, fit=None).order
+    300
+    """
+
+    order: int
+    table: dict
+    fit: object
+
+
+def default_order(
+    fit_at: Callable[[int], object],
+    tail_lag: Callable[[object], int],
+    longest: int,
+    n_samples: int,
+    n_inputs: int = 1,
+    log: Callable[[str], None] | None = None,
+) -> DefaultOrder:
+    """The default FIR order of a record: from the tuned decay of the prior, doubling.
+
+    The rule: fit at ``PILOT_ORDER`` (or ``longest`` if shorter), read the
+    lag ``L`` beyond which the tuned prior is negligible against the tuned
+    noise (``tail_lag``, read over twice the order: the prior goes on beyond
+    it); while ``L`` reaches the order (the prior has not decayed within
+    the order tried: the response is longer),
+    double the order, at most ``longest``; a doubling that would cross the
+    number of slow samples per input stops just below it first (there the
+    fit reduces a long record to ``P x P``; at ``M`` close to ``P`` neither
+    route is cheap).  The order is then ``L``
+    (at least ``MIN_DEFAULT_ORDER``) when that is at most half the last
+    order fitted or when it makes the fit a long-record one (more slow
+    samples than coefficients, ``n_inputs * L < n_samples``) where the last
+    fit was not; otherwise the last order fitted is kept, with its fit.
+
+    Parameters
+    ----------
+    fit_at : callable
+        ``fit_at(order)`` fits at one order (the pilot fits).
+    tail_lag : callable
+        ``tail_lag(fit)``: the lag beyond which that fit's tuned prior is
+        negligible (:func:`prior_tail_lag` over a window longer than the
+        order); read as at most the order.
+    longest : int
+        The longest order the data allow (the record length ``N``).
+    n_samples : int
+        The number of used slow samples ``M``.
+    n_inputs : int, default=1
+    log : callable, optional
+        Called with a line of progress after each fit: its order and time,
+        the lag read, and the next order with an estimate of the time it
+        takes (a fit's time grows about like ``P^3``).
+
+    Returns
+    -------
+    DefaultOrder
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> fit_at = lambda order: SimpleNamespace(order=order)
+    >>> # a response that lasts 200 lags: order 200, fitted again
+    >>> result = default_order(fit_at, lambda fit: min(200, fit.order), 10**5, 33333)
+    >>> result.order, result.table["order"].tolist(), result.fit
+    (200, [512], None)
+    >>> # 700 lags: 512 is too short, 1024 is not, and its fit is kept
+    >>> result = default_order(fit_at, lambda fit: min(700, fit.order), 10**5, 33333)
+    >>> result.order, result.table["order"].tolist(), result.fit.order
+    (1024, [512, 1024], 1024)
+    """
+    order = min(PILOT_ORDER, longest)
+    # the longest order with more slow samples than coefficients: the doubling
+    # stops there once, since at M close to P neither route is cheap
+    below = (n_samples - 1) // n_inputs
+
+    def longer(order):
+        following = min(2 * order, longest)
+        return below if order < below < following else following
+
+    tried, lags = [], []
+    while True:
+        start = time.perf_counter()
+        fit = fit_at(order)
+        lag = min(int(tail_lag(fit)), order)
+        tried.append(order)
+        lags.append(lag)
+        decayed = lag < order
+        if log is not None:
+            seconds = time.perf_counter() - start
+            following = longer(order)
+            # a fit costs about P^3 (the P x P factorizations): the time left, roughly
+            more = "" if decayed or order >= longest else (
+                f"; the prior has not decayed by lag {order}: next order {following}, "
+                f"about {seconds * (following / order) ** 3:.0f} s left"
+            )
+            log(f"default order: fitted order {order} in {seconds:.1f} s, the prior is "
+                f"negligible beyond lag {lag}{more}")
+        if decayed or order >= longest:
+            break
+        order = longer(order)
+    chosen = max(lag, min(MIN_DEFAULT_ORDER, order))
+    long_route = n_inputs * chosen < n_samples <= n_inputs * order
+    if chosen < order and (2 * chosen <= order or long_route):
+        fit = None
+    else:
+        chosen = order
+    table = {
+        "order": np.array(tried),
+        "score": np.array(lags, dtype=float),
+        "criterion": "prior_tail",
+        "best_order": int(chosen),
+    }
+    return DefaultOrder(order=int(chosen), table=table, fit=fit)

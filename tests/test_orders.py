@@ -95,3 +95,120 @@ def test_the_default_prior_in_data_units_scales_with_the_units(small):
     # without normalization the user's kernel and noise are used as given
     kernel, noise, _ = prior_in_data_units(C(2.0) * DC(), one, 0.5, "fixed", False, False)
     assert kernel.k1.constant_value == 2.0 and noise == 0.5
+
+
+# ------------------------------------------------------------ the default order
+def _record(n, g, factor=3, snr_db=40.0, seed=0):
+    """``(u, y_slow, u_val, y_val)``: white input, FIR ``g``, noise at ``snr_db`` on the slow samples."""
+    rng = np.random.default_rng(seed)
+    u, u_val = rng.standard_normal(n), rng.standard_normal(n)
+    y, y_val = np.convolve(u, g)[:n], np.convolve(u_val, g)[:n]
+    y_slow = y[::factor].copy()
+    y_slow += 10 ** (-snr_db / 20) * np.std(y_slow) * rng.standard_normal(y_slow.shape[0])
+    return u, y_slow, u_val, y_val
+
+
+def test_prior_tail_lag_matches_the_geometric_tail():
+    # C * DC has variance c alpha^t on the diagonal: the tail from L is c alpha^L / (1 - alpha)
+    c, alpha, power, noise = 2.0, 0.95, 3.0, 1e-3
+    kernel = C(c) * DC(alpha=alpha, beta=0.5)
+    lag = orders.prior_tail_lag(kernel, [power], noise, 2000, tolerance=1e-2)
+    tail = lambda L: power * c * (alpha**L - alpha**2000) / (1 - alpha)  # noqa: E731
+    assert tail(lag) <= 1e-2 * noise < tail(lag - 1)
+    # two inputs: the slower one decides
+    two = gm.kernels.PerInputKernel([C(c) * DC(alpha=0.5, beta=0.5), kernel])
+    assert orders.prior_tail_lag(two, [power, power], noise, 2000) == lag
+    # a prior that has not decayed within the window: the window
+    assert orders.prior_tail_lag(kernel, [power], noise, 50) == 50
+
+
+def test_default_order_keeps_p_equal_n_for_the_paper_size_record():
+    from gpmultirate import simulation as sim
+
+    rng = np.random.default_rng(0)
+    system = sim.paper_system(0.1, perturbation=0.1, random_state=rng)
+    u = sim.multisine(600, random_state=rng)
+    data = sim.simulate_experiment(system, u, 3, snr_db=40.0, random_state=rng)
+    model = gm.FIRGaussianProcess(factor=3).fit(data.u, data.y_slow)
+    # today's route: the fit at P = N, then the held-out check over N/32..N
+    assert 600 <= orders.SHORT_RECORD
+    assert model.order_selection_["criterion"] == "held_out_fit"
+    assert model.order_selection_["order"][-1] == 600
+    best = model.order_selection_["best_order"]
+    assert model.coef_.shape == (best,)
+    direct = gm.FIRGaussianProcess(factor=3, order=best).fit(data.u, data.y_slow)
+    if best == 600:
+        np.testing.assert_array_equal(model.coef_, direct.coef_)
+
+
+def test_default_order_of_a_longer_record_is_read_from_the_tuned_prior():
+    g = 0.9 ** np.arange(200)  # negligible against 40 dB noise well before lag 200
+    u, y_slow, u_val, y_val = _record(1500, g)
+    model = gm.FIRGaussianProcess(factor=3).fit(u, y_slow)
+    selection = model.order_selection_
+    assert selection["criterion"] == "prior_tail"
+    order = selection["best_order"]
+    assert model.coef_.shape == (order,) and order < y_slow.shape[0] < 1500  # long-record route
+    # the order is the tuned prior's negligible lag, recomputed from the pilot fit
+    pilot = gm.FIRGaussianProcess(factor=3, order=int(selection["order"][0])).fit(u, y_slow)
+    lag = orders.prior_tail_lag(pilot.kernel_, [np.mean(u**2)], pilot.noise_level_,
+                                2 * pilot.coef_.shape[0])
+    assert order == max(lag, orders.MIN_DEFAULT_ORDER) == int(selection["score"][0])
+    # and it is fitted as an explicit order is
+    direct = gm.FIRGaussianProcess(factor=3, order=order).fit(u, y_slow)
+    np.testing.assert_array_equal(model.coef_, direct.coef_)
+    assert model.score(u_val, y_val) > 99.0
+
+
+def test_too_short_an_order_is_reported_and_a_good_one_is_not():
+    g = 0.97 ** np.arange(600) * np.cos(0.3 * np.arange(600))
+    u, y_slow, _, _ = _record(3000, g)
+    with pytest.warns(gm.OrderWarning, match=r"order=40 looks too short.*Try order=80"):
+        gm.FIRGaussianProcess(factor=3, order=40).fit(u, y_slow)
+    with warnings_as_errors(gm.OrderWarning):
+        gm.FIRGaussianProcess(factor=3, order=400).fit(u, y_slow)
+
+
+def warnings_as_errors(category):
+    import warnings
+
+    class _Context(warnings.catch_warnings):
+        def __enter__(self):
+            super().__enter__()
+            warnings.simplefilter("error", category)
+
+    return _Context()
+
+
+def test_the_memory_refusal_names_an_order_that_fits(monkeypatch):
+    from gpmultirate.memory import MemoryLimitError, fit_memory_estimate
+
+    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(50 * 10**6))
+    u = np.random.default_rng(0).standard_normal((3000, 2))
+    y_slow = u[::3, 0].copy()
+    with pytest.raises(MemoryLimitError, match=r"order=(\d+)") as caught:
+        gm.FIRGaussianProcess(factor=3, order=3000).fit(u, y_slow)
+    import re
+
+    order = int(re.search(r"order=(\d+)", str(caught.value)).group(1))
+    # two inputs: 2 * order coefficients; 6 free hyperparameters and the noise
+    assert fit_memory_estimate(1000, 2 * order, 7) <= 50 * 10**6
+    assert fit_memory_estimate(1000, 2 * (order + 1), 7) > 50 * 10**6
+
+
+@pytest.mark.slow
+def test_default_order_on_a_long_paper_like_record_predicts_as_a_well_chosen_order():
+    from gpmultirate import simulation as sim
+
+    rng = np.random.default_rng(0)
+    system = sim.paper_system(0.1, perturbation=0.1, random_state=rng)
+    u = sim.multisine(30_000, random_state=rng)
+    u_val = sim.multisine(30_000, random_state=rng)
+    data = sim.simulate_experiment(system, u, 3, snr_db=40.0, random_state=rng)
+    y_val = system.simulate(u_val)
+    model = gm.FIRGaussianProcess(factor=3).fit(data.u, data.y_slow)
+    order = model.coef_.shape[0]
+    assert order < data.y_slow.shape[0]  # the long-record route
+    chosen = gm.FIRGaussianProcess(factor=3, order=1500).fit(data.u, data.y_slow)
+    assert model.score(u_val, y_val) >= chosen.score(u_val, y_val) - 0.5
+    assert model.score(u_val, y_val) >= 99.5
