@@ -851,7 +851,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         experiment = self._experiment(data, order)
         operator, y = experiment.observation, experiment.y
         kernel, noise, noise_bounds = prior_in_data_units(
-            None if settings.auto else self.kernel, experiment, settings.noise_level,
+            # "auto" starts from the default prior (also in the default order's pilots)
+            None if isinstance(self.kernel, str) else self.kernel, experiment,
+            settings.noise_level,
             self.noise_level_bounds, settings.normalize, settings.tuned,
         )
         # refuse now what would be killed for lack of memory halfway

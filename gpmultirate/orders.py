@@ -363,7 +363,7 @@ def default_order(
     log : callable, optional
         Called with a line of progress after each fit: its order and time,
         the lag read, and the next order with an estimate of the time it
-        takes (a fit's time grows about like ``P^3``).
+        takes (a fit's time grows about like ``P^2`` on a long record).
 
     Returns
     -------
@@ -402,10 +402,10 @@ def default_order(
         if log is not None:
             seconds = time.perf_counter() - start
             following = longer(order)
-            # a fit costs about P^3 (the P x P factorizations): the time left, roughly
+            # a doubled order cost 2-8 times as much in the benchmark: the time left, roughly
             more = "" if decayed or order >= longest else (
                 f"; the prior has not decayed by lag {order}: next order {following}, "
-                f"about {seconds * (following / order) ** 3:.0f} s left"
+                f"about {seconds * (following / order) ** 2:.0f} s left"
             )
             log(f"default order: fitted order {order} in {seconds:.1f} s, the prior is "
                 f"negligible beyond lag {lag}{more}")

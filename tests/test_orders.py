@@ -212,3 +212,16 @@ def test_default_order_on_a_long_paper_like_record_predicts_as_a_well_chosen_ord
     chosen = gm.FIRGaussianProcess(factor=3, order=1500).fit(data.u, data.y_slow)
     assert model.score(u_val, y_val) >= chosen.score(u_val, y_val) - 0.5
     assert model.score(u_val, y_val) >= 99.5
+
+
+@pytest.mark.slow
+def test_default_order_with_the_resonance_search_runs_the_search_once_at_the_chosen_order():
+    g = 0.97 ** np.arange(400) * np.cos(0.6 * np.arange(400))
+    u, y_slow, u_val, y_val = _record(1500, g)
+    model = gm.FIRGaussianProcess(kernel="auto", factor=3).fit(u, y_slow)
+    plain = gm.FIRGaussianProcess(factor=3).fit(u, y_slow)
+    # the pilots tune the plain default prior: the same order as the plain fit
+    assert model.order_selection_["best_order"] == plain.order_selection_["best_order"]
+    assert model.coef_.shape == (model.order_selection_["best_order"],)
+    assert hasattr(model, "resonances_")
+    assert model.score(u_val, y_val) >= plain.score(u_val, y_val) - 1.0
