@@ -460,7 +460,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, "auto" or sequence of int, optional
         FIR order ``P`` in ``1..N``, shared by all inputs.  Default: chosen
-        from the data.  For a record of at most 1024 fast samples
+        from the data.  For a record of at most 2048 fast samples
         (``orders.SHORT_RECORD``, e.g. the paper's ``N = 600``): ``N``, the
         length of the (longest) record, unless the held-out check after
         evidence tuning finds that a shorter order ``N/2, ..., N/32`` (at
@@ -579,7 +579,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         the held-out check ran: the candidates ``N/32, ..., N``, their
         held-out fit in percent (``"criterion"`` ``"held_out_fit"``) and the
         fitted order; where the order was read from the tuned prior (a
-        record longer than 1024 samples): the pilot orders, the lag read at
+        record longer than 2048 samples): the pilot orders, the lag read at
         each (``"score"``), ``"criterion"`` ``"prior_tail"`` and the order.
 
     Examples

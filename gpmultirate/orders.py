@@ -229,7 +229,7 @@ def held_out_fits(
 
 # ---------------------------------------------------------------- the default order
 #: records of at most this many fast samples keep the default order ``P = N``
-SHORT_RECORD = 1024
+SHORT_RECORD = 2048
 #: the first order the default rule fits on a longer record; it doubles from there
 PILOT_ORDER = 512
 #: the prior's tail beyond the chosen order adds at most this fraction of the

@@ -131,7 +131,7 @@ def test_default_order_keeps_p_equal_n_for_the_paper_size_record():
     data = sim.simulate_experiment(system, u, 3, snr_db=40.0, random_state=rng)
     model = gm.FIRGaussianProcess(factor=3).fit(data.u, data.y_slow)
     # today's route: the fit at P = N, then the held-out check over N/32..N
-    assert 600 <= orders.SHORT_RECORD
+    assert 600 <= orders.SHORT_RECORD and 2048 <= orders.SHORT_RECORD  # the measured records too
     assert model.order_selection_["criterion"] == "held_out_fit"
     assert model.order_selection_["order"][-1] == 600
     best = model.order_selection_["best_order"]
@@ -143,12 +143,12 @@ def test_default_order_keeps_p_equal_n_for_the_paper_size_record():
 
 def test_default_order_of_a_longer_record_is_read_from_the_tuned_prior():
     g = 0.9 ** np.arange(200)  # negligible against 40 dB noise well before lag 200
-    u, y_slow, u_val, y_val = _record(1500, g)
+    u, y_slow, u_val, y_val = _record(2400, g)
     model = gm.FIRGaussianProcess(factor=3).fit(u, y_slow)
     selection = model.order_selection_
     assert selection["criterion"] == "prior_tail"
     order = selection["best_order"]
-    assert model.coef_.shape == (order,) and order < y_slow.shape[0] < 1500  # long-record route
+    assert model.coef_.shape == (order,) and order < y_slow.shape[0] < 2400  # long-record route
     # the order is the tuned prior's negligible lag, recomputed from the pilot fit
     pilot = gm.FIRGaussianProcess(factor=3, order=int(selection["order"][0])).fit(u, y_slow)
     lag = orders.prior_tail_lag(pilot.kernel_, [np.mean(u**2)], pilot.noise_level_,
@@ -217,7 +217,7 @@ def test_default_order_on_a_long_paper_like_record_predicts_as_a_well_chosen_ord
 @pytest.mark.slow
 def test_default_order_with_the_resonance_search_runs_the_search_once_at_the_chosen_order():
     g = 0.97 ** np.arange(400) * np.cos(0.6 * np.arange(400))
-    u, y_slow, u_val, y_val = _record(1500, g)
+    u, y_slow, u_val, y_val = _record(2400, g)
     model = gm.FIRGaussianProcess(kernel="auto", factor=3).fit(u, y_slow)
     plain = gm.FIRGaussianProcess(factor=3).fit(u, y_slow)
     # the pilots tune the plain default prior: the same order as the plain fit
