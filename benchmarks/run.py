@@ -7,7 +7,8 @@ reduction alone is timed both ways (``reduction_50k``, ``reduction_1m``).
 The cases: the paper's size (N = P = 600, factor 3) with the DC and the
 DC + 2 PK kernels and ``kernel="auto"`` (timed against the DC fit), the paper's 100-run study (LS over the orders 50..600, DC
 and PK at P = N), a long record (N = 50,000, P = 2,000) and P = N = 6,000;
-and the experiments beyond the paper's, each against the uniform one-input
+the default fit (everything default, the paper's system at 40 dB, ``N`` of
+3,000 to 1,000,000, ``defaults_*``, with the order it chose); and the experiments beyond the paper's, each against the uniform one-input
 fit of the same size in the same run: two inputs at paper size, the paper
 case with 20 % of the slow samples missing, four records of N = 600, and the
 long record with irregular instants (mean spacing 3, jitter +-1); and a
@@ -55,15 +56,20 @@ OUTPUT = Path(__file__).resolve().parent / "output"
 
 
 # ---------------------------------------------------------------- problems
-def paper_problem(n_samples=600, factor=3, seed=0):
-    """One Monte Carlo run of the paper's simulation study at size ``n_samples``."""
+def paper_problem(n_samples=600, factor=3, seed=0, snr_db=None):
+    """One Monte Carlo run of the paper's simulation study at size ``n_samples``.
+
+    The signal-to-noise ratio is drawn in 40..60 dB as in the study, unless
+    ``snr_db`` is given.
+    """
     from gpmultirate import simulation as sim
 
     rng = np.random.default_rng(seed)
     system = sim.paper_system(0.1, perturbation=0.1, random_state=rng)
     u = sim.multisine(n_samples, random_state=rng)
     u_val = sim.multisine(n_samples, random_state=rng)
-    data = sim.simulate_experiment(system, u, factor, snr_db=rng.uniform(40, 60), random_state=rng)
+    snr = rng.uniform(40, 60) if snr_db is None else snr_db
+    data = sim.simulate_experiment(system, u, factor, snr_db=snr, random_state=rng)
     return data.u, data.y_slow, u_val, system.simulate(u_val)
 
 
@@ -293,6 +299,22 @@ def long_record_case(implementation, n_samples=50_000, order=2000, factor=3):
     return {"seconds": seconds, "gof": goodness_of_fit(y_val, predict(u_val))}
 
 
+def defaults_case(n_samples, factor=3):
+    """Everything default: one input, factor 3, the paper's system at 40 dB, ``n_samples`` long.
+
+    The default order is chosen from the data (:func:`gpmultirate.orders.default_order`);
+    the result reports it.
+    """
+    import gpmultirate as gm
+
+    u, y, u_val, y_val = paper_problem(n_samples, factor, snr_db=40.0)
+    start = time.perf_counter()
+    model = gm.FIRGaussianProcess(factor=factor).fit(u, y)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "gof": gm.goodness_of_fit(y_val, model.predict(u_val)),
+            "order": int(model.coef_.shape[-1])}
+
+
 def evaluation_case(implementation, n_samples=50_000, order=2000, factor=3, repeat=3):
     """One evaluation of the evidence and its gradient on the reduced long record.
 
@@ -402,7 +424,14 @@ CASES = {
     "four_records": ("four records of N = 600, P = 600", ["ours"]),
     "long_irregular": ("long record, irregular instants", ["ours"]),
     "multi_output_28": ("2 inputs, 28 outputs, N = 8,523, P = 200", ["serial", "n_jobs_2"]),
+    "defaults_3k": ("defaults, 40 dB, N = 3,000, F = 3", ["ours"]),
+    "defaults_30k": ("defaults, 40 dB, N = 30,000, F = 3", ["ours"]),
+    "defaults_300k": ("defaults, 40 dB, N = 300,000, F = 3", ["ours"]),
+    "defaults_1m": ("defaults, 40 dB, N = 1,000,000, F = 3", ["ours"]),
 }
+#: the record length of each case of the default fit
+DEFAULTS_SIZES = {"defaults_3k": 3000, "defaults_30k": 30_000, "defaults_300k": 300_000,
+                  "defaults_1m": 1_000_000}
 # the implementation a case's ratios are against, when it is not "ours"
 BASELINES = {"multi_output_28": "serial"}
 # each experiment beyond the paper's and its uniform one-input reference of the same size
@@ -449,6 +478,8 @@ def run_case(name, implementation, n_samples=None, order=None):
         return wide_case("irregular", implementation, n_samples or 50_000, order or 2000)
     if name == "multi_output_28":
         return multi_output_case(implementation, n_samples or 8523, order or 200)
+    if name in DEFAULTS_SIZES:
+        return defaults_case(n_samples or DEFAULTS_SIZES[name])
     raise ValueError(f"unknown case {name!r}")
 
 
@@ -532,6 +563,8 @@ def main(argv=None):
                 ratio = r["seconds"] / reference["seconds"]
             if isinstance(r["gof"], dict):
                 print(f"{'':42s} {'':10s} GoF {r['gof']}")
+            if "order" in r:
+                print(f"{'':42s} {'':10s} default order {r['order']}")
             if "workers_mb" in r:
                 print(f"{'':42s} {'':10s} peak MB of a worker process {r['workers_mb']:.0f}; "
                       f"lowest GoF of an output {r['gof_min']:.3f} %; CPU time of the "

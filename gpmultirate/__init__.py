@@ -9,7 +9,12 @@ for the prior covariances.
 from gpmultirate import datasets, holdout, kernels, simulation
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
-from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, NumericalWarning
+from gpmultirate.exceptions import (
+    HeldOutWarning,
+    IdentifiabilityError,
+    NumericalWarning,
+    OrderWarning,
+)
 from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.multioutput import MultiOutputFIR
@@ -27,6 +32,7 @@ __all__ = [
     "MultiOutputFIR",
     "NumericalWarning",
     "HeldOutWarning",
+    "OrderWarning",
     "ObservedKernel",
     "SampledConvolution",
     "__version__",

@@ -15,18 +15,20 @@ or several (lists), slow samples at ``offset + m * factor`` or at any
 from __future__ import annotations
 
 
-import numbers
+import logging
+import time
 import warnings
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import linalg
-from sklearn.base import BaseEstimator, clone
+from sklearn.base import BaseEstimator
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate import tuning
-from gpmultirate.crossvalidation import CrossValidation, contiguous_folds, held_out_predictions
-from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError
+from gpmultirate import orders, tuning
+from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
+from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, OrderWarning
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import (
@@ -44,9 +46,11 @@ from gpmultirate.kernels import (
     like_inputs,
     rescaled,
 )
-from gpmultirate.metrics import fit_percent, goodness_of_fit
+from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
+from gpmultirate.observations.sampled import check_initial_conditions
+from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER, auto_orders
 from gpmultirate.resonances import slowest_decay
 from gpmultirate.responses import (
     FrequencyResponse,
@@ -299,47 +303,74 @@ def _initial_kernel(kernel, experiment, normalize: bool = True):
     return kernels[0] if n == 1 else PerInputKernel(kernels)
 
 
-# the held-out check after evidence tuning: its shortest order; the margins in
-# percentage points of held-out fit by which a shorter order must predict better
-# to replace the default order N, and to be named in a warning for an explicit order
-MIN_CHECKED_ORDER = 10
+def _noise_bounds(noise_level_bounds, y: np.ndarray, normalize: bool):
+    """The bounds of the noise variance in the data's units (``"auto"`` resolved)."""
+    power = float(np.mean(y**2)) or 1.0
+    if isinstance(noise_level_bounds, str) and noise_level_bounds == "auto":
+        return (1e-12 * power, 10.0 * power)
+    bounds = check_bounds(noise_level_bounds, "noise_level_bounds")
+    if normalize and not isinstance(bounds, str):
+        return (bounds[0] * power, bounds[1] * power)  # given in normalized units
+    return bounds
+
+
+def prior_in_data_units(kernel, experiment, noise_level: float, noise_level_bounds,
+                        normalize: bool, tuned: bool):
+    """The fit's starting prior and noise: the default prior and the unit normalization.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel, list of them, or None
+        The user's prior (None: the default ``ConstantKernel(c) * DC()`` per
+        input, see :func:`_initial_kernel`).
+    experiment : Experiment
+        The data (observation and used slow samples).
+    noise_level : float
+        The noise variance as given.
+    noise_level_bounds : pair of floats, "fixed" or "auto"
+    normalize : bool
+        Read the kernel's amplitudes, ``noise_level`` and explicit bounds in
+        normalized units (input(s) and output divided by their RMS).
+    tuned : bool
+        Whether the noise level will be tuned (then clipped into its bounds).
+
+    Returns
+    -------
+    kernel, noise_level, noise_level_bounds
+        In the data's units.
+    """
+    y = experiment.y
+    kernel = _initial_kernel(kernel, experiment, normalize)
+    bounds = _noise_bounds(noise_level_bounds, y, normalize)
+    if normalize:
+        noise_level *= float(np.mean(y**2)) or 1.0  # given in normalized units
+    if tuned and not isinstance(bounds, str):
+        noise_level = float(np.clip(noise_level, *bounds))
+    return kernel, noise_level, bounds
+
+
+#: the logger of a fit's progress (the default order's pilot fits, the resonance search)
+_LOG = logging.getLogger("gpmultirate.fit")
+
+#: residual lag-one autocorrelation above which a too-short order is reported
+RESIDUAL_CORRELATION = 0.3
+
+
+def _input_powers_of(inputs) -> list[float]:
+    """``mean(u_k**2)`` of each input over all records (1 for an all-zero input)."""
+    stacked = np.vstack([x[:, None] if x.ndim == 1 else x for x in inputs])
+    return [float(np.mean(stacked[:, k] ** 2)) or 1.0 for k in range(stacked.shape[1])]
+
+
+def _input_powers(experiment) -> list[float]:
+    return _input_powers_of(_record_inputs(experiment))
+
+
+# the margins in percentage points of held-out fit by which a shorter order
+# must predict better to replace the default order N, and to be named in a
+# warning for an explicit order
 ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
-# the most slow samples it checks: each candidate order needs M x M matrices
-MAX_CHECKED_SAMPLES = 4000
-
-
-def auto_orders(longest: int) -> list[int]:
-    """The candidate orders of ``order="auto"``: ``N, N/2, ..., N/32``, at least 10.
-
-    Examples
-    --------
-    >>> auto_orders(600)
-    [18, 37, 75, 150, 300, 600]
-    >>> auto_orders(12)
-    [12]
-    """
-    orders = {longest} | {longest // 2**k for k in range(1, 6) if longest // 2**k >= 10}
-    return sorted(orders)
-
-
-def _order_candidates(order):
-    """None for one order (an int or None), "auto", or the checked list of candidates."""
-    if order is None or isinstance(order, numbers.Integral) and not isinstance(order, bool):
-        return None
-    if isinstance(order, str):
-        if order == "auto":
-            return "auto"
-        raise ValueError(f"order must be an integer, 'auto' or a list of integers; got {order!r}")
-    try:
-        candidates = [check_int(o, "order", low=1) for o in order]
-    except TypeError:
-        raise ValueError(
-            f"order must be an integer, 'auto' or a list of integers; got {order!r}"
-        ) from None
-    if not candidates:
-        raise ValueError("order must not be an empty list")
-    return sorted(set(candidates))
 
 
 def _check_tuning(tuning_criterion) -> str:
@@ -359,6 +390,41 @@ def _record_inputs(experiment):
         u = np.asarray(record.u, dtype=float)
         out.append(u[:, None] if u.ndim == 1 else u)
     return out
+
+
+@dataclass(frozen=True)
+class _Settings:
+    """The estimator's parameters, checked before the data are touched."""
+
+    criterion: str
+    n_folds: int
+    candidates: object  # None, "auto" or a sorted list of orders
+    n_restarts: int
+    noise_level: float
+    auto: bool
+    max_resonances: int
+    normalize: bool
+    tuned: bool
+
+
+@dataclass
+class _Fit:
+    """The learned state of a fit at one order (the estimator's attributes of that name)."""
+
+    experiment: object
+    operator_: object
+    y_slow_: np.ndarray
+    noise_level_bounds_: object
+    n_inputs_: int
+    optimizer_result_: object
+    kernel_: object
+    noise_level_: float
+    posterior_: object
+    evidence: object
+    coef_: np.ndarray
+    log_marginal_likelihood_value_: float
+    resonances_: object = None
+    cv_log_predictive_likelihood_: float | None = None
 
 
 class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
@@ -393,13 +459,22 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     factor : int, default=1
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, "auto" or sequence of int, optional
-        FIR order ``P`` in ``1..N``, shared by all inputs.  Default: ``N``,
-        the length of the (longest) record, unless the held-out check after
+        FIR order ``P`` in ``1..N``, shared by all inputs.  Default: chosen
+        from the data.  For a record of at most 2048 fast samples
+        (``orders.SHORT_RECORD``, e.g. the paper's ``N = 600``): ``N``, the
+        length of the (longest) record, unless the held-out check after
         evidence tuning finds that a shorter order ``N/2, ..., N/32`` (at
         least 10) predicts held-out slow samples more than one point of fit
         better at the tuned hyperparameters; the model is then fitted again
         at the best of them (see *Tuning that generalizes* in the user
-        guide).  An integer is used as given.  ``"auto"`` or a list of
+        guide).  For a longer record: the lag beyond which the prior, tuned
+        at a pilot order of 512 (doubled while it has not decayed within the
+        order), is negligible against the noise
+        (:func:`~gpmultirate.orders.default_order`); it costs the pilot
+        fits and at most one refit, and a response that decays well within
+        the record gets fewer coefficients than slow samples (the
+        long-record route).  An integer is used as given (a too short one
+        is reported with an :class:`~gpmultirate.OrderWarning`).  ``"auto"`` or a list of
         candidate orders: fit each candidate and keep the one the tuning
         criterion (``tuning``) prefers, per used slow sample; ``"auto"``
         tries ``N, N/2, N/4, ..., N/32`` (at least 10).  The candidates and
@@ -503,7 +578,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         ``"best_order"`` (the fitted order).  With the default order, where
         the held-out check ran: the candidates ``N/32, ..., N``, their
         held-out fit in percent (``"criterion"`` ``"held_out_fit"``) and the
-        fitted order.
+        fitted order; where the order was read from the tuned prior (a
+        record longer than 2048 samples): the pilot orders, the lag read at
+        each (``"score"``), ``"criterion"`` ``"prior_tail"`` and the order.
 
     Examples
     --------
@@ -589,26 +666,142 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         -------
         self
         """
-        criterion = _check_tuning(self.tuning)
-        n_folds = check_int(self.cv, "cv", low=2)
-        candidates = _order_candidates(self.order)
+        settings = self._check_params()
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
-        if candidates is not None:
-            return self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
-        experiment = self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
-        if criterion == "evidence" and self.optimizer is not None:
-            with blas_threads_for(experiment.observation):
-                self._check_shorter_orders(u, y_slow, sample_indices, experiment, n_folds)
+        data = (u, y_slow, sample_indices)
+        if settings.candidates is not None:
+            candidates = settings.candidates
+            if candidates == "auto":
+                candidates = orders.auto_orders(self._experiment(data, None).observation.order)
+            selection = orders.select_order(
+                lambda order: self._fit_at(data, order, settings), candidates, settings.criterion
+            )
+            self._adopt(selection.fit)
+            self.order_selection_ = selection.table
+            return self
+        order, fitted, rule = self.order, None, None
+        if order is None:
+            rule = self._default_order(data, settings)
+            if rule is not None:
+                order, fitted = rule.order, rule.fit
+        if fitted is None:
+            start = time.perf_counter()
+            fitted = self._fit_at(data, order, settings)
+            if rule is not None:
+                _LOG.info("fitted order %d in %.1f s", fitted.operator_.order,
+                          time.perf_counter() - start)
+        self._adopt(fitted)
+        if rule is not None:
+            self.order_selection_ = rule.table
+        if settings.criterion == "evidence" and self.optimizer is not None:
+            with blas_threads_for(fitted.experiment.observation):
+                self._check_shorter_orders(data, fitted.experiment, settings)
+        self._check_long_enough()
         return self
 
-    def _fit_order(self, u, y_slow, sample_indices, order, criterion, n_folds):
-        """Fit at one order; returns the experiment (observation and used samples)."""
-        experiment = build_experiment(
-            u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
-            order=order, initial_conditions=self.initial_conditions,
+    def _default_order(self, data, settings: _Settings):
+        """The default order of a record longer than ``SHORT_RECORD``: :func:`~gpmultirate.orders.default_order`.
+
+        None for a shorter record (its default order is ``N``).  The pilot
+        fits tune the plain prior (the user's kernel, or the default without
+        the resonance search) by the evidence; the last one is kept as the
+        fit when the rule keeps its order and the fit asks for nothing more.
+        Their warnings are those of the kept fit only.
+        """
+        whole = self._experiment(data, None)
+        longest = whole.observation.order
+        if longest <= orders.SHORT_RECORD:
+            return None
+        powers = _input_powers(whole)
+        pilot = replace(settings, auto=False, criterion="evidence")
+        caught = {}
+
+        def fit_at(order):
+            with warnings.catch_warnings(record=True) as record:
+                warnings.simplefilter("always")
+                fitted = self._fit_at(data, order, pilot)
+            caught[order] = record
+            return fitted
+
+        def tail_lag(fitted):
+            # over twice the order: a prior cut by the order has not decayed
+            return orders.prior_tail_lag(fitted.kernel_, powers, fitted.noise_level_,
+                                         2 * fitted.operator_.order)
+
+        rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
+                                    whole.n_inputs, log=_LOG.info)
+        if rule.fit is not None and (settings.auto or settings.criterion != "evidence"):
+            rule = replace(rule, fit=None)  # the fit at that order goes on from here
+        if rule.fit is not None:
+            for w in caught[rule.order]:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        _LOG.info("default order: %d", rule.order)
+        return rule
+
+    def _check_long_enough(self) -> None:
+        """Warn when the fitted order is too short for the data's memory.
+
+        Where the fit has more slow samples than coefficients (the held-out
+        check does not run there), two signs together: the tuned prior,
+        continued beyond the order, is not negligible against the noise from
+        the last lag on
+        (:func:`~gpmultirate.orders.prior_tail_lag` reaches the order), and
+        the residuals of the slow samples are correlated from one slow
+        sample to the next (lag-one autocorrelation above
+        ``RESIDUAL_CORRELATION`` and four standard errors).  The
+        :class:`~gpmultirate.OrderWarning` names a longer order.
+        """
+        operator = self.operator_
+        order = operator.order
+        if (operator.n_outputs <= operator.n_coefficients
+                or self.initial_conditions == "periodic"):
+            return
+        experiment_inputs = [np.asarray(r.u, dtype=float) for r in operator.records]
+        longest = max(x.shape[0] for x in experiment_inputs)
+        if order >= longest:
+            return
+        powers = _input_powers_of(experiment_inputs)
+        if orders.prior_tail_lag(self.kernel_, powers, self.noise_level_, 2 * order) < order:
+            return
+        coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
+        products = squares = 0.0
+        start = 0
+        for record, x in zip(operator.records, experiment_inputs):
+            x = x[:, None] if x.ndim == 1 else x
+            n = x.shape[0]
+            fitted = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+            y = self.y_slow_[start : start + record.n_outputs]
+            start += record.n_outputs
+            residual = y - fitted[record.sample_indices]
+            products += float(residual[1:] @ residual[:-1])
+            squares += float(residual @ residual)
+        if squares == 0.0:
+            return
+        correlation = products / squares
+        if correlation <= max(RESIDUAL_CORRELATION, 4.0 / np.sqrt(operator.n_outputs)):
+            return
+        longer = min(2 * order, longest)
+        default = "" if self.order is None else " (or the default order=None, which reads it from the data)"
+        warnings.warn(
+            f"order={order} looks too short for the data's memory: the tuned prior has not "
+            f"decayed against the noise by lag {order} and the residuals of the slow samples "
+            f"are correlated from one to the next ({correlation:.2f} at lag one); the noise "
+            f"level and the bands are then too large. Try order={longer}{default}.",
+            OrderWarning,
+            stacklevel=3,
         )
-        operator, y = experiment.observation, experiment.y
+
+    def _check_params(self) -> _Settings:
+        """Check every parameter, before the data are built (as scikit-learn does)."""
+        criterion = _check_tuning(self.tuning)
+        n_folds = check_int(self.cv, "cv", low=2)
+        candidates = orders.order_candidates(self.order)
+        if self.order is not None and candidates is None:
+            check_int(self.order, "order", low=1)
+        check_initial_conditions(self.initial_conditions)
+        factor = check_int(self.factor, "factor", low=1)
+        check_int(self.offset, "offset", low=0, high=factor - 1)
         if not (self.optimizer is None or (
             isinstance(self.optimizer, str) and self.optimizer == "marginal_likelihood"
         )):
@@ -619,6 +812,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         check_rng(self.random_state)
         check_positive(self.sample_time, "sample_time")
         noise = check_positive(self.noise_level, "noise_level")
+        if not (isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto"):
+            check_bounds(self.noise_level_bounds, "noise_level_bounds")
         auto = isinstance(self.kernel, str) and self.kernel == "auto"
         if isinstance(self.kernel, str) and not auto:
             raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
@@ -627,102 +822,104 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         # normalized units are a start and bounds for tuning: without tuning
         # the kernel and the noise level are used exactly as given
         normalize = bool(self.normalize) and self.optimizer is not None
-        kernel = _initial_kernel(None if auto else self.kernel, experiment, normalize)
+        return _Settings(criterion, n_folds, candidates, n_restarts, noise, auto,
+                         max_resonances, normalize, self.optimizer is not None)
+
+    def _experiment(self, data, order):
+        u, y_slow, sample_indices = data
+        return build_experiment(
+            u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
+            order=order, initial_conditions=self.initial_conditions,
+        )
+
+    def _adopt(self, fitted: _Fit) -> None:
+        """Take the learned state of a fit at one order as the estimator's."""
+        for name in ("operator_", "y_slow_", "noise_level_bounds_", "n_inputs_",
+                     "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
+                     "log_marginal_likelihood_value_"):
+            setattr(self, name, getattr(fitted, name))
+        # kept for log_marginal_likelihood(theta) and the posterior at real lags
+        self._evidence = fitted.evidence
+        for name in ("resonances_", "cv_log_predictive_likelihood_"):
+            if getattr(fitted, name) is not None:
+                setattr(self, name, getattr(fitted, name))
+            else:
+                self.__dict__.pop(name, None)
+
+    def _fit_at(self, data, order, settings: _Settings) -> _Fit:
+        """Fit at one order; returns the learned state, leaves the estimator alone."""
+        experiment = self._experiment(data, order)
+        operator, y = experiment.observation, experiment.y
+        kernel, noise, noise_bounds = prior_in_data_units(
+            # "auto" starts from the default prior (also in the default order's pilots)
+            None if isinstance(self.kernel, str) else self.kernel, experiment,
+            settings.noise_level,
+            self.noise_level_bounds, settings.normalize, settings.tuned,
+        )
         # refuse now what would be killed for lack of memory halfway
         n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
-        check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1)
-        noise_bounds = self._resolve_noise_bounds(y, normalize)
-        if normalize:
-            noise *= float(np.mean(y**2)) or 1.0  # given in normalized units
-        if self.optimizer is not None and not isinstance(noise_bounds, str):
-            noise = float(np.clip(noise, *noise_bounds))
-        self.operator_ = operator
-        self.y_slow_ = y
-        self.noise_level_bounds_ = noise_bounds
-        self.optimizer_result_ = None
-        self.n_inputs_ = experiment.n_inputs
+        check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1,
+                         n_inputs=experiment.n_inputs)
+        optimizer_result = resonances_found = cv_value = None
         with blas_threads_for(operator):
-            if auto:
+            if settings.auto:
                 from gpmultirate import resonances
 
                 search = resonances.search_resonances(
-                    operator, y, kernel, noise, noise_bounds, max_resonances=max_resonances,
+                    operator, y, kernel, noise, noise_bounds,
+                    max_resonances=settings.max_resonances,
                     sample_time=self.sample_time, random_state=self.random_state,
                 )
                 kernel, noise = search.kernel, search.noise_level
-                self.optimizer_result_ = search.optimizer_result
-                self.resonances_ = search.resonances
+                optimizer_result = search.optimizer_result
+                resonances_found = search.resonances
             evidence = LogEvidence(operator, y, kernel, noise, noise_bounds)
             objective = evidence
-            if criterion == "cross_validation":
+            if settings.criterion == "cross_validation":
                 check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 1)
-                objective = CrossValidation(operator, y, kernel, noise, noise_bounds, n_folds)
-            if self.optimizer is not None and (not auto or objective is not evidence):
+                objective = CrossValidation(
+                    operator, y, kernel, noise, noise_bounds, settings.n_folds
+                )
+            if self.optimizer is not None and (not settings.auto or objective is not evidence):
                 # with "auto", the search tuned by the evidence: cross-validation goes on from there
-                result = tuning.maximize(objective, n_restarts, self.random_state)
+                result = tuning.maximize(objective, settings.n_restarts, self.random_state)
                 if result is not None:
-                    self.optimizer_result_ = result
+                    optimizer_result = result
                     kernel, noise = evidence.split(result.x)
-            self.posterior_ = evidence.posterior(kernel, noise)
+            posterior = evidence.posterior(kernel, noise)
             if objective is not evidence:
                 moved = objective.moved_to(kernel, noise)
-                self.cv_log_predictive_likelihood_ = float(moved(moved.theta))
-        # kept for log_marginal_likelihood(theta) and the posterior at real lags
-        self._evidence = evidence.moved_to(kernel, noise)
-        if self.optimizer_result_ is not None:
-            tuning.warn_at_bounds(self._evidence)
-        self.kernel_ = kernel
-        self.noise_level_ = noise
-        self.coef_ = self._shaped(self.posterior_.coef)
-        self.log_marginal_likelihood_value_ = self.posterior_.log_marginal_likelihood
-        return experiment
-
-    def _fit_order_selection(self, u, y_slow, sample_indices, candidates, criterion):
-        """Fit every candidate order and keep the one the criterion prefers."""
-        if candidates == "auto":
-            longest = build_experiment(
-                u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
-                initial_conditions=self.initial_conditions,
-            ).observation.order
-            candidates = auto_orders(longest)
-        n_folds = check_int(self.cv, "cv", low=2)
-        fits, caught = [], []
-        for order in candidates:
-            model = clone(self)
-            with warnings.catch_warnings(record=True) as record:
-                warnings.simplefilter("always")
-                model._fit_order(u, y_slow, sample_indices, order, criterion, n_folds)
-            fits.append(model)
-            caught.append(record)
-        if criterion == "evidence":
-            values = [m.log_marginal_likelihood_value_ for m in fits]
-        else:
-            values = [m.cv_log_predictive_likelihood_ for m in fits]
-        # per used slow sample: "discard" uses fewer samples at higher orders
-        scores = np.array([v / m.y_slow_.shape[0] for v, m in zip(values, fits)])
-        best = int(np.argmax(scores))
-        params = self.get_params(deep=False)
-        self.__dict__.update(
-            {key: value for key, value in vars(fits[best]).items() if key not in params}
+                cv_value = float(moved(moved.theta))
+        moved_evidence = evidence.moved_to(kernel, noise)
+        if optimizer_result is not None:
+            tuning.warn_at_bounds(moved_evidence)
+        coef = posterior.coef
+        return _Fit(
+            experiment=experiment,
+            operator_=operator,
+            y_slow_=y,
+            noise_level_bounds_=noise_bounds,
+            n_inputs_=experiment.n_inputs,
+            optimizer_result_=optimizer_result,
+            kernel_=kernel,
+            noise_level_=noise,
+            posterior_=posterior,
+            evidence=moved_evidence,
+            coef_=coef.reshape(experiment.n_inputs, -1) if experiment.n_inputs > 1 else coef,
+            log_marginal_likelihood_value_=posterior.log_marginal_likelihood,
+            resonances_=resonances_found,
+            cv_log_predictive_likelihood_=cv_value,
         )
-        self.order_selection_ = {
-            "order": np.array(candidates),
-            "score": scores,
-            "criterion": "log_evidence" if criterion == "evidence" else "cv_log_predictive",
-            "best_order": int(candidates[best]),
-        }
-        for w in caught[best]:  # only the kept model's warnings concern the user
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        return self
 
-    def _check_shorter_orders(self, u, y_slow, sample_indices, experiment, n_folds):
+    def _check_shorter_orders(self, data, experiment, settings: _Settings):
         """Compare the held-out fit of the tuned model with that of shorter orders; act on it.
 
         The same hyperparameters, the same folds (as ``tuning="cross_validation"``);
-        only the order is cut.  With the default order (``order=None``) the
-        candidates are :func:`auto_orders` of ``N``, and when one predicts the
-        held-out slow samples more than ``ORDER_MARGIN`` points of fit better
-        than ``N``, the model is fitted again at that order;
+        only the order is cut (:func:`~gpmultirate.orders.held_out_fits`).
+        With the default order (``order=None``) the candidates are
+        :func:`~gpmultirate.orders.auto_orders` of ``N``, and when one
+        predicts the held-out slow samples more than ``ORDER_MARGIN`` points
+        of fit better than ``N``, the model is fitted again at that order;
         ``order_selection_`` reports every candidate's held-out fit.  With an
         explicit order ``P`` the candidates are ``P/2, P/4, P/8`` and a
         :class:`~gpmultirate.HeldOutWarning` names one that predicts more than
@@ -737,6 +934,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         operator, y = experiment.observation, experiment.y
         order, n_samples = operator.order, y.shape[0]
         default_order = self.order is None
+        n_folds = settings.n_folds
         # the fit works in data space for M < P; at M = P (single rate) only the
         # default order is checked, and never with M x M matrices beyond the limit
         data_space = n_samples < operator.n_coefficients or (
@@ -749,30 +947,24 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         except ValueError:
             return  # fewer samples than folds: nothing to hold out
         if default_order:
-            orders = auto_orders(order)
+            candidates = orders.auto_orders(order)
         else:
-            orders = [order // d for d in (8, 4, 2) if order // d >= MIN_CHECKED_ORDER] + [order]
-        fits = {}
-        for shorter in orders:
-            observation = operator if shorter == order else build_experiment(
-                u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
-                order=shorter, initial_conditions=self.initial_conditions,
-            ).observation
-            try:
-                mean, _ = held_out_predictions(
-                    observation, self.kernel_, self.noise_level_, y, folds
-                )
-            except ValueError:
-                return
-            fits[shorter] = fit_percent(y, mean)
+            candidates = [order // d for d in (8, 4, 2) if order // d >= MIN_CHECKED_ORDER]
+            candidates.append(order)
+        fits = orders.held_out_fits(
+            lambda p: operator if p == order else self._experiment(data, p).observation,
+            candidates, self.kernel_, self.noise_level_, y, folds,
+        )
+        if fits is None:
+            return
         best = max(fits, key=fits.get)  # the shortest of equal fits
         if default_order:
             chosen = best if fits[best] > fits[order] + ORDER_MARGIN else order
             if chosen != order:
-                self._fit_order(u, y_slow, sample_indices, chosen, "evidence", n_folds)
+                self._adopt(self._fit_at(data, chosen, settings))
             self.order_selection_ = {
-                "order": np.array(orders),
-                "score": np.array([fits[o] for o in orders]),
+                "order": np.array(candidates),
+                "score": np.array([fits[o] for o in candidates]),
                 "criterion": "held_out_fit",
                 "best_order": int(chosen),
             }
@@ -788,15 +980,6 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 HeldOutWarning,
                 stacklevel=3,
             )
-
-    def _resolve_noise_bounds(self, y, normalize: bool):
-        power = float(np.mean(y**2)) or 1.0
-        if isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto":
-            return (1e-12 * power, 10.0 * power)
-        bounds = check_bounds(self.noise_level_bounds, "noise_level_bounds")
-        if normalize and not isinstance(bounds, str):
-            return (bounds[0] * power, bounds[1] * power)  # given in normalized units
-        return bounds
 
     # ------------------------------------------------------------ evidence
     def log_marginal_likelihood(self, theta=None, eval_gradient: bool = False):
@@ -958,7 +1141,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         )
         operator, y = experiment.observation, experiment.y
         M, P = operator.n_outputs, operator.n_coefficients
-        check_fit_memory(M, P, 0)
+        check_fit_memory(M, P, 0, n_inputs=operator.n_inputs)
         if P >= M:
             inputs = f" x {operator.n_inputs} inputs" if operator.n_inputs > 1 else ""
             raise IdentifiabilityError(

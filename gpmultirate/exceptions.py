@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["HeldOutWarning", "IdentifiabilityError", "NumericalWarning"]
+__all__ = ["HeldOutWarning", "IdentifiabilityError", "NumericalWarning", "OrderWarning"]
 
 
 class IdentifiabilityError(ValueError):
@@ -35,5 +35,21 @@ class HeldOutWarning(UserWarning):
     --------
     >>> from gpmultirate.exceptions import HeldOutWarning
     >>> issubclass(HeldOutWarning, UserWarning)
+    True
+    """
+
+
+class OrderWarning(UserWarning):
+    """The FIR order looks too short for the data's memory.
+
+    Emitted after a fit with more slow samples than coefficients when the
+    tuned prior has not decayed against the noise by the last lag and the
+    residuals of the slow samples are correlated from one to the next; the
+    message names a longer order.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import OrderWarning
+    >>> issubclass(OrderWarning, UserWarning)
     True
     """

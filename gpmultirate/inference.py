@@ -24,6 +24,7 @@ tuning coordinates: the log of most, ``artanh`` of DC's ``beta``) for tuning.
 from __future__ import annotations
 
 import contextlib
+import os
 import warnings
 
 import numpy as np
@@ -44,6 +45,7 @@ __all__ = [
     "PrecisionPosterior",
     "blas_threads_for",
     "gaussian_samples",
+    "idle_cores",
     "inverse_from_cholesky",
     "log_gaussian",
     "log_marginal_likelihood",
@@ -88,7 +90,7 @@ def one_blas_thread():
 
 
 def blas_threads_for(observation):
-    """A context with one BLAS thread for small problems, no limit otherwise.
+    """A context with one BLAS thread for small problems, as many as idle cores otherwise.
 
     Examples
     --------
@@ -99,7 +101,31 @@ def blas_threads_for(observation):
     """
     if max(observation.n_outputs, observation.n_coefficients) <= SINGLE_THREAD_SIZE:
         return one_blas_thread()
+    idle = idle_cores()
+    if idle < (os.cpu_count() or 1):
+        return _blas_controller().limit(limits=idle, user_api="blas")
     return contextlib.nullcontext()
+
+
+def idle_cores() -> int:
+    """The cores not busy with other work: ``cpu_count + 1 - round(load)``, at least 1.
+
+    The one-minute load average counts this process too.  On a busy
+    machine threaded BLAS spins against the other work: with the other
+    core of two busy, a 2000 x 2000 Cholesky took 2.3 s on two threads
+    and 0.47 s on one (median of 5).
+
+    Examples
+    --------
+    >>> 1 <= idle_cores() <= (os.cpu_count() or 1)
+    True
+    """
+    cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except (OSError, AttributeError):
+        return cores
+    return max(1, min(cores, cores + 1 - round(load)))
 
 
 def log_gaussian(quadratic: float, log_det: float, n: int) -> float:

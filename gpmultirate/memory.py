@@ -19,7 +19,13 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["MemoryLimitError", "available_memory", "check_fit_memory", "fit_memory_estimate"]
+__all__ = [
+    "MemoryLimitError",
+    "available_memory",
+    "check_fit_memory",
+    "fit_memory_estimate",
+    "largest_fitting_order",
+]
 
 #: environment variable that sets the memory a fit may use, in bytes
 LIMIT_VARIABLE = "GPMULTIRATE_MEMORY_LIMIT"
@@ -96,8 +102,12 @@ def fit_memory_estimate(n_outputs: int, n_coefficients: int, n_hyperparameters: 
     return _BYTES * (data_space + posterior + reduction)
 
 
-def check_fit_memory(n_outputs: int, n_coefficients: int, n_hyperparameters: int) -> None:
+def check_fit_memory(n_outputs: int, n_coefficients: int, n_hyperparameters: int,
+                     n_inputs: int = 1) -> None:
     """Raise :class:`MemoryLimitError` when a fit of this size would not fit in memory.
+
+    The message names the largest ``order`` (coefficients per input, of
+    ``n_inputs``) whose fit would fit.
 
     Examples
     --------
@@ -111,10 +121,41 @@ def check_fit_memory(n_outputs: int, n_coefficients: int, n_hyperparameters: int
     available = available_memory()
     if needed <= available:
         return
+    n_inputs = max(1, int(n_inputs))
+    fits = largest_fitting_order(n_outputs, n_hyperparameters, available, n_inputs)
+    hint = (f"use a smaller order, at most order={fits} here (or order=None, which chooses it "
+            "from the data; the impulse response rarely needs more lags than it takes to "
+            "decay)" if fits >= 1 else "use a smaller order (or order=None, which chooses it "
+            "from the data)")
     raise MemoryLimitError(
         f"the fit needs about {needed / 1e9:.3g} GB (coefficients: {n_coefficients}, slow "
-        f"samples: {n_outputs}) but {available / 1e9:.4g} GB are available: use a smaller "
-        "order (the impulse response rarely needs more lags than it takes to decay), a "
+        f"samples: {n_outputs}) but {available / 1e9:.4g} GB are available: {hint}, a "
         "kernel with a fast path (TC, DC, SS, PK and sums of them) and more slow samples "
         "than coefficients, which reduce the data to the P x P long-record factor"
     )
+
+
+def largest_fitting_order(n_outputs: int, n_hyperparameters: int, available: int,
+                          n_inputs: int = 1) -> int:
+    """The largest order (per input) whose fit :func:`fit_memory_estimate` puts within ``available``.
+
+    0 when not even order 1 fits.
+
+    Examples
+    --------
+    >>> order = largest_fitting_order(20000, 3, 2 * 10**9)
+    >>> fit_memory_estimate(20000, order, 3) <= 2e9 < fit_memory_estimate(20000, order + 1, 3)
+    True
+    """
+    low, high = 0, 1
+    while fit_memory_estimate(n_outputs, high * n_inputs, n_hyperparameters) <= available:
+        low, high = high, 2 * high
+        if high > 2**40:
+            return low
+    while high - low > 1:
+        middle = (low + high) // 2
+        if fit_memory_estimate(n_outputs, middle * n_inputs, n_hyperparameters) <= available:
+            low = middle
+        else:
+            high = middle
+    return low

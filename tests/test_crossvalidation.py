@@ -306,16 +306,16 @@ def test_held_out_check_of_a_small_problem_runs_on_one_blas_thread(paper, monkey
     # on two BLAS threads than on one
     from threadpoolctl import threadpool_info
 
-    from gpmultirate import estimators
+    from gpmultirate import orders
 
     seen = []
-    original = estimators.held_out_predictions
+    original = orders.held_out_predictions
 
     def spy(*args, **kwargs):
         seen.append([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"])
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(estimators, "held_out_predictions", spy)
+    monkeypatch.setattr(orders, "held_out_predictions", spy)
     data, _, _ = paper
     gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(data.u, data.y_slow)
     assert seen and all(threads == [1] * len(threads) and threads for threads in seen)
