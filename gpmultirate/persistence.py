@@ -92,6 +92,7 @@ from sklearn.gaussian_process.kernels import (
 )
 from sklearn.utils.validation import check_is_fitted
 
+from gpmultirate.exceptions import ModelFileError
 from gpmultirate.inference import GaussianCoefficients, one_blas_thread
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
@@ -147,22 +148,6 @@ _ARRAY_DTYPES = frozenset(
      "float16", "float32", "float64"]
 )
 _NON_FINITE = {"inf": np.inf, "-inf": -np.inf, "nan": np.nan}
-
-
-class ModelFileError(ValueError):
-    """A model file is not a valid gpmultirate model file for this version.
-
-    Raised by :func:`load_model` for a file that is not a gpmultirate
-    archive, is corrupted (checksum mismatch, truncated), was written by a
-    different major version of the library or a newer file format, or names
-    a kernel class that may not be loaded.
-
-    Examples
-    --------
-    >>> from gpmultirate.persistence import ModelFileError
-    >>> issubclass(ModelFileError, ValueError)
-    True
-    """
 
 
 # ----------------------------------------------------------------- saving
