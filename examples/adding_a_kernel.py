@@ -127,7 +127,7 @@ def main(argv=None) -> int:
 
     kernel = C(1.0) * FirstOrderPole(0.8) + C(1.0) * DC(alpha=0.95, beta=0.95)
     model = gm.FIRGaussianProcess(kernel, factor=factor, noise_level=1e-4).fit(u, y_slow)
-    term = observe(model.kernel_, model.operator_)
+    term = observe(model.kernel_, model.observation_)
     print("structured term of the pole kernel:", type(term.first.inner).__name__)
     print("tuned kernel:", model.kernel_)
     y_val = np.convolve(u_val, true_g)[:n]

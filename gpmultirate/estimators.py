@@ -26,6 +26,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import tuning
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds, held_out_predictions
+from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
@@ -69,7 +70,7 @@ __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 class _FIRModelMixin:
     """Prediction, scoring and frequency response shared by the FIR estimators.
 
-    Subclasses set ``coef_``, ``operator_``, ``n_inputs_`` and ``posterior_``
+    Subclasses set ``coef_``, ``observation_``, ``n_inputs_`` and ``posterior_``
     (a :class:`~gpmultirate.inference.GaussianCoefficients` of the
     input-major coefficient vector) in ``fit``, and implement
     ``impulse_response``.
@@ -80,7 +81,18 @@ class _FIRModelMixin:
 
     @property
     def _order(self) -> int:
-        return self.operator_.order
+        return self.observation_.order
+
+    @property
+    def operator_(self):
+        """Deprecated name of ``observation_``, removed in gpmultirate 0.2.0."""
+        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
+        return self.observation_
+
+    @operator_.setter
+    def operator_(self, value) -> None:
+        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
+        self.observation_ = value
 
     def _shaped(self, flat: np.ndarray) -> np.ndarray:
         """Coefficient-like values ``(n_inputs * n,)`` as ``(n_inputs, n)`` for several inputs."""
@@ -216,7 +228,7 @@ class _FIRModelMixin:
             sample_time = self.sample_time
         if freqs is None:
             sample_time = check_positive(sample_time, "sample_time")
-            freqs = default_frequencies(self.operator_.n_samples, sample_time)
+            freqs = default_frequencies(self.observation_.n_samples, sample_time)
         freqs, sample_time = check_frequencies(freqs, sample_time)
         P = self._order
         E = dft_matrix(freqs, sample_time, P)
@@ -233,7 +245,7 @@ class _FIRModelMixin:
             cov,
             level=level,
             sample_time=sample_time,
-            factor=self.operator_.slow_factor,
+            factor=self.observation_.slow_factor,
         )
 
     def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
@@ -477,7 +489,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
         (scikit-learn's sign and constants: higher is better).
-    operator_ : Observation
+    observation_ : Observation
         The observation operator of the training data: a
         :class:`~gpmultirate.DownsampledConvolution` in the paper's case, a
         :class:`~gpmultirate.SampledConvolution` or a stack of records
@@ -636,7 +648,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             noise *= float(np.mean(y**2)) or 1.0  # given in normalized units
         if self.optimizer is not None and not isinstance(noise_bounds, str):
             noise = float(np.clip(noise, *noise_bounds))
-        self.operator_ = operator
+        self.observation_ = operator
         self.y_slow_ = y
         self.noise_level_bounds_ = noise_bounds
         self.optimizer_result_ = None
@@ -904,7 +916,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     coef_covariance_ : ndarray of shape (n_inputs * P, n_inputs * P)
         ``noise_variance_ (Phi^T Phi)^{-1}``, used for the bands of
         :meth:`predict` and :meth:`frequency_response`.
-    operator_ : Observation
+    observation_ : Observation
     posterior_ : GaussianCoefficients
         The Gaussian distribution ``N(coef_, coef_covariance_)``.
 
@@ -987,7 +999,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         residual = y - operator.matrix @ coef
         noise_variance = float(residual @ residual / (M - P))
         root = Vt.T / s  # coef covariance = noise_variance * root @ root.T
-        self.operator_ = operator
+        self.observation_ = operator
         self.n_inputs_ = experiment.n_inputs
         self.coef_ = self._shaped(coef)
         self.noise_variance_ = noise_variance

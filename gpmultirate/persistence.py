@@ -303,7 +303,7 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
             f"subclass); got {type(model).__qualname__}"
         )
     check_is_fitted(model, "coef_")
-    operator = model.operator_
+    operator = model.observation_
     if isinstance(operator, DownsampledConvolution):  # the layout of version 1
         version = 1
         fitted: dict[str, Any] = {
@@ -853,7 +853,7 @@ def _float_vector_or_matrix(name: str, array: np.ndarray) -> np.ndarray:
 
 def _several(model) -> bool:
     """Whether the model was fitted to a list of records (its predictions are lists then)."""
-    return len(model.operator_.records) > 1
+    return len(model.observation_.records) > 1
 
 
 def _record_arrays(header: dict, name: str) -> tuple[str, ...]:
@@ -899,7 +899,7 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
                 f"got {coef.shape} and {covariance.shape}"
             )
         model = LeastSquaresFIR(**params)
-        model.operator_ = experiment.observation
+        model.observation_ = experiment.observation
         model.n_inputs_ = experiment.n_inputs
         model.coef_ = coef.reshape(model.n_inputs_, -1) if model.n_inputs_ > 1 else coef
         model.noise_variance_ = _number(fitted, "noise_variance_")
@@ -912,10 +912,10 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
         order=order, **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
-    if model.operator_.order != order:
+    if model.observation_.order != order:
         raise ModelFileError(
             f"inconsistent model file: order is {order!r} in the header "
-            f"but {model.operator_.order} for the stored data"
+            f"but {model.observation_.order} for the stored data"
         )
     _warn_if_not_reproduced(
         model.posterior_.coef, arrays["coef"], model.log_marginal_likelihood_value_,
@@ -986,7 +986,7 @@ def _load_gaussian_process(header: dict, arrays: dict, classes) -> FIRGaussianPr
         **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
-    _check_layout(model.operator_, fitted)
+    _check_layout(model.observation_, fitted)
     _warn_if_not_reproduced(
         model.coef_, arrays["coef"],
         model.log_marginal_likelihood_value_, _number(fitted, "log_marginal_likelihood_value_"),
@@ -1015,7 +1015,7 @@ def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
             f"coef and coef_covariance must have shapes ({P},) and ({P}, {P}); "
             f"got {coef.shape} and {covariance.shape}"
         )
-    model.operator_ = operator
+    model.observation_ = operator
     model.n_inputs_ = 1
     model.coef_ = coef
     model.noise_variance_ = _number(fitted, "noise_variance_")

@@ -254,3 +254,120 @@ DEPRECATED_MODULES = {
     "gpmultirate.frequency": "gpmultirate.responses",
     "gpmultirate.experiments": "gpmultirate.study",
 }
+REPOSITORY = PACKAGE.parent
+
+
+def _fresh_import(name):
+    """Import ``name`` again, so that its import-time warning is raised again."""
+    sys.modules.pop(name, None)
+    return importlib.import_module(name)
+
+
+def _python(*arguments):
+    return subprocess.run([sys.executable, *arguments], capture_output=True, text=True,
+                          timeout=300, env={"PYTHONPATH": str(REPOSITORY), "PATH": "/usr/bin:/bin"})
+
+
+# each import in a fresh interpreter started with -W error::DeprecationWarning
+_EACH_IMPORT_FAILS = """
+import importlib, sys
+for name in sys.argv[1:]:
+    try:
+        importlib.import_module(name)
+    except DeprecationWarning as warning:
+        print(name, "|", warning)
+    else:
+        print(name, "| imported")
+    sys.modules.pop(name, None)
+"""
+
+
+def test_importing_a_deprecated_module_fails_under_error_filters():
+    # python -W error::DeprecationWarning -c "import gpmultirate.operator" fails, for each module
+    done = _python("-W", "error::DeprecationWarning", "-c", _EACH_IMPORT_FAILS,
+                   *DEPRECATED_MODULES)
+    assert done.returncode == 0, done.stderr
+    lines = dict(line.split(" | ") for line in done.stdout.strip().splitlines())
+    assert set(lines) == set(DEPRECATED_MODULES)
+    for old, new in DEPRECATED_MODULES.items():
+        # the new home and the version that removes it: the next minor
+        assert old in lines[old] and new in lines[old] and "0.2.0" in lines[old]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("old", sorted(DEPRECATED_MODULES))
+def test_the_import_fails_as_the_command_line_says_and_warns_by_default(old):
+    done = _python("-W", "error::DeprecationWarning", "-c", f"import {old}")
+    assert done.returncode != 0
+    assert done.stderr.strip().splitlines()[-1].startswith("DeprecationWarning")
+    # without the filter the import works and the warning is shown to __main__
+    done = _python("-c", f"import {old}")
+    assert done.returncode == 0 and "DeprecationWarning" in done.stderr
+    assert done.stderr.startswith("<string>:1:")  # points at the importing statement
+
+
+def test_deprecated_names_still_give_the_same_objects():
+    import gpmultirate.observations as observations
+    import gpmultirate.plotting as plotting
+    import gpmultirate.responses as responses
+    import gpmultirate.study as study
+    from gpmultirate.deprecation import REMOVED_IN
+
+    assert REMOVED_IN == "0.2.0" and gpmultirate.__version__.startswith("0.1.")
+    with pytest.warns(DeprecationWarning, match="gpmultirate.frequency.*gpmultirate.responses"):
+        frequency = _fresh_import("gpmultirate.frequency")
+    with pytest.warns(DeprecationWarning, match="gpmultirate.experiments.*gpmultirate.study"):
+        experiments = _fresh_import("gpmultirate.experiments")
+    with pytest.warns(DeprecationWarning, match="gpmultirate.operator.*gpmultirate.observations"):
+        operator = _fresh_import("gpmultirate.operator")
+    assert frequency.FrequencyResponse is responses.FrequencyResponse is gpmultirate.FrequencyResponse
+    for name in experiments.__all__:
+        assert getattr(experiments, name) is getattr(study, name)
+    assert operator.DownsampledConvolution is observations.DownsampledConvolution
+    for name in ("nonidentifiable_example", "NonidentifiableExample"):
+        with pytest.warns(DeprecationWarning, match=f"plotting.{name}.*0.2.0.*study.{name}"):
+            assert getattr(plotting, name) is getattr(study, name)
+        assert name not in plotting.__all__
+    assert {"plot_bode", "plot_study", "StudyPlot", "BodePlot"} <= set(plotting.__all__)
+    with pytest.raises(AttributeError, match="no_such_name"):
+        plotting.no_such_name  # noqa: B018
+
+
+def test_the_former_attribute_operator_warns_and_answers_observation_():
+    import numpy as np
+
+    u = np.sin(0.7 * np.arange(60)) + np.cos(1.9 * np.arange(60))
+    y_slow = np.convolve(u, 0.6 ** np.arange(6))[:60][::3]
+    model = gpmultirate.LeastSquaresFIR(factor=3, order=6).fit(u, y_slow)
+    assert "observation_" in vars(model) and "operator_" not in vars(model)
+    with pytest.warns(DeprecationWarning, match=r"LeastSquaresFIR.operator_.*0\.2\.0.*observation_"):
+        assert model.operator_ is model.observation_
+    with pytest.warns(DeprecationWarning, match="observation_"):
+        model.operator_ = model.observation_
+    unfitted = gpmultirate.FIRGaussianProcess()
+    with pytest.warns(DeprecationWarning), pytest.raises(AttributeError, match="observation_"):
+        unfitted.operator_  # noqa: B018
+
+
+# the old names may appear only where their deprecation is tested or stated
+_OLD_NAMES = ("gpmultirate.operator", "gpmultirate.frequency", "gpmultirate.experiments",
+              ".operator_", "import experiments", "plotting import nonidentifiable_example",
+              "plotting import NonidentifiableExample")
+_ALLOWED = {"tests/test_package_structure.py"}
+
+
+def test_tests_docs_and_examples_use_the_new_homes():
+    files = [*REPOSITORY.glob("tests/*.py"), *REPOSITORY.glob("examples/*.py"),
+             *REPOSITORY.glob("benchmarks/*.py"), *REPOSITORY.glob("docs/*.rst"),
+             *REPOSITORY.glob("*.md"), *PACKAGE.rglob("*.py")]
+    assert len(files) > 60
+    found = []
+    for path in files:
+        relative = path.relative_to(REPOSITORY).as_posix()
+        if relative in _ALLOWED or path.stem in {"operator", "frequency", "experiments"}:
+            continue
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if "deprecat" in line.lower():  # where the deprecation is stated
+                continue
+            found += [f"{relative}:{number}: {old}" for old in _OLD_NAMES if old in line]
+    assert found == []

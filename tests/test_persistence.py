@@ -25,7 +25,7 @@ from sklearn.gaussian_process.kernels import WhiteKernel
 import gpmultirate
 from gpmultirate import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC
-from gpmultirate.operator import DownsampledConvolution
+from gpmultirate.observations import DownsampledConvolution
 from gpmultirate.persistence import (
     ModelFileError,
     describe_kernel,
@@ -331,7 +331,7 @@ def test_other_objects_refused(tmp_path):
 # ------------------------------------------------------------- bad files
 def test_flipped_byte_in_array_refused(saved, fitted):
     raw = bytearray(saved.read_bytes())
-    start = raw.find(fitted["C*DC tuned"].operator_.u.tobytes())
+    start = raw.find(fitted["C*DC tuned"].observation_.u.tobytes())
     assert start > 0
     raw[start + 17] ^= 0x01
     saved.write_bytes(bytes(raw))
@@ -591,7 +591,7 @@ def test_a_failure_at_any_step_keeps_the_old_file_and_leaves_no_temporary(
 
 
 CHILD = """
-import json, os, resource, sys
+import hashlib, json, os, resource, sys
 import numpy as np
 import gpmultirate as gm
 
@@ -600,15 +600,22 @@ rng = np.random.default_rng(1)
 u = rng.standard_normal(300)
 y_slow = np.convolve(u, 0.8 ** np.arange(40))[:300][::3]
 model = gm.LeastSquaresFIR(factor=3, order=40).fit(u, y_slow)
+soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
 if limit:
-    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
 try:
     gm.save_model(model, path)
 except BaseException as error:
+    with open(path, "rb") as file:  # what the failed save left, before the save below
+        digest = hashlib.sha256(file.read()).hexdigest()
     print(json.dumps({"type": type(error).__name__, "errno": getattr(error, "errno", None),
-                      "message": str(error), "os_error": isinstance(error, OSError)}))
+                      "message": str(error), "os_error": isinstance(error, OSError),
+                      "sha256": digest, "listing": sorted(os.listdir(os.path.dirname(path)))}))
 else:
+    print(json.dumps({"type": None}))
+if limit:  # the same save without the limit
+    resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    gm.save_model(model, path)
     print(json.dumps({"type": None}))
 """
 
@@ -623,7 +630,7 @@ def _run_child(path, limit=0, drop_capabilities=False):
                           capture_output=True, text=True, timeout=300,
                           preexec_fn=_drop_capabilities if drop_capabilities else None)
     assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return [json.loads(line) for line in done.stdout.strip().splitlines()]
 
 
 def _drop_capabilities():
@@ -639,13 +646,14 @@ def _drop_capabilities():
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="resource limits are POSIX")
 def test_a_file_size_limit_keeps_the_old_file(saved, tmp_path):
     before = saved.read_bytes()
-    found = _run_child(saved, limit=4096)  # part of the new file is written, then EFBIG
+    # part of the new file is written, then EFBIG
+    found, again = _run_child(saved, limit=4096)
     assert found["type"] == "OSError" and found["os_error"] and found["errno"] == 27  # EFBIG
     assert str(saved) in found["message"] and "unchanged" in found["message"]
-    assert saved.read_bytes() == before
-    _only_the_model_file(tmp_path)
-    # without the limit the same child replaces the file by a complete one
-    assert _run_child(saved)["type"] is None
+    assert found["sha256"] == hashlib.sha256(before).hexdigest()  # byte-identical
+    assert found["listing"] == ["model.npz"]  # no temporary left
+    # then, without the limit, the same save replaces the file by a complete one
+    assert again["type"] is None
     assert type(load_model(saved)) is LeastSquaresFIR
     assert os.path.getsize(saved) > 3 * 4096  # the limit did cut the first attempt
     _only_the_model_file(tmp_path)
@@ -656,7 +664,7 @@ def test_an_unwritable_folder_keeps_the_old_file(saved, tmp_path):
     before = saved.read_bytes()
     os.chmod(tmp_path, 0o555)
     try:
-        found = _run_child(saved, drop_capabilities=os.geteuid() == 0)
+        found, = _run_child(saved, drop_capabilities=os.geteuid() == 0)
     finally:
         os.chmod(tmp_path, 0o755)
     assert found["type"] == "PermissionError" and found["errno"] == 13
