@@ -9,13 +9,18 @@ for the prior covariances.
 from gpmultirate import datasets, holdout, kernels, simulation
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
-from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, NumericalWarning
+from gpmultirate.exceptions import (
+    HeldOutWarning,
+    IdentifiabilityError,
+    ModelFileError,
+    NumericalWarning,
+)
 from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.multioutput import MultiOutputFIR
 from gpmultirate.observed import ObservedKernel
 from gpmultirate.observations import DownsampledConvolution, SampledConvolution
-from gpmultirate.persistence import ModelFileError, load_model, save_model
+from gpmultirate.persistence import load_model, save_model
 
 __all__ = [
     "DownsampledConvolution",

@@ -229,6 +229,10 @@ def save_model(
         _write_atomically(_check_path(path), lambda file: np.savez(file, **members))
 
 
+# a new file for writing bytes (O_BINARY: no newline translation on Windows)
+_NEW_FILE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+
+
 def _write_atomically(path, write) -> None:
     """``write(file)`` to a new file in the folder of ``path``, then renamed onto ``path``.
 
@@ -247,7 +251,7 @@ def _write_atomically(path, write) -> None:
         while descriptor is None:
             candidate = os.path.join(folder, f".{name}.{secrets.token_hex(4)}.tmp")
             try:  # created with the permissions open() would give (0o666 less the umask)
-                descriptor = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+                descriptor = os.open(candidate, _NEW_FILE, 0o666)
             except FileExistsError:
                 continue
             temporary = candidate
@@ -269,7 +273,6 @@ def _write_atomically(path, write) -> None:
                 os.unlink(temporary)
             except OSError:
                 pass
-    _sync_folder(folder)
 
 
 def _keep_mode(target: str, temporary: str) -> None:
@@ -278,20 +281,6 @@ def _keep_mode(target: str, temporary: str) -> None:
         os.chmod(temporary, stat.S_IMODE(os.stat(target).st_mode))
     except OSError:
         pass
-
-
-def _sync_folder(folder: str) -> None:
-    """Make the rename durable (POSIX); a folder that cannot be opened is left as it is."""
-    try:
-        descriptor = os.open(folder, os.O_RDONLY)
-    except (OSError, AttributeError):
-        return
-    try:
-        os.fsync(descriptor)
-    except OSError:
-        pass
-    finally:
-        os.close(descriptor)
 
 
 def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
