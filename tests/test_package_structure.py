@@ -215,6 +215,28 @@ def test_every_exception_and_warning_class_is_defined_in_the_exceptions_module()
     assert n_found >= 7
 
 
+_EXCEPTION_BASES = ("Error", "Exception", "Warning", "Interrupt", "Exit")
+
+
+def test_no_exception_class_is_defined_elsewhere_even_inside_a_function():
+    """The source too: a class with an exception base, at any depth, outside exceptions.py."""
+    found = []
+    for name, (source, _) in package_modules().items():
+        if name == "gpmultirate.exceptions":
+            continue
+        for node in ast.walk(ast.parse(source)):
+            if not isinstance(node, ast.ClassDef):
+                continue
+            bases = [b.id if isinstance(b, ast.Name) else getattr(b, "attr", "")
+                     for b in node.bases]
+            if any(base.endswith(_EXCEPTION_BASES) for base in bases):
+                found.append(f"{name}.{node.name}")
+    assert found == []
+    tree = ast.parse(package_modules()["gpmultirate.exceptions"][0])
+    assert sum(isinstance(node, ast.ClassDef) for node in ast.walk(tree)) == len(
+        gpmultirate.exceptions.__all__)
+
+
 def test_exceptions_keep_their_former_homes():
     from gpmultirate import exceptions, io, memory, persistence
     from gpmultirate.study import journal

@@ -11,7 +11,8 @@ scaled there as the log of a decay rate.
 A lag kernel declares the transform of each hyperparameter
 (:meth:`~gpmultirate.kernels.LagKernel.theta_transform`); every other
 kernel keeps scikit-learn's log.  :func:`theta_transforms` lists them for any
-kernel, composite or not, in ``theta`` order.
+kernel, composite or not, in ``theta`` order, and :func:`check_kernel` checks
+a kernel's values and bounds against them.
 """
 
 from __future__ import annotations
