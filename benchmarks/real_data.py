@@ -201,7 +201,7 @@ def evaluate(method: Method, u, y, factor: int, order: int | None, repeats: int 
     row["time min"], row["time median"], row["time max"] = (
         min(times), statistics.median(times), max(times))
     row["cpu median"] = statistics.median(cpu)
-    row["order"] = int(estimator.operator_.order)
+    row["order"] = int(estimator.observation_.order)
     resonances = getattr(estimator, "resonances_", None)
     if resonances:
         row["resonances"] = " ".join(

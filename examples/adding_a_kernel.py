@@ -9,7 +9,9 @@ own structure through :meth:`~gpmultirate.kernels.StructuredKernel.observed`:
 it returns a :class:`~gpmultirate.kernels.LowRankTerm`, so the library never
 forms its ``P x P`` matrix to compute the data covariance, the gradient of
 the evidence or its Fisher information.  Nothing else in the library is
-edited.
+edited.  The fitted model is saved and loaded back: the file names the class,
+and :func:`~gpmultirate.load_model` instantiates it only when it is passed as
+``kernels=[FirstOrderPole]``.
 
 Run ``python examples/adding_a_kernel.py [--output DIR] [--quick]``.
 """
@@ -88,6 +90,17 @@ class FirstOrderPole(StructuredKernel, Kernel):
         )
 
 
+def save_and_load(model, path):
+    """Save a fitted model with this kernel and load it back.
+
+    A model file holds the kernel's class name and constructor parameters,
+    never code: ``load_model`` rebuilds ``FirstOrderPole`` only because it is
+    given the class, and refuses the file otherwise, naming the class.
+    """
+    gm.save_model(model, path)
+    return gm.load_model(path, kernels=[FirstOrderPole])
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default="examples/output")
@@ -114,11 +127,14 @@ def main(argv=None) -> int:
 
     kernel = C(1.0) * FirstOrderPole(0.8) + C(1.0) * DC(alpha=0.95, beta=0.95)
     model = gm.FIRGaussianProcess(kernel, factor=factor, noise_level=1e-4).fit(u, y_slow)
-    term = observe(model.kernel_, model.operator_)
+    term = observe(model.kernel_, model.observation_)
     print("structured term of the pole kernel:", type(term.first.inner).__name__)
     print("tuned kernel:", model.kernel_)
     y_val = np.convolve(u_val, true_g)[:n]
     print(f"validation GoF {model.score(u_val, y_val):.2f} %")
+    loaded = save_and_load(model, output / "adding_a_kernel.npz")
+    same = np.array_equal(loaded.predict(u_val), model.predict(u_val))
+    print(f"saved and loaded with kernels=[FirstOrderPole]: identical predictions {same}")
 
     frf = model.frequency_response(sample_time=T)
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(6, 5), layout="constrained")

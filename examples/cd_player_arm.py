@@ -295,7 +295,7 @@ def main() -> None:
             plot_bode(gp, axes=ax, phase=False, label="GP, both inputs", color="tab:blue")
             ls = models[j]["LS"].frequency_response(freqs, sample_time=1.0, input=k)
             plot_bode(ls, axes=ax, phase=False, show_band=False, show_nyquist=False,
-                      label=f"LS (P={models[j]['LS'].operator_.order})", color="tab:orange")
+                      label=f"LS (P={models[j]['LS'].observation_.order})", color="tab:orange")
             ax.set_xlabel("frequency [cycles/sample]")
             ax.set_title(f"u{k + 1} to y{j + 1}, 95 % band", pad=16)
             ax.legend(fontsize="x-small", loc="lower left")

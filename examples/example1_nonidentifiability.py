@@ -123,7 +123,7 @@ def main() -> None:
     u_fast = np.random.default_rng(2).standard_normal(n_samples)
     y_slow_fast = simulation.downsample(system.simulate(u_fast), factor)
     ls = gm.LeastSquaresFIR(factor=factor, order=ls_order).fit(u_fast, y_slow_fast)
-    rank = np.linalg.matrix_rank(ls.operator_.matrix)
+    rank = np.linalg.matrix_rank(ls.observation_.matrix)
     print(f"  the same order with a random fast-rate input: regressor rank {rank} = order, "
           "a unique least-squares estimate")
 
@@ -136,7 +136,7 @@ def main() -> None:
     gp = gm.FIRGaussianProcess(ConstantKernel(1.0) * DC(alpha=0.99, beta=0.9),
                                factor=example.factor, order=order, noise_level=1e-8,
                                optimizer=None).fit(example.u, example.y_slow)
-    residual = np.max(np.abs(gp.operator_.matvec(gp.coef_) - example.y_slow))
+    residual = np.max(np.abs(gp.observation_.matvec(gp.coef_) - example.y_slow))
     print("\nFIRGaussianProcess on the impulsive input (order = N): a unique estimate,"
           f" max slow-sample residual {residual:.1e}")
 

@@ -12,6 +12,7 @@ from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import (
     HeldOutWarning,
     IdentifiabilityError,
+    ModelFileError,
     NumericalWarning,
     OrderWarning,
 )
@@ -20,7 +21,7 @@ from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.multioutput import MultiOutputFIR
 from gpmultirate.observed import ObservedKernel
 from gpmultirate.observations import DownsampledConvolution, SampledConvolution
-from gpmultirate.persistence import ModelFileError, load_model, save_model
+from gpmultirate.persistence import load_model, save_model
 
 __all__ = [
     "DownsampledConvolution",

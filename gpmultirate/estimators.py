@@ -28,6 +28,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import orders, tuning
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
+from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, OrderWarning
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
@@ -73,7 +74,7 @@ __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 class _FIRModelMixin:
     """Prediction, scoring and frequency response shared by the FIR estimators.
 
-    Subclasses set ``coef_``, ``operator_``, ``n_inputs_`` and ``posterior_``
+    Subclasses set ``coef_``, ``observation_``, ``n_inputs_`` and ``posterior_``
     (a :class:`~gpmultirate.inference.GaussianCoefficients` of the
     input-major coefficient vector) in ``fit``, and implement
     ``impulse_response``.
@@ -84,7 +85,20 @@ class _FIRModelMixin:
 
     @property
     def _order(self) -> int:
-        return self.operator_.order
+        return self.observation_.order
+
+    @property
+    def operator_(self):
+        """Deprecated name of ``observation_``, removed in gpmultirate 0.2.0."""
+        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
+        if "observation_" not in vars(self) and "operator_" in vars(self):
+            return vars(self)["operator_"]  # an estimator pickled before the rename
+        return self.observation_
+
+    @operator_.setter
+    def operator_(self, value) -> None:
+        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
+        self.observation_ = value
 
     def _shaped(self, flat: np.ndarray) -> np.ndarray:
         """Coefficient-like values ``(n_inputs * n,)`` as ``(n_inputs, n)`` for several inputs."""
@@ -220,7 +234,7 @@ class _FIRModelMixin:
             sample_time = self.sample_time
         if freqs is None:
             sample_time = check_positive(sample_time, "sample_time")
-            freqs = default_frequencies(self.operator_.n_samples, sample_time)
+            freqs = default_frequencies(self.observation_.n_samples, sample_time)
         freqs, sample_time = check_frequencies(freqs, sample_time)
         P = self._order
         E = dft_matrix(freqs, sample_time, P)
@@ -237,7 +251,7 @@ class _FIRModelMixin:
             cov,
             level=level,
             sample_time=sample_time,
-            factor=self.operator_.slow_factor,
+            factor=self.observation_.slow_factor,
         )
 
     def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
@@ -412,7 +426,7 @@ class _Fit:
     """The learned state of a fit at one order (the estimator's attributes of that name)."""
 
     experiment: object
-    operator_: object
+    observation_: object
     y_slow_: np.ndarray
     noise_level_bounds_: object
     n_inputs_: int
@@ -552,7 +566,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
         (scikit-learn's sign and constants: higher is better).
-    operator_ : Observation
+    observation_ : Observation
         The observation operator of the training data: a
         :class:`~gpmultirate.DownsampledConvolution` in the paper's case, a
         :class:`~gpmultirate.SampledConvolution` or a stack of records
@@ -689,7 +703,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             start = time.perf_counter()
             fitted = self._fit_at(data, order, settings)
             if rule is not None:
-                _LOG.info("fitted order %d in %.1f s", fitted.operator_.order,
+                _LOG.info("fitted order %d in %.1f s", fitted.observation_.order,
                           time.perf_counter() - start)
         self._adopt(fitted)
         if rule is not None:
@@ -727,7 +741,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         def tail_lag(fitted):
             # over twice the order: a prior cut by the order has not decayed
             return orders.prior_tail_lag(fitted.kernel_, powers, fitted.noise_level_,
-                                         2 * fitted.operator_.order)
+                                         2 * fitted.observation_.order)
 
         rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
                                     whole.n_inputs, log=_LOG.info)
@@ -752,7 +766,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         ``RESIDUAL_CORRELATION`` and four standard errors).  The
         :class:`~gpmultirate.OrderWarning` names a longer order.
         """
-        operator = self.operator_
+        operator = self.observation_
         order = operator.order
         if (operator.n_outputs <= operator.n_coefficients
                 or self.initial_conditions == "periodic"):
@@ -834,7 +848,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
 
     def _adopt(self, fitted: _Fit) -> None:
         """Take the learned state of a fit at one order as the estimator's."""
-        for name in ("operator_", "y_slow_", "noise_level_bounds_", "n_inputs_",
+        for name in ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
                      "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
                      "log_marginal_likelihood_value_"):
             setattr(self, name, getattr(fitted, name))
@@ -896,7 +910,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         coef = posterior.coef
         return _Fit(
             experiment=experiment,
-            operator_=operator,
+            observation_=operator,
             y_slow_=y,
             noise_level_bounds_=noise_bounds,
             n_inputs_=experiment.n_inputs,
@@ -1087,7 +1101,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     coef_covariance_ : ndarray of shape (n_inputs * P, n_inputs * P)
         ``noise_variance_ (Phi^T Phi)^{-1}``, used for the bands of
         :meth:`predict` and :meth:`frequency_response`.
-    operator_ : Observation
+    observation_ : Observation
     posterior_ : GaussianCoefficients
         The Gaussian distribution ``N(coef_, coef_covariance_)``.
 
@@ -1170,7 +1184,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         residual = y - operator.matrix @ coef
         noise_variance = float(residual @ residual / (M - P))
         root = Vt.T / s  # coef covariance = noise_variance * root @ root.T
-        self.operator_ = operator
+        self.observation_ = operator
         self.n_inputs_ = experiment.n_inputs
         self.coef_ = self._shaped(coef)
         self.noise_variance_ = noise_variance

@@ -1,8 +1,25 @@
-"""Exceptions and warnings raised by gpmultirate."""
+"""Exceptions and warnings raised by gpmultirate.
+
+Every exception and warning class of the package is defined here, as in
+``sklearn.exceptions``.  The modules that raise them re-export them under
+their former homes, so ``gpmultirate.io.DataFileError`` or
+``gpmultirate.persistence.ModelFileError`` keep working.  Each error that
+reports bad input is a :class:`ValueError`, so that ``except ValueError``
+catches every refusal of the library.
+"""
 
 from __future__ import annotations
 
-__all__ = ["HeldOutWarning", "IdentifiabilityError", "NumericalWarning", "OrderWarning"]
+__all__ = [
+    "DataFileError",
+    "HeldOutWarning",
+    "IdentifiabilityError",
+    "JournalError",
+    "MemoryLimitError",
+    "ModelFileError",
+    "NumericalWarning",
+    "OrderWarning",
+]
 
 
 class IdentifiabilityError(ValueError):
@@ -15,6 +32,65 @@ class IdentifiabilityError(ValueError):
     --------
     >>> from gpmultirate import IdentifiabilityError
     >>> issubclass(IdentifiabilityError, ValueError)
+    True
+    """
+
+
+class ModelFileError(ValueError):
+    """A model file is not a valid gpmultirate model file for this version.
+
+    Raised by :func:`~gpmultirate.load_model` for a file that is not a
+    gpmultirate archive, is corrupted (checksum mismatch, truncated), was
+    written by a different major version of the library or a newer file
+    format, or names a kernel class that may not be loaded.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import ModelFileError
+    >>> issubclass(ModelFileError, ValueError)
+    True
+    """
+
+
+class DataFileError(ValueError):
+    """A data file cannot be read, or lacks what was asked of it.
+
+    The message is one line that starts with the file name.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import DataFileError
+    >>> str(DataFileError("data.csv", "is empty"))
+    'data.csv: is empty'
+    """
+
+    def __init__(self, path, problem: str):
+        self.path = str(path)
+        self.problem = " ".join(str(problem).split())  # one line
+        super().__init__(f"{self.path}: {self.problem}")
+
+
+class MemoryLimitError(ValueError, MemoryError):
+    """A fit would need more memory than is available; the message says how much and why.
+
+    A :class:`ValueError` (the size of the problem is the user's argument,
+    and the refusal happens before any work) and a :class:`MemoryError`.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import MemoryLimitError
+    >>> issubclass(MemoryLimitError, ValueError), issubclass(MemoryLimitError, MemoryError)
+    (True, True)
+    """
+
+
+class JournalError(ValueError):
+    """A study journal that cannot be resumed: corrupt, locked, or of other settings.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import JournalError
+    >>> issubclass(JournalError, ValueError)
     True
     """
 

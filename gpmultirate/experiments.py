@@ -1,11 +1,12 @@
-"""The paper's Monte Carlo simulation study, under its former module name.
+"""Deprecated: the paper's Monte Carlo simulation study, under its former module name.
 
-The study now lives in the :mod:`gpmultirate.study` package (simulation of
-the runs, the runner, the results and the paper's examples).  This module is
-kept so that existing imports keep working: it re-exports the same public
-names.
+The study lives in the :mod:`gpmultirate.study` package (simulation of the
+runs, the runner, the results and the paper's examples).  This module
+re-exports the same public names, warns when it is imported and is removed
+in gpmultirate 0.2.0.
 """
 
+from gpmultirate.deprecation import deprecated_module
 from gpmultirate.study.examples import PaperExample, paper_example
 from gpmultirate.study.results import StudyResult
 from gpmultirate.study.runner import TrialResult, run_paper_study, run_trial
@@ -32,3 +33,5 @@ __all__ = [
     "run_trial",
     "simulate_run",
 ]
+
+deprecated_module("gpmultirate.experiments", "gpmultirate.study")

@@ -31,35 +31,12 @@ import numpy as np
 from scipy import signal
 from sklearn.utils.validation import check_is_fitted
 
+from gpmultirate.optional import import_control
 from gpmultirate.realization import DEFAULT_THRESHOLD, Realization, era, leading_era
+from gpmultirate.responses import FrequencyResponse
 from gpmultirate.validation import check_int, check_positive
 
 __all__ = ["StateSpaceMixin", "frequency_response_to_control", "import_control"]
-
-_CONTROL_HINT = 'python-control is needed here: pip install "gpmultirate[control]"'
-
-
-def import_control():
-    """The ``control`` package (python-control), or an ImportError that names the extra.
-
-    Returns
-    -------
-    module
-
-    Raises
-    ------
-    ImportError
-        If python-control is not installed.
-
-    Examples
-    --------
-    >>> control = import_control()
-    """
-    try:
-        import control
-    except ImportError as exc:
-        raise ImportError(_CONTROL_HINT) from exc
-    return control
 
 
 def _state_space(realization: Realization, sample_time: float) -> signal.StateSpace:
@@ -311,13 +288,6 @@ def frequency_response_to_control(frf):
     >>> data.omega.round(4), data.dt
     (array([3.1416, 6.2832]), 0.1)
     """
-    from gpmultirate.responses import FrequencyResponse
-
     if not isinstance(frf, FrequencyResponse):
         raise ValueError(f"frf must be a FrequencyResponse; got {type(frf).__name__}")
-    control = import_control()
-    freqs = np.asarray(frf.freqs, dtype=float)
-    mean = np.asarray(frf.mean, dtype=complex)
-    order = np.argsort(freqs, kind="stable")
-    return control.FrequencyResponseData(mean[order].copy(), 2 * np.pi * freqs[order],
-                                         dt=frf.sample_time)
+    return frf.to_control()

@@ -24,30 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
+from gpmultirate.exceptions import DataFileError
+
 __all__ = ["DataFileError", "DataTable", "read_columns", "read_table"]
 
 #: The largest number of columns a CSV file may have.
 MAX_COLUMNS = 100_000
 _SUFFIXES = (".csv", ".npz", ".mat")
 _MAT_HEADER = 128
-
-
-class DataFileError(ValueError):
-    """A data file cannot be read, or lacks what was asked of it.
-
-    The message is one line that starts with the file name.
-
-    Examples
-    --------
-    >>> from gpmultirate.io import DataFileError
-    >>> str(DataFileError("data.csv", "is empty"))
-    'data.csv: is empty'
-    """
-
-    def __init__(self, path, problem: str):
-        self.path = str(path)
-        self.problem = " ".join(str(problem).split())  # one line
-        super().__init__(f"{self.path}: {self.problem}")
 
 
 def _short(text: str, limit: int = 40) -> str:

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import os
 
+from gpmultirate.exceptions import MemoryLimitError
+
 __all__ = [
     "MemoryLimitError",
     "available_memory",
@@ -30,16 +32,6 @@ __all__ = [
 #: environment variable that sets the memory a fit may use, in bytes
 LIMIT_VARIABLE = "GPMULTIRATE_MEMORY_LIMIT"
 _BYTES = 8  # float64
-
-
-class MemoryLimitError(MemoryError):
-    """A fit would need more memory than is available; the message says how much and why.
-
-    Examples
-    --------
-    >>> issubclass(MemoryLimitError, MemoryError)
-    True
-    """
 
 
 def available_memory() -> int:
@@ -115,7 +107,7 @@ def check_fit_memory(n_outputs: int, n_coefficients: int, n_hyperparameters: int
     >>> check_fit_memory(10, 10**6, 2)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    gpmultirate.memory.MemoryLimitError: the fit needs about 1.6e+04 GB ...
+    gpmultirate.exceptions.MemoryLimitError: the fit needs about 1.6e+04 GB ...
     """
     needed = fit_memory_estimate(n_outputs, n_coefficients, n_hyperparameters)
     available = available_memory()

@@ -4,9 +4,11 @@
 :class:`~gpmultirate.LeastSquaresFIR` or :class:`~gpmultirate.MultiOutputFIR`
 to an ``.npz`` archive of plain numbers; :func:`load_model` reads it back
 without unpickling anything and without importing any name found in the
-file, so loading a file from an untrusted source cannot run code.  (Fitted
-models also round-trip through :mod:`pickle`, but a pickle must only be
-loaded from a trusted source.)
+file, so loading a file from an untrusted source cannot run code: a kernel
+class of your own is rebuilt only from the classes passed as
+``load_model(path, kernels=[MyKernel])``.  A file name is written
+atomically.  (Fitted models also round-trip through :mod:`pickle`, but a
+pickle must only be loaded from a trusted source.)
 
 File format, version 1
 ----------------------
@@ -70,6 +72,8 @@ import hashlib
 import io
 import json
 import os
+import secrets
+import stat
 import types
 import warnings
 import zipfile
@@ -92,6 +96,7 @@ from sklearn.gaussian_process.kernels import (
 )
 from sklearn.utils.validation import check_is_fitted
 
+from gpmultirate.exceptions import ModelFileError
 from gpmultirate.inference import GaussianCoefficients, one_blas_thread
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
@@ -107,6 +112,7 @@ __all__ = [
     "KERNEL_CLASSES",
     "ModelFileError",
     "describe_kernel",
+    "kernel_classes",
     "kernel_from_description",
     "load_model",
     "save_model",
@@ -117,7 +123,8 @@ PathOrFile = Union[str, os.PathLike, BinaryIO]
 FORMAT_NAME = "gpmultirate-model"
 FORMAT_VERSION = 3
 
-#: The only kernel classes a model file may name, by class name.
+#: The kernel classes a model file may name, by class name; :func:`load_model`
+#: takes further classes of your own as ``kernels=[...]``.
 KERNEL_CLASSES = types.MappingProxyType(
     {
         cls.__name__: cls
@@ -149,22 +156,6 @@ _ARRAY_DTYPES = frozenset(
 _NON_FINITE = {"inf": np.inf, "-inf": -np.inf, "nan": np.nan}
 
 
-class ModelFileError(ValueError):
-    """A model file is not a valid gpmultirate model file for this version.
-
-    Raised by :func:`load_model` for a file that is not a gpmultirate
-    archive, is corrupted (checksum mismatch, truncated), was written by a
-    different major version of the library or a newer file format, or names
-    a kernel class that may not be loaded.
-
-    Examples
-    --------
-    >>> from gpmultirate.persistence import ModelFileError
-    >>> issubclass(ModelFileError, ValueError)
-    True
-    """
-
-
 # ----------------------------------------------------------------- saving
 def save_model(
     model: FIRGaussianProcess | LeastSquaresFIR | MultiOutputFIR, path: PathOrFile
@@ -179,11 +170,17 @@ def save_model(
     ----------
     model : FIRGaussianProcess, LeastSquaresFIR or MultiOutputFIR
         A fitted model (a MultiOutputFIR of one of the two others).  Its
-        kernels must be built from :data:`KERNEL_CLASSES`, and its
-        parameters must be numbers, strings, tuples, arrays, kernels or a
-        ``numpy.random.RandomState``.
+        parameters, and those of its kernels, must be numbers, strings,
+        tuples, arrays, kernels or a ``numpy.random.RandomState``.  A
+        kernel class of your own is stored by name: load the file with
+        ``load_model(path, kernels=[MyKernel])``.
     path : str, path-like or binary file object
         Destination, written exactly as named (no ``.npz`` is appended).
+        A file name is written atomically: the model goes to a temporary
+        file in the same folder, which is synced to disk and then renamed
+        onto ``path`` in one step.  Whatever fails (a full disk, a file
+        size limit, an interruption), ``path`` keeps its former content and
+        no temporary file is left.
 
     Raises
     ------
@@ -193,6 +190,9 @@ def save_model(
         If a kernel or parameter cannot be stored; the message names it.
     TypeError
         If ``model`` is not one of the three estimators.
+    OSError
+        If the file cannot be written (the folder is not writable, the disk
+        is full, ...); the message names the file, which is unchanged.
 
     Examples
     --------
@@ -226,8 +226,61 @@ def save_model(
             raise TypeError("path must be a file name or a binary file object; got a text file")
         np.savez(path, **members)
     else:
-        with open(_check_path(path), "wb") as file:
-            np.savez(file, **members)
+        _write_atomically(_check_path(path), lambda file: np.savez(file, **members))
+
+
+# a new file for writing bytes (O_BINARY: no newline translation on Windows)
+_NEW_FILE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+
+
+def _write_atomically(path, write) -> None:
+    """``write(file)`` to a new file in the folder of ``path``, then renamed onto ``path``.
+
+    The new file is flushed and synced to disk before :func:`os.replace`
+    puts it in place in one step, so ``path`` holds either its former
+    content or the complete new one, whatever fails (a full disk, a file
+    size limit, an interruption); on failure the temporary file is removed.
+    A symbolic link is written through, as ``open(path, "wb")`` would.
+    """
+    target = os.fsdecode(os.path.realpath(path) if os.path.islink(path) else path)
+    folder, name = os.path.split(target)
+    folder = folder or os.curdir
+    temporary = None
+    try:
+        descriptor = None
+        while descriptor is None:
+            candidate = os.path.join(folder, f".{name}.{secrets.token_hex(4)}.tmp")
+            try:  # created with the permissions open() would give (0o666 less the umask)
+                descriptor = os.open(candidate, _NEW_FILE, 0o666)
+            except FileExistsError:
+                continue
+            temporary = candidate
+        with os.fdopen(descriptor, "wb") as file:
+            write(file)
+            file.flush()
+            os.fsync(file.fileno())
+        _keep_mode(target, temporary)
+        os.replace(temporary, target)
+        temporary = None
+    except OSError as error:
+        message = (f"cannot write the model file {target!r}: {error.strerror or error}; "
+                   "any file that was there is unchanged")
+        # OSError(errno, ...) is the subclass of that errno (PermissionError, ...)
+        raise (OSError(message) if error.errno is None else OSError(error.errno, message)) from error
+    finally:
+        if temporary is not None:
+            try:
+                os.unlink(temporary)
+            except OSError:
+                pass
+
+
+def _keep_mode(target: str, temporary: str) -> None:
+    """The permissions of the file being replaced, where it exists and they can be set."""
+    try:
+        os.chmod(temporary, stat.S_IMODE(os.stat(target).st_mode))
+    except OSError:
+        pass
 
 
 def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
@@ -239,7 +292,7 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
             f"subclass); got {type(model).__qualname__}"
         )
     check_is_fitted(model, "coef_")
-    operator = model.operator_
+    operator = model.observation_
     if isinstance(operator, DownsampledConvolution):  # the layout of version 1
         version = 1
         fitted: dict[str, Any] = {
@@ -351,7 +404,7 @@ def _multi_output_members(model) -> tuple[dict, dict[str, np.ndarray]]:
 
 
 def describe_kernel(kernel: Kernel) -> dict:
-    """JSON-ready description of a kernel built from :data:`KERNEL_CLASSES`.
+    """JSON-ready description of a kernel.
 
     Parameters
     ----------
@@ -364,10 +417,17 @@ def describe_kernel(kernel: Kernel) -> dict:
         kernel-valued arguments (``k1``, ``k2`` or ``kernel``) as nested
         descriptions for composite ones.
 
+    A kernel class outside :data:`KERNEL_CLASSES` (a kernel of your own) is
+    described by its class name and constructor parameters, as scikit-learn's
+    ``get_params`` gives them; :func:`load_model` rebuilds it only when the
+    class is passed as ``kernels=[MyKernel]``.
+
     Raises
     ------
     ValueError
-        For a kernel class outside :data:`KERNEL_CLASSES`.
+        For a class that is not a scikit-learn kernel, a kernel class of
+        your own with the name of one of :data:`KERNEL_CLASSES`, or a
+        parameter that cannot be stored; the message names it.
 
     Examples
     --------
@@ -381,10 +441,12 @@ def describe_kernel(kernel: Kernel) -> dict:
     1.41**2 * TC(alpha=0.8)
     """
     name = type(kernel).__name__
-    if KERNEL_CLASSES.get(name) is not type(kernel):
+    if not isinstance(kernel, Kernel):
+        raise ValueError(f"cannot save {name} as a kernel: it is not a scikit-learn Kernel")
+    if name in KERNEL_CLASSES and KERNEL_CLASSES[name] is not type(kernel):
         raise ValueError(
             f"cannot save kernel class {type(kernel).__module__}.{type(kernel).__qualname__}: "
-            f"model files only hold the kernels {', '.join(KERNEL_CLASSES)}"
+            f"its name is that of gpmultirate's {name}; give your kernel class a name of its own"
         )
     params = kernel.get_params(deep=False)
     tree: dict[str, Any] = {"class": name}
@@ -398,15 +460,18 @@ def describe_kernel(kernel: Kernel) -> dict:
     return tree
 
 
-def kernel_from_description(tree: dict) -> Kernel:
+def kernel_from_description(tree: dict, kernels=None) -> Kernel:
     """Rebuild a kernel from :func:`describe_kernel`'s description.
 
-    Only classes of :data:`KERNEL_CLASSES` are instantiated; nothing is
-    imported by name.
+    Only classes of :data:`KERNEL_CLASSES` and of ``kernels`` are
+    instantiated; nothing is imported by name.
 
     Parameters
     ----------
     tree : dict
+    kernels : list of kernel classes, optional
+        Kernel classes of your own that the description may name, besides
+        :data:`KERNEL_CLASSES`.
 
     Returns
     -------
@@ -416,6 +481,8 @@ def kernel_from_description(tree: dict) -> Kernel:
     ------
     ModelFileError
         For an unknown class or a malformed description.
+    ValueError
+        If ``kernels`` is not a list of kernel classes with names of their own.
 
     Examples
     --------
@@ -423,15 +490,74 @@ def kernel_from_description(tree: dict) -> Kernel:
     >>> kernel_from_description({"class": "DC", "params": {"alpha": 0.5, "beta": 0.7}})
     DC(alpha=0.5, beta=0.7)
     """
+    return _kernel_from_tree(tree, kernel_classes(kernels))
+
+
+def kernel_classes(kernels=None) -> types.MappingProxyType:
+    """The kernel classes a model file may name: :data:`KERNEL_CLASSES` and ``kernels``.
+
+    Parameters
+    ----------
+    kernels : list of kernel classes, optional
+        Subclasses of scikit-learn's ``Kernel``, each with a class name that
+        none of :data:`KERNEL_CLASSES` and no other entry has.
+
+    Returns
+    -------
+    mapping of str to class
+
+    Raises
+    ------
+    ValueError
+        If ``kernels`` is not such a list; the message names the entry.
+
+    Examples
+    --------
+    >>> from gpmultirate.kernels import TC
+    >>> class SlowTC(TC):
+    ...     pass
+    >>> classes = kernel_classes([SlowTC])
+    >>> classes["SlowTC"] is SlowTC, classes["TC"] is TC
+    (True, True)
+    """
+    if kernels is None:
+        return KERNEL_CLASSES
+    if isinstance(kernels, (str, bytes, type, dict)) or not hasattr(kernels, "__iter__"):
+        raise ValueError(
+            f"kernels must be a list of kernel classes, such as kernels=[MyKernel]; got {kernels!r}"
+        )
+    classes = dict(KERNEL_CLASSES)
+    for i, cls in enumerate(kernels):
+        if not (isinstance(cls, type) and issubclass(cls, Kernel)):
+            what = "an instance" if isinstance(cls, Kernel) else repr(cls)
+            raise ValueError(
+                f"kernels[{i}] must be a kernel class (a subclass of scikit-learn's Kernel); "
+                f"got {what}"
+            )
+        known = classes.get(cls.__name__)
+        if known is not None and known is not cls:
+            whose = "gpmultirate's" if cls.__name__ in KERNEL_CLASSES else "another entry's"
+            raise ValueError(
+                f"kernels[{i}]: the class name {cls.__name__!r} is {whose}; a model file names "
+                "kernel classes by name, so each needs a name of its own"
+            )
+        classes[cls.__name__] = cls
+    return types.MappingProxyType(classes)
+
+
+def _kernel_from_tree(tree: dict, classes) -> Kernel:
+    """:func:`kernel_from_description` with the allowed classes resolved."""
     if not isinstance(tree, dict) or not isinstance(tree.get("class"), str):
         raise ModelFileError(
             f"a kernel description must be an object with a 'class'; got {tree!r}"
         )
     name = tree["class"]
-    if name not in KERNEL_CLASSES:
+    if name not in classes:
+        hint = (f"; if {name} is a kernel class of your own, pass it: "
+                f"load_model(path, kernels=[{name}])" if name.isidentifier() else "")
         raise ModelFileError(
-            f"unknown kernel class {name!r} in the model file; only "
-            f"{', '.join(KERNEL_CLASSES)} can be loaded"
+            f"unknown kernel class {name!r} in the model file: only "
+            f"{', '.join(classes)} can be loaded{hint}"
         )
     slots = _KERNEL_SLOTS.get(name, ())
     lists = (_KERNEL_LISTS[name],) if name in _KERNEL_LISTS else ()
@@ -445,14 +571,14 @@ def kernel_from_description(tree: dict) -> Kernel:
     params = tree.get("params", {})
     if not isinstance(params, dict):
         raise ModelFileError(f"the params of a {name} kernel must be an object; got {params!r}")
-    arguments = {key: _decode(value) for key, value in params.items()}
-    arguments.update({slot: kernel_from_description(tree[slot]) for slot in slots})
+    arguments = {key: _decode(value, classes) for key, value in params.items()}
+    arguments.update({slot: _kernel_from_tree(tree[slot], classes) for slot in slots})
     for slot in lists:
         if not isinstance(tree[slot], list) or not tree[slot]:
             raise ModelFileError(f"the {slot} of a {name} kernel must be a non-empty list")
-        arguments[slot] = [kernel_from_description(item) for item in tree[slot]]
+        arguments[slot] = [_kernel_from_tree(item, classes) for item in tree[slot]]
     try:
-        return KERNEL_CLASSES[name](**arguments)
+        return classes[name](**arguments)
     except TypeError as exc:
         raise ModelFileError(f"invalid arguments for kernel {name}: {exc}") from exc
 
@@ -470,7 +596,9 @@ def _check_path(path):
     return path
 
 
-def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR | MultiOutputFIR:
+def load_model(
+    path: PathOrFile, kernels=None
+) -> FIRGaussianProcess | LeastSquaresFIR | MultiOutputFIR:
     """Load a model written by :func:`save_model`.
 
     The archive is read with ``allow_pickle=False`` and kernels are
@@ -487,6 +615,11 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR | Multi
     Parameters
     ----------
     path : str, path-like or binary file object
+    kernels : list of kernel classes, optional
+        Kernel classes of your own that the file may name, besides
+        :data:`KERNEL_CLASSES` (see :func:`kernel_classes`).  Only these
+        classes are instantiated: nothing is imported by the names the
+        file holds.
 
     Returns
     -------
@@ -498,7 +631,11 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR | Multi
     ModelFileError
         If the file is not a gpmultirate model file, is corrupted, was
         written by a different major version of gpmultirate or a newer file
-        format, or names a kernel class that may not be loaded.
+        format, or names a kernel class that is neither one of
+        :data:`KERNEL_CLASSES` nor passed in ``kernels`` (the message names
+        the class and the ``kernels=`` argument).
+    ValueError
+        If ``kernels`` is not a list of kernel classes with names of their own.
     FileNotFoundError
         If ``path`` does not exist.
 
@@ -517,6 +654,7 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR | Multi
     >>> load_model(buffer).coef_[:3].round(6)
     array([1.  , 0.5 , 0.25])
     """
+    classes = kernel_classes(kernels)
     if hasattr(path, "read"):
         members = _read_archive(path)
     else:
@@ -531,15 +669,15 @@ def load_model(path: PathOrFile) -> FIRGaussianProcess | LeastSquaresFIR | Multi
     name = header.get("estimator")
     try:
         if name == "MultiOutputFIR" and header["format_version"] == 3:
-            return _load_multi_output(header, members)
-        return _load_single(header, members)
+            return _load_multi_output(header, members, classes)
+        return _load_single(header, members, classes)
     except ModelFileError:
         raise
     except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as exc:
         raise ModelFileError(f"the {name} model file is invalid: {exc}") from exc
 
 
-def _load_single(header: dict, members: dict[str, np.ndarray]):
+def _load_single(header: dict, members: dict[str, np.ndarray], classes):
     """A FIRGaussianProcess or LeastSquaresFIR from its header and arrays (versions 1, 2)."""
     name = header.get("estimator")
     version = header.get("format_version")
@@ -554,13 +692,13 @@ def _load_single(header: dict, members: dict[str, np.ndarray]):
         )
     arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
     if version == 2:
-        return _load_records(header, arrays, _ESTIMATORS[name])
+        return _load_records(header, arrays, _ESTIMATORS[name], classes)
     if name == "FIRGaussianProcess":
-        return _load_gaussian_process(header, arrays)
+        return _load_gaussian_process(header, arrays, classes)
     return _load_least_squares(header, arrays)
 
 
-def _load_multi_output(header: dict, members: dict[str, np.ndarray]) -> MultiOutputFIR:
+def _load_multi_output(header: dict, members: dict[str, np.ndarray], classes) -> MultiOutputFIR:
     """Version 3: every output's model loaded as a single model, under fit's BLAS limit."""
     template = _section(header, "template")
     estimator = _ESTIMATORS.get(template.get("estimator"))
@@ -568,7 +706,7 @@ def _load_multi_output(header: dict, members: dict[str, np.ndarray]) -> MultiOut
         raise ModelFileError(
             f"unknown estimator {template.get('estimator')!r} in the MultiOutputFIR file"
         )
-    params = _decode_params(template, estimator)
+    params = _decode_params(template, estimator, classes)
     params_of_model = _section(header, "params")
     if set(params_of_model) != {"n_jobs"}:
         raise ModelFileError(
@@ -602,6 +740,7 @@ def _load_multi_output(header: dict, members: dict[str, np.ndarray]) -> MultiOut
             estimators.append(_load_single(
                 {key: output[key] for key in _OUTPUT_ENTRIES},
                 {key: members[stored] for key, stored in names.items()},
+                classes,
             ))
     if used != set(members):
         raise ModelFileError(
@@ -703,7 +842,7 @@ def _float_vector_or_matrix(name: str, array: np.ndarray) -> np.ndarray:
 
 def _several(model) -> bool:
     """Whether the model was fitted to a list of records (its predictions are lists then)."""
-    return len(model.operator_.records) > 1
+    return len(model.observation_.records) > 1
 
 
 def _record_arrays(header: dict, name: str) -> tuple[str, ...]:
@@ -718,14 +857,14 @@ def _record_arrays(header: dict, name: str) -> tuple[str, ...]:
     return ("coef", *[f"{key}_{r}" for r in range(n) for key in keys], *extra)
 
 
-def _load_records(header: dict, arrays: dict, estimator: type):
+def _load_records(header: dict, arrays: dict, estimator: type, classes):
     """Version 2: the stored records, fitted again or with the stored estimate.
 
     A Gaussian process is conditioned on the stored data at the stored
     hyperparameters; least squares keeps no slow output, so its observation
     is rebuilt from the inputs and instants and its estimate restored.
     """
-    params = _decode_params(header, estimator)
+    params = _decode_params(header, estimator, classes)
     fitted = _section(header, "fitted")
     n = _integer(fitted, "n_records")
     us = [arrays[f"u_{r}"] for r in range(n)]
@@ -749,7 +888,7 @@ def _load_records(header: dict, arrays: dict, estimator: type):
                 f"got {coef.shape} and {covariance.shape}"
             )
         model = LeastSquaresFIR(**params)
-        model.operator_ = experiment.observation
+        model.observation_ = experiment.observation
         model.n_inputs_ = experiment.n_inputs
         model.coef_ = coef.reshape(model.n_inputs_, -1) if model.n_inputs_ > 1 else coef
         model.noise_variance_ = _number(fitted, "noise_variance_")
@@ -757,15 +896,15 @@ def _load_records(header: dict, arrays: dict, estimator: type):
         model.posterior_ = GaussianCoefficients(coef, covariance, np.zeros((0, P)))
         return model
     arguments = dict(
-        params, kernel=kernel_from_description(fitted["kernel_"]),
+        params, kernel=_kernel_from_tree(fitted["kernel_"], classes),
         noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
         order=order, **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
-    if model.operator_.order != order:
+    if model.observation_.order != order:
         raise ModelFileError(
             f"inconsistent model file: order is {order!r} in the header "
-            f"but {model.operator_.order} for the stored data"
+            f"but {model.observation_.order} for the stored data"
         )
     _warn_if_not_reproduced(
         model.posterior_.coef, arrays["coef"], model.log_marginal_likelihood_value_,
@@ -820,13 +959,13 @@ def _restore_optimizer_result(model, fitted: dict) -> None:
         )
 
 
-def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
-    params = _decode_params(header, FIRGaussianProcess)
+def _load_gaussian_process(header: dict, arrays: dict, classes) -> FIRGaussianProcess:
+    params = _decode_params(header, FIRGaussianProcess, classes)
     fitted = _section(header, "fitted")
     # the last step of fit, at the stored hyperparameters
     refit = dict(
         params,
-        kernel=kernel_from_description(fitted["kernel_"]),
+        kernel=_kernel_from_tree(fitted["kernel_"], classes),
         noise_level=_number(fitted, "noise_level_"),
         optimizer=None,
         # the stored kernel and noise level are in the data's units
@@ -836,7 +975,7 @@ def _load_gaussian_process(header: dict, arrays: dict) -> FIRGaussianProcess:
         **_stored_noise_bounds(fitted),
     )
     model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
-    _check_layout(model.operator_, fitted)
+    _check_layout(model.observation_, fitted)
     _warn_if_not_reproduced(
         model.coef_, arrays["coef"],
         model.log_marginal_likelihood_value_, _number(fitted, "log_marginal_likelihood_value_"),
@@ -865,7 +1004,7 @@ def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
             f"coef and coef_covariance must have shapes ({P},) and ({P}, {P}); "
             f"got {coef.shape} and {covariance.shape}"
         )
-    model.operator_ = operator
+    model.observation_ = operator
     model.n_inputs_ = 1
     model.coef_ = coef
     model.noise_variance_ = _number(fitted, "noise_variance_")
@@ -874,14 +1013,14 @@ def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
     return model
 
 
-def _decode_params(header: dict, estimator: type) -> dict:
+def _decode_params(header: dict, estimator: type, classes=KERNEL_CLASSES) -> dict:
     params = _section(header, "params")
     unknown = set(params) - set(estimator().get_params(deep=False))
     if unknown:
         raise ModelFileError(
             f"unknown {estimator.__name__} parameters {sorted(unknown)} in the model file"
         )
-    return {key: _decode(value) for key, value in params.items()}
+    return {key: _decode(value, classes) for key, value in params.items()}
 
 
 def _section(header: dict, key: str) -> dict:
@@ -973,21 +1112,22 @@ def _encode(value, where: str):
     )
 
 
-def _decode(value):
+def _decode(value, classes=KERNEL_CLASSES):
+    """The value :func:`_encode` encoded; kernels only of ``classes``."""
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     if isinstance(value, list):
-        return [_decode(item) for item in value]
+        return [_decode(item, classes) for item in value]
     kind = value.get("type") if isinstance(value, dict) else None
     if kind == "kernel":
-        return kernel_from_description(value.get("tree"))
+        return _kernel_from_tree(value.get("tree"), classes)
     try:
         if kind == "float" and value["value"] in _NON_FINITE:
             return _NON_FINITE[value["value"]]
         if kind == "tuple" and isinstance(value["items"], list):
-            return tuple(_decode(item) for item in value["items"])
+            return tuple(_decode(item, classes) for item in value["items"])
         if kind == "ndarray" and value["dtype"] in _ARRAY_DTYPES:
-            data = [_decode(item) for item in value["data"]]
+            data = [_decode(item, classes) for item in value["data"]]
             return np.array(data, dtype=value["dtype"]).reshape(value["shape"])
         if kind == "RandomState":
             random_state = np.random.RandomState()

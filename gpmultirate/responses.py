@@ -33,6 +33,7 @@ import scipy.stats
 from sklearn.exceptions import NotFittedError
 from sklearn.utils.validation import check_is_fitted
 
+from gpmultirate.optional import import_control
 from gpmultirate.validation import (
     as_real_array,
     check_array,
@@ -183,9 +184,12 @@ class FrequencyResponse:
         -------
         control.FrequencyResponseData
         """
-        from gpmultirate.export import frequency_response_to_control
-
-        return frequency_response_to_control(self)
+        control = import_control()
+        freqs = np.asarray(self.freqs, dtype=float)
+        mean = np.asarray(self.mean, dtype=complex)
+        order = np.argsort(freqs, kind="stable")
+        return control.FrequencyResponseData(mean[order].copy(), 2 * np.pi * freqs[order],
+                                             dt=self.sample_time)
 
     @property
     def magnitude(self) -> np.ndarray:

@@ -54,45 +54,6 @@ def check_rng(random_state, name: str = "random_state"):
         raise ValueError(f"{name} is invalid: {exc}") from exc
 
 
-def check_kernel(kernel, name: str = "kernel"):
-    """Check a scikit-learn kernel's hyperparameter values and bounds.
-
-    Each hyperparameter is checked against its ``theta`` coordinate
-    (:func:`gpmultirate.kernels.transforms.transform_of`): a value tuned in
-    ``log`` must be real, finite and positive and its bounds a pair
-    ``0 < low <= high``; a correlation tuned in ``artanh`` (DC's ``beta``)
-    must lie in ``(-1, 1]`` and its bounds within it.  Lag kernels also
-    check their own ranges (``alpha <= 1`` ...) on a test evaluation.
-    """
-    from sklearn.gaussian_process.kernels import Kernel
-
-    from gpmultirate.kernels.transforms import transform_of
-
-    if not isinstance(kernel, Kernel):
-        raise ValueError(f"{name} must be a scikit-learn Kernel over lags; got {type(kernel).__name__}")
-    params = kernel.get_params()
-    for h in kernel.hyperparameters:
-        value = params.get(h.name)
-        transform = transform_of(kernel, h.name)
-        try:
-            as_real_array(value, f"{name} hyperparameter {h.name}")
-            transform.check_value(value, f"{name} hyperparameter {h.name}")
-        except ValueError as exc:
-            message = str(exc)
-            if not message.startswith(name):
-                message = f"{name} hyperparameter {h.name}: {message}"
-            raise ValueError(message) from None
-        if h.fixed:
-            continue
-        bounds_name = f"{h.name.rpartition('__')[2]}_bounds"
-        transform.check_bounds(h.bounds, f"{name} {bounds_name}")
-    try:
-        kernel(np.zeros((1, 1)))
-    except ValueError as exc:
-        raise ValueError(f"{name}: {exc}") from None
-    return kernel
-
-
 def check_signal(x, name: str, *, min_length: int = 1) -> np.ndarray:
     """Return ``x`` as a new finite 1-D float array."""
     arr = as_real_array(x, name)

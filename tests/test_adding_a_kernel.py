@@ -117,3 +117,20 @@ def test_tuning_uses_the_gradient_of_the_structured_term(problem):
         for e in np.eye(theta.shape[0])
     ]
     np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-4)
+
+
+def test_the_model_saves_and_loads_with_the_kernel_class(problem, tmp_path):
+    u, y, op = problem
+    kernel = C(0.6) * FirstOrderPole(0.85) + C(0.01) * DC(0.9, 0.8)
+    model = gm.FIRGaussianProcess(kernel, factor=3, order=40, offset=1).fit(u, y)
+    loaded = example.save_and_load(model, tmp_path / "pole.npz")
+    assert type(loaded.kernel_.k1.k2) is FirstOrderPole
+    assert repr(loaded.kernel_) == repr(model.kernel_)
+    u_new = np.cos(0.4 * np.arange(120))
+    for a, b in zip(loaded.predict(u_new, return_std=True), model.predict(u_new, return_std=True)):
+        np.testing.assert_array_equal(a, b)
+    lags = np.array([0.5, 3.3, 10.75])
+    np.testing.assert_array_equal(loaded.impulse_response(lags), model.impulse_response(lags))
+    assert loaded.log_marginal_likelihood_value_ == model.log_marginal_likelihood_value_
+    with pytest.raises(gm.ModelFileError, match=r"'FirstOrderPole'.*kernels=\[FirstOrderPole\]"):
+        gm.load_model(tmp_path / "pole.npz")

@@ -214,7 +214,7 @@ def test_fit_on_irregular_samples_matches_the_dense_posterior(tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
 
     model = gm.load_model(out / "model.npz")
-    np.testing.assert_array_equal(model.operator_.sample_indices, indices)
+    np.testing.assert_array_equal(model.observation_.sample_indices, indices)
     assert model.sample_time == 0.01
     mean, cov, evidence = _dense_posterior(model, u[:, 0], indices, y_fast[indices])
     np.testing.assert_allclose(model.coef_, mean, rtol=1e-6, atol=1e-9)
@@ -269,7 +269,7 @@ def test_fit_on_a_grid_with_missing_samples_uses_the_slow_rate(tmp_path):
     reference = gm.FIRGaussianProcess(order=ORDER).fit(u[:, 0], y_fast[indices],
                                                        sample_indices=indices)
     np.testing.assert_allclose(model.coef_, reference.coef_, rtol=1e-5, atol=1e-8)
-    assert model.operator_.slow_factor == 3  # the slow Nyquist frequency of the plots
+    assert model.observation_.slow_factor == 3  # the slow Nyquist frequency of the plots
     summary = json.loads((out / "summary.json").read_text())
     assert (summary["data"]["factor"], summary["data"]["offset"]) == (3, 1)
     assert "3 missing" in summary["data"]["sampling"]  # rows 7, 40 and 43

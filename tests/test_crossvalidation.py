@@ -120,7 +120,7 @@ def test_cross_validation_tuning_maximizes_its_objective(paper):
     data, u_val, y_val = paper
     model = gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=150,
                                   tuning="cross_validation", cv=4).fit(data.u, data.y_slow)
-    objective = CrossValidation(model.operator_, model.y_slow_, model.kernel_,
+    objective = CrossValidation(model.observation_, model.y_slow_, model.kernel_,
                                 model.noise_level_, model.noise_level_bounds_, 4)
     theta = objective.theta
     best = objective(theta)
@@ -153,7 +153,7 @@ def test_auto_order_is_the_best_of_a_brute_force_sweep(paper):
                          else single.cv_log_predictive_likelihood_)
         best = orders[int(np.argmax(sweep))]
         selection = model.order_selection_
-        assert selection["best_order"] == best == model.operator_.order == model.coef_.shape[0]
+        assert selection["best_order"] == best == model.observation_.order == model.coef_.shape[0]
         np.testing.assert_allclose(selection["score"], np.array(sweep) / data.y_slow.shape[0],
                                    rtol=1e-9)
         assert model.order == orders  # the parameter is left as given

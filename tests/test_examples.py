@@ -13,7 +13,7 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
 
 # script -> files it must write into --output
 OUTPUTS = {
-    "adding_a_kernel.py": ["adding_a_kernel.png"],
+    "adding_a_kernel.py": ["adding_a_kernel.png", "adding_a_kernel.npz"],
     "example1_nonidentifiability.py": ["example1_nonidentifiability.png"],
     "wafer_stage_pk.py": ["wafer_stage_bode.png"],
     "intersample_prediction.py": ["intersample_prediction.png"],

@@ -427,7 +427,7 @@ def test_paper_example_arguments():
 
 @pytest.mark.slow
 def test_rst_table_has_the_markdown_cells():
-    from gpmultirate.experiments import run_paper_study
+    from gpmultirate.study import run_paper_study
 
     result = run_paper_study(n_runs=2, orders=(10, 20), n_samples=60, progress=False)
     markdown_cells = [

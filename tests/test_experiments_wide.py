@@ -180,7 +180,7 @@ def test_posterior_evidence_and_bands_equal_the_dense_formulas(name):
 def test_long_records_through_the_reduction_equal_the_dense_formulas(name):
     # order 6: M > n_inputs * P, so the evidence and posterior run in the parameter space
     model, Phi, y, kernels, spec = make_case(name, order=6, seed=3)
-    assert model.operator_.n_outputs > model.operator_.n_coefficients
+    assert model.observation_.n_outputs > model.observation_.n_coefficients
     K = dense_prior(kernels, np.arange(6, dtype=float))
     mean, cov, _, evidence = dense_posterior(Phi, K, y, 0.05)
     np.testing.assert_allclose(np.ravel(model.coef_), mean, rtol=1e-7, atol=1e-10)

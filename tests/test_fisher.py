@@ -19,7 +19,7 @@ from sklearn.gaussian_process.kernels import RBF
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 import gpmultirate as gm
-from gpmultirate import experiments, simulation, tuning
+from gpmultirate import simulation, study, tuning
 from gpmultirate.inference import (
     log_marginal_likelihood,
     log_marginal_likelihood_fisher,
@@ -162,7 +162,7 @@ def paper_like_problem(seed):
 @pytest.mark.parametrize("name", ["DC", "PK"])
 def test_fisher_scoring_reaches_the_lbfgs_optimum(name, seed, monkeypatch):
     u, y = paper_like_problem(seed)
-    kernel = experiments.paper_kernels(0.1)[name][0]
+    kernel = study.paper_kernels(0.1)[name][0]
 
     def fit(fisher_max_outputs):
         monkeypatch.setattr(tuning, "FISHER_MAX_OUTPUTS", fisher_max_outputs)
@@ -176,7 +176,7 @@ def test_fisher_scoring_reaches_the_lbfgs_optimum(name, seed, monkeypatch):
     # the optimum is stationary: the gain a Newton step on the interior
     # coordinates predicts, 1/2 g^T F^{-1} g, is negligible (in nats)
     _, grad, fisher_information = log_marginal_likelihood_fisher(
-        fisher.operator_, fisher.kernel_, fisher.noise_level_, y, True
+        fisher.observation_, fisher.kernel_, fisher.noise_level_, y, True
     )
     theta = np.append(fisher.kernel_.theta, np.log(fisher.noise_level_))
     bounds = np.vstack([fisher.kernel_.bounds, np.log(fisher.noise_level_bounds_)])

@@ -14,7 +14,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from gpmultirate import DownsampledConvolution
 from gpmultirate.kernels import DC, PK
-from gpmultirate.operator import convolution_matrix
+from gpmultirate.observations.convolution import convolution_matrix
 
 # (N, factor, order, offset)
 CASES = [

@@ -19,12 +19,13 @@ from scipy.optimize import OptimizeResult
 from sklearn.exceptions import NotFittedError
 from sklearn.gaussian_process.kernels import RBF, DotProduct, Exponentiation, ExpSineSquared
 from sklearn.gaussian_process.kernels import ConstantKernel as C
-from sklearn.gaussian_process.kernels import Kernel, Matern, RationalQuadratic, WhiteKernel
+from sklearn.gaussian_process.kernels import Kernel, Matern, PairwiseKernel, RationalQuadratic
+from sklearn.gaussian_process.kernels import WhiteKernel
 
 import gpmultirate
 from gpmultirate import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC
-from gpmultirate.operator import DownsampledConvolution
+from gpmultirate.observations import DownsampledConvolution
 from gpmultirate.persistence import (
     ModelFileError,
     describe_kernel,
@@ -294,10 +295,19 @@ class CustomDC(DC):
     pass
 
 
+# a kernel class of one's own that takes the name of one of the library's
+ShadowDC = type("DC", (DC,), {})
+
+
 def test_unsupported_kernel_or_parameter_refused_at_save(data, tmp_path):
-    model = FIRGaussianProcess(CustomDC(), factor=FACTOR, order=ORDER, optimizer=None).fit(*data)
-    with pytest.raises(ValueError, match="CustomDC"):
+    # a kernel of one's own is stored by name (see the user-kernel tests below),
+    # unless its name is that of a library kernel, which a file could not tell apart
+    model = FIRGaussianProcess(ShadowDC(), factor=FACTOR, order=ORDER, optimizer=None).fit(*data)
+    with pytest.raises(ValueError, match="DC.*name of its own"):
         save_model(model, tmp_path / "m.npz")
+    assert not os.listdir(tmp_path)
+    with pytest.raises(ValueError, match="PairwiseKernel.metric"):
+        describe_kernel(PairwiseKernel(metric=lambda a, b: float(a @ b)))
     model = FIRGaussianProcess(
         DC(), factor=FACTOR, order=ORDER, optimizer=None, random_state=np.random.default_rng(0)
     ).fit(*data)
@@ -321,7 +331,7 @@ def test_other_objects_refused(tmp_path):
 # ------------------------------------------------------------- bad files
 def test_flipped_byte_in_array_refused(saved, fitted):
     raw = bytearray(saved.read_bytes())
-    start = raw.find(fitted["C*DC tuned"].operator_.u.tobytes())
+    start = raw.find(fitted["C*DC tuned"].observation_.u.tobytes())
     assert start > 0
     raw[start + 17] ^= 0x01
     saved.write_bytes(bytes(raw))
@@ -435,3 +445,229 @@ def test_loading_never_unpickles(saved, tmp_path):
     with pytest.raises(ModelFileError):
         load_model(tmp_path / "model.pkl")
     assert not os.path.exists(marker)
+
+
+# ------------------------------------------------------ kernels of one's own
+class MyTC(TC):
+    """A user's kernel: TC under a name of its own, defined in the user's script."""
+
+
+class Elsewhere(DC):
+    pass
+
+
+@pytest.fixture(scope="module")
+def user_model(data):
+    return FIRGaussianProcess(C(1.0) * MyTC(0.8), factor=FACTOR, order=ORDER).fit(*data)
+
+
+def test_a_kernel_of_ones_own_round_trips_with_the_kernels_argument(user_model, data, tmp_path):
+    path = tmp_path / "model.npz"
+    save_model(user_model, path)
+    header, _ = read_members(path)
+    assert header["fitted"]["kernel_"]["k2"]["class"] == "MyTC"
+    loaded = load_model(path, kernels=[MyTC])
+    assert type(loaded.kernel_.k2) is MyTC
+    assert_same_model(user_model, loaded, data[0])  # bitwise: predictions, bands, evidence
+
+
+def test_without_the_kernels_argument_the_error_names_the_class_and_the_argument(
+        user_model, tmp_path):
+    path = tmp_path / "model.npz"
+    save_model(user_model, path)
+    for kernels in (None, [], [Elsewhere]):
+        with pytest.raises(ModelFileError, match=r"'MyTC'.*kernels=\[MyTC\]"):
+            load_model(path, kernels=kernels)
+
+
+def test_only_the_classes_passed_are_instantiated(saved):
+    rewrite(saved, lambda h, m: h["fitted"]["kernel_"]["k2"].update({"class": "os.system"}))
+    with pytest.raises(ModelFileError, match="unknown kernel class 'os.system'") as info:
+        load_model(saved, kernels=[MyTC])
+    assert "kernels=" not in str(info.value)  # no hint for a name no class can have
+    rewrite(saved, lambda h, m: h["fitted"]["kernel_"]["k2"].update({"class": "Elsewhere"}))
+    with pytest.raises(ModelFileError, match="Elsewhere"):
+        load_model(saved, kernels=[MyTC])
+    loaded = load_model(saved, kernels=[MyTC, Elsewhere])  # DC's parameters, Elsewhere's class
+    assert type(loaded.kernel_.k2) is Elsewhere
+
+
+@pytest.mark.parametrize("kernels, words", [
+    (MyTC, r"list of kernel classes.*kernels=\[MyKernel\]"),
+    ("MyTC", "list of kernel classes"),
+    ([MyTC()], r"kernels\[0\] must be a kernel class.*an instance"),
+    ([MyTC, int], r"kernels\[1\] must be a kernel class"),
+    ([ShadowDC], r"kernels\[0\].*'DC' is gpmultirate's"),
+    ([MyTC, type("MyTC", (TC,), {})], r"kernels\[1\].*'MyTC' is another entry's"),
+])
+def test_bad_kernels_argument_refused(saved, kernels, words):
+    with pytest.raises(ValueError, match=words):
+        load_model(saved, kernels=kernels)
+
+
+def test_the_library_kernels_may_be_passed_again(saved, fitted, data):
+    assert_same_model(fitted["C*DC tuned"], load_model(saved, kernels=[DC, TC, MyTC]), data[0])
+
+
+def test_a_kernel_of_ones_own_in_the_parameters_and_in_a_multi_output_file(data, tmp_path):
+    from gpmultirate import MultiOutputFIR
+
+    u, y_slow = data
+    ys = np.column_stack([y_slow, 0.5 * y_slow + 0.01 * np.cos(np.arange(y_slow.size))])
+    model = MultiOutputFIR(FIRGaussianProcess(
+        MyTC(0.8) + C(0.1) * Elsewhere(0.6), factor=FACTOR, order=ORDER)).fit(u, ys)
+    path = tmp_path / "multi.npz"
+    save_model(model, path)
+    with pytest.raises(ModelFileError, match="kernels="):
+        load_model(path, kernels=[MyTC])
+    loaded = load_model(path, kernels=[MyTC, Elsewhere])
+    assert type(loaded.estimator.kernel.k1) is MyTC  # the template's parameter
+    u_new = np.sin(0.3 * np.arange(70))
+    np.testing.assert_array_equal(loaded.predict(u_new), model.predict(u_new))
+    for a, b in zip(loaded.estimators_, model.estimators_):
+        assert repr(a.kernel_) == repr(b.kernel_)
+        np.testing.assert_array_equal(a.impulse_response([0.5, 3.25]),
+                                      b.impulse_response([0.5, 3.25]))
+
+
+# ------------------------------------------------------------ atomic files
+def _only_the_model_file(folder, name="model.npz"):
+    assert sorted(os.listdir(folder)) == [name]
+
+
+def test_saving_over_a_file_replaces_it_whole_and_keeps_its_permissions(fitted, saved, data):
+    os.chmod(saved, 0o640)
+    save_model(fitted["least squares"], saved)
+    assert os.stat(saved).st_mode & 0o777 == 0o640
+    _only_the_model_file(saved.parent)
+    assert type(load_model(saved)) is LeastSquaresFIR
+
+
+def test_a_symbolic_link_is_written_through(fitted, tmp_path):
+    (tmp_path / "store").mkdir()
+    real = tmp_path / "store" / "model.npz"
+    real.write_bytes(b"old")
+    link = tmp_path / "link.npz"
+    link.symlink_to(real)
+    save_model(fitted["least squares"], link)
+    assert link.is_symlink() and type(load_model(real)) is LeastSquaresFIR
+    _only_the_model_file(tmp_path / "store")
+
+
+@pytest.mark.parametrize("where", ["write", "fsync", "replace", "interrupt"])
+def test_a_failure_at_any_step_keeps_the_old_file_and_leaves_no_temporary(
+        where, fitted, saved, monkeypatch):
+    before = saved.read_bytes()
+    model = fitted["DC+PK sum"]
+
+    def fail(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    if where == "write":
+        real_savez = np.savez
+
+        def savez(file, **members):  # a few bytes reach the file, then the disk is full
+            file.write(b"PK\x03\x04 partial")
+            fail()
+        monkeypatch.setattr(np, "savez", savez)
+        assert real_savez is not np.savez
+    elif where == "interrupt":
+        def savez(file, **members):
+            file.write(b"PK\x03\x04 partial")
+            raise KeyboardInterrupt
+        monkeypatch.setattr(np, "savez", savez)
+    else:
+        monkeypatch.setattr(os, where, fail)
+    expected = KeyboardInterrupt if where == "interrupt" else OSError
+    with pytest.raises(expected) as info:
+        save_model(model, saved)
+    monkeypatch.undo()
+    if expected is OSError:
+        message = str(info.value)
+        assert str(saved) in message and "unchanged" in message and "No space" in message
+        assert info.value.errno == 28
+    assert saved.read_bytes() == before
+    _only_the_model_file(saved.parent)
+
+
+CHILD = """
+import hashlib, json, os, resource, sys
+import numpy as np
+import gpmultirate as gm
+
+path, limit = sys.argv[1], int(sys.argv[2])
+rng = np.random.default_rng(1)
+u = rng.standard_normal(300)
+y_slow = np.convolve(u, 0.8 ** np.arange(40))[:300][::3]
+model = gm.LeastSquaresFIR(factor=3, order=40).fit(u, y_slow)
+soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+if limit:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
+try:
+    gm.save_model(model, path)
+except BaseException as error:
+    with open(path, "rb") as file:  # what the failed save left, before the save below
+        digest = hashlib.sha256(file.read()).hexdigest()
+    print(json.dumps({"type": type(error).__name__, "errno": getattr(error, "errno", None),
+                      "message": str(error), "os_error": isinstance(error, OSError),
+                      "sha256": digest, "listing": sorted(os.listdir(os.path.dirname(path)))}))
+else:
+    print(json.dumps({"type": None}))
+if limit:  # the same save without the limit
+    resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    gm.save_model(model, path)
+    print(json.dumps({"type": None}))
+"""
+
+
+def _run_child(path, limit=0, drop_capabilities=False):
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [os.path.dirname(os.path.dirname(gpmultirate.__file__)), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", CHILD, str(path), str(limit)], env=env,
+                          capture_output=True, text=True, timeout=300,
+                          preexec_fn=_drop_capabilities if drop_capabilities else None)
+    assert done.returncode == 0, done.stderr
+    return [json.loads(line) for line in done.stdout.strip().splitlines()]
+
+
+def _drop_capabilities():
+    """In the child before exec: root without capabilities obeys file permissions."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    for capability in range(64):  # PR_CAPBSET_DROP; EINVAL past the last capability
+        if libc.prctl(24, capability, 0, 0, 0) != 0 and ctypes.get_errno() != 22:
+            raise OSError(ctypes.get_errno(), "cannot drop capabilities")
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="resource limits are POSIX")
+def test_a_file_size_limit_keeps_the_old_file(saved, tmp_path):
+    before = saved.read_bytes()
+    # part of the new file is written, then EFBIG
+    found, again = _run_child(saved, limit=4096)
+    assert found["type"] == "OSError" and found["os_error"] and found["errno"] == 27  # EFBIG
+    assert str(saved) in found["message"] and "unchanged" in found["message"]
+    assert found["sha256"] == hashlib.sha256(before).hexdigest()  # byte-identical
+    assert found["listing"] == ["model.npz"]  # no temporary left
+    # then, without the limit, the same save replaces the file by a complete one
+    assert again["type"] is None
+    assert type(load_model(saved)) is LeastSquaresFIR
+    assert os.path.getsize(saved) > 3 * 4096  # the limit did cut the first attempt
+    _only_the_model_file(tmp_path)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="permissions are POSIX")
+def test_an_unwritable_folder_keeps_the_old_file(saved, tmp_path):
+    before = saved.read_bytes()
+    os.chmod(tmp_path, 0o555)
+    try:
+        found, = _run_child(saved, drop_capabilities=os.geteuid() == 0)
+    finally:
+        os.chmod(tmp_path, 0o755)
+    assert found["type"] == "PermissionError" and found["errno"] == 13
+    assert str(saved) in found["message"] and "unchanged" in found["message"]
+    assert saved.read_bytes() == before
+    _only_the_model_file(tmp_path)

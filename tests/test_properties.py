@@ -455,10 +455,10 @@ def test_caller_arrays_are_never_modified(problem, spec, how, optimizer):
         "log_marginal_likelihood": lambda: model.log_marginal_likelihood(
             theta, eval_gradient=True),
         "DownsampledConvolution": lambda: DownsampledConvolution(u, **problem.layout()),
-        "matvec": lambda: model.operator_.matvec(coef),
-        "rmatvec": lambda: model.operator_.rmatvec(y),
-        "ObservedKernel": lambda: ObservedKernel(kernel, model.operator_)(X),
-        "ObservedKernel.diag": lambda: ObservedKernel(kernel, model.operator_).diag(X),
+        "matvec": lambda: model.observation_.matvec(coef),
+        "rmatvec": lambda: model.observation_.rmatvec(y),
+        "ObservedKernel": lambda: ObservedKernel(kernel, model.observation_)(X),
+        "ObservedKernel.diag": lambda: ObservedKernel(kernel, model.observation_).diag(X),
         "kernel(lags)": lambda: kernel(np.asarray(lags, dtype=float)[:, None]),
         "goodness_of_fit": lambda: goodness_of_fit(u, np.zeros(len(problem.u))),
         "downsample": lambda: sim.downsample(u, problem.factor, problem.offset),
@@ -488,7 +488,7 @@ def test_caller_arrays_are_never_modified(problem, spec, how, optimizer):
     # the model keeps its own copies: changing the caller's arrays changes nothing
     def outputs():
         return (model.predict(problem.u), model.impulse_response(lags),
-                model.log_marginal_likelihood(theta), model.operator_.matrix)
+                model.log_marginal_likelihood(theta), model.observation_.matrix)
 
     before = outputs()
     for array in (u, y, u_base, y_base):

@@ -217,7 +217,7 @@ def test_evidence_gain_is_the_evidence_without_the_term_refitted():
     model = _fit("auto", u, y, 240)
     (found,) = model.resonances_
     rest = model.kernel_.k1  # C * DC, tuned with the term
-    op, z = model.operator_, model.y_slow_
+    op, z = model.observation_, model.y_slow_
 
     def negative(x):
         kernel = C(np.exp(x[0]), (1e-300, 1e300)) * rest
@@ -239,11 +239,11 @@ def test_long_record_and_missing_samples():
     y = sim.simulate_experiment(system, u, FACTOR, snr_db=40, random_state=rng).y_slow
     y[::7] = np.nan
     model = _fit("auto", u, y, 150)
-    assert model.operator_.n_outputs > 150  # the evidence is that of the reduction
+    assert model.observation_.n_outputs > 150  # the evidence is that of the reduction
     (found,) = model.resonances_
     assert found.frequency_hz == pytest.approx(system.natural_frequencies[0], rel=0.02)
     assert model.log_marginal_likelihood_value_ == pytest.approx(
-        log_marginal_likelihood(model.operator_, model.kernel_, model.noise_level_,
+        log_marginal_likelihood(model.observation_, model.kernel_, model.noise_level_,
                                 model.y_slow_, False, True), rel=1e-9
     )
 

@@ -307,20 +307,6 @@ class TestDrawingDataObjects:
 
 
 # ------------------------------------------------------------ compatibility
-def test_former_module_names_re_export_the_same_objects():
-    import gpmultirate.experiments as experiments
-    import gpmultirate.frequency as frequency
-    import gpmultirate.plotting as plotting
-    import gpmultirate.study as study
-
-    assert frequency.FrequencyResponse is FrequencyResponse is gm.FrequencyResponse
-    for name in experiments.__all__:
-        assert getattr(experiments, name) is getattr(study, name)
-    assert plotting.nonidentifiable_example is study.nonidentifiable_example
-    assert plotting.NonidentifiableExample is study.NonidentifiableExample
-    assert {"plot_bode", "plot_study", "StudyPlot", "BodePlot"} <= set(plotting.__all__)
-
-
 def test_no_module_imports_private_names_of_another():
     """The modules of this restructuring use only public names of each other."""
     files = [PACKAGE / "responses.py", PACKAGE / "experiments.py", PACKAGE / "frequency.py",

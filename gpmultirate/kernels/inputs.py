@@ -20,7 +20,8 @@ from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 from gpmultirate.kernels.structure import (
     ObservedTerm, StructuredKernel, concatenated_couplings, observe,
 )
-from gpmultirate.validation import as_real_array, check_kernel
+from gpmultirate.kernels.transforms import check_kernel
+from gpmultirate.validation import as_real_array
 
 __all__ = ["BlockTerm", "PerInputKernel", "input_kernels", "kernel_for_inputs", "like_inputs"]
 

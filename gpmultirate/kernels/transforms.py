@@ -11,14 +11,19 @@ scaled there as the log of a decay rate.
 A lag kernel declares the transform of each hyperparameter
 (:meth:`~gpmultirate.kernels.LagKernel.theta_transform`); every other
 kernel keeps scikit-learn's log.  :func:`theta_transforms` lists them for any
-kernel, composite or not, in ``theta`` order.
+kernel, composite or not, in ``theta`` order, and :func:`check_kernel` checks
+a kernel's values and bounds against them.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from sklearn.gaussian_process.kernels import Kernel
 
-__all__ = ["ArtanhTransform", "LogTransform", "ThetaTransform", "theta_transforms", "LOG", "ARTANH"]
+from gpmultirate.validation import as_real_array
+
+__all__ = ["ArtanhTransform", "LogTransform", "ThetaTransform", "check_kernel", "theta_transforms",
+           "LOG", "ARTANH"]
 
 
 class ThetaTransform:
@@ -218,3 +223,38 @@ def theta_transforms(kernel) -> list:
         if not h.fixed:
             out += [transform_of(kernel, h.name)] * h.n_elements
     return out
+
+
+def check_kernel(kernel, name: str = "kernel"):
+    """Check a scikit-learn kernel's hyperparameter values and bounds.
+
+    Each hyperparameter is checked against its ``theta`` coordinate
+    (:func:`transform_of`): a value tuned in
+    ``log`` must be real, finite and positive and its bounds a pair
+    ``0 < low <= high``; a correlation tuned in ``artanh`` (DC's ``beta``)
+    must lie in ``(-1, 1]`` and its bounds within it.  Lag kernels also
+    check their own ranges (``alpha <= 1`` ...) on a test evaluation.
+    """
+    if not isinstance(kernel, Kernel):
+        raise ValueError(f"{name} must be a scikit-learn Kernel over lags; got {type(kernel).__name__}")
+    params = kernel.get_params()
+    for h in kernel.hyperparameters:
+        value = params.get(h.name)
+        transform = transform_of(kernel, h.name)
+        try:
+            as_real_array(value, f"{name} hyperparameter {h.name}")
+            transform.check_value(value, f"{name} hyperparameter {h.name}")
+        except ValueError as exc:
+            message = str(exc)
+            if not message.startswith(name):
+                message = f"{name} hyperparameter {h.name}: {message}"
+            raise ValueError(message) from None
+        if h.fixed:
+            continue
+        bounds_name = f"{h.name.rpartition('__')[2]}_bounds"
+        transform.check_bounds(h.bounds, f"{name} {bounds_name}")
+    try:
+        kernel(np.zeros((1, 1)))
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+    return kernel

@@ -29,9 +29,11 @@ The modules: :mod:`gpmultirate.plotting.frequency` (Bode plot),
 :mod:`gpmultirate.plotting.time` (time-domain figures),
 :mod:`gpmultirate.plotting.study` (study figures) and
 :mod:`gpmultirate.plotting.axes` (helpers shared by them).
-:func:`nonidentifiable_example` and :class:`NonidentifiableExample` are
-defined in :mod:`gpmultirate.study` and re-exported here so that existing
-imports keep working.
+``gpmultirate.plotting.nonidentifiable_example`` and
+``gpmultirate.plotting.NonidentifiableExample`` are deprecated names of
+:func:`gpmultirate.study.nonidentifiable_example` and
+:class:`gpmultirate.study.NonidentifiableExample`: they warn when used and
+are removed in gpmultirate 0.2.0.
 
 Examples
 --------
@@ -49,6 +51,7 @@ Examples
 >>> plt.close("all")
 """
 
+from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.plotting.frequency import BodePlot, plot_bode
 from gpmultirate.plotting.study import GoFPlot, StudyPlot, plot_gof_vs_order, plot_study
 from gpmultirate.plotting.time import (
@@ -58,16 +61,14 @@ from gpmultirate.plotting.time import (
     plot_intersample,
     plot_nonidentifiable_example,
 )
-from gpmultirate.study.examples import NonidentifiableExample, nonidentifiable_example
+from gpmultirate.study import examples as _examples
 
 __all__ = [
     "BodePlot",
     "GoFPlot",
     "ImpulseResponsePlot",
     "IntersamplePlot",
-    "NonidentifiableExample",
     "StudyPlot",
-    "nonidentifiable_example",
     "plot_bode",
     "plot_gof_vs_order",
     "plot_impulse_response",
@@ -75,3 +76,13 @@ __all__ = [
     "plot_nonidentifiable_example",
     "plot_study",
 ]
+
+# names that moved to gpmultirate.study, deprecated
+_MOVED = {"NonidentifiableExample", "nonidentifiable_example"}
+
+
+def __getattr__(name):
+    if name in _MOVED:
+        warn_deprecated(f"gpmultirate.plotting.{name}", f"gpmultirate.study.{name}")
+        return getattr(_examples, name)
+    raise AttributeError(f"module 'gpmultirate.plotting' has no attribute {name!r}")

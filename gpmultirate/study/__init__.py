@@ -33,8 +33,8 @@ from gpmultirate.study.examples import (
     nonidentifiable_example,
     paper_example,
 )
-from gpmultirate.study.results import GoFSummary, StudyResult
-from gpmultirate.study.runner import TrialResult, run_paper_study, run_trial
+from gpmultirate.study.results import GoFSummary, StudyResult, TrialResult
+from gpmultirate.study.runner import run_paper_study, run_trial
 from gpmultirate.study.simulation import (
     METHODS,
     PAPER_NOISE_LEVEL,

@@ -38,6 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gpmultirate.exceptions import JournalError
+from gpmultirate.study.results import TrialResult
 from gpmultirate.version import __version__
 
 try:  # pragma: no cover - fcntl is missing on Windows only
@@ -61,10 +63,6 @@ _SETTING_NAMES = {
     "sample_time": "sample_time", "snr_db": "SNR range", "perturbation": "perturbation",
     "version": "gpmultirate version",
 }
-
-
-class JournalError(ValueError):
-    """A journal that cannot be resumed: corrupt, locked, or of other settings."""
 
 
 def study_settings(n_runs, orders, methods, config, root) -> dict:
@@ -133,8 +131,6 @@ def _encode_trial(trial) -> bytes:
 
 
 def _decode_trial(record, settings: dict):
-    from gpmultirate.study.runner import TrialResult
-
     if not isinstance(record, dict):
         raise ValueError("a run record must be a JSON object")
     run = record["run"]

@@ -18,7 +18,7 @@ import numpy as np
 
 from gpmultirate.validation import check_int, check_signal
 
-__all__ = ["GoFSummary", "StudyResult"]
+__all__ = ["GoFSummary", "StudyResult", "TrialResult"]
 
 _STUDY_FORMAT = "gpmultirate-study"
 # per-method arrays of a StudyResult and their dtypes
@@ -159,6 +159,37 @@ class GoFSummary:
         several = count > 1
         std[several] = np.sqrt((deviation[:, several] ** 2).sum(axis=0) / (count[several] - 1))
         return cls(orders=orders, mean=mean, std=std, count=count, n_runs=int(gof.shape[0]))
+
+
+@dataclass
+class TrialResult:
+    """Scores of one Monte Carlo run, see :func:`~gpmultirate.study.runner.run_trial`.
+
+    Attributes
+    ----------
+    run : int
+        Index of the run in its study.
+    gof : dict of str to ndarray of shape (n_orders,)
+        Validation goodness of fit in percent per method; NaN where the
+        model does not exist (least squares with ``P >= M``).
+    identifiable : dict of str to bool ndarray of shape (n_orders,)
+    fit_seconds : dict of str to ndarray of shape (n_orders,)
+        Wall time of each ``fit``.
+    n_warnings : dict of str to int ndarray of shape (n_orders,)
+        Convergence or jitter warnings raised by each fit.
+    snr_db : float
+        The run's training SNR.
+    seconds : float
+        Wall time of the whole run.
+    """
+
+    run: int
+    gof: dict
+    identifiable: dict
+    fit_seconds: dict
+    n_warnings: dict
+    snr_db: float
+    seconds: float
 
 
 @dataclass

@@ -21,7 +21,6 @@ import os
 import sys
 import time
 import warnings
-from dataclasses import dataclass
 
 import joblib
 import numpy as np
@@ -31,7 +30,7 @@ from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning
 from gpmultirate.inference import one_blas_thread
 from gpmultirate.study.journal import StudyJournal, read_journal, study_settings
-from gpmultirate.study.results import StudyResult
+from gpmultirate.study.results import StudyResult, TrialResult
 from gpmultirate.study.simulation import (
     METHODS,
     PAPER_ORDERS,
@@ -136,37 +135,6 @@ def fit_and_score(method: str, order: int, data: RunData):
 
 
 # ------------------------------------------------------------------ one run
-@dataclass
-class TrialResult:
-    """Scores of one Monte Carlo run, see :func:`run_trial`.
-
-    Attributes
-    ----------
-    run : int
-        Index of the run in its study.
-    gof : dict of str to ndarray of shape (n_orders,)
-        Validation goodness of fit in percent per method; NaN where the
-        model does not exist (least squares with ``P >= M``).
-    identifiable : dict of str to bool ndarray of shape (n_orders,)
-    fit_seconds : dict of str to ndarray of shape (n_orders,)
-        Wall time of each ``fit``.
-    n_warnings : dict of str to int ndarray of shape (n_orders,)
-        Convergence or jitter warnings raised by each fit.
-    snr_db : float
-        The run's training SNR.
-    seconds : float
-        Wall time of the whole run.
-    """
-
-    run: int
-    gof: dict
-    identifiable: dict
-    fit_seconds: dict
-    n_warnings: dict
-    snr_db: float
-    seconds: float
-
-
 def run_trial(
     seed,
     orders=PAPER_ORDERS,
