@@ -23,11 +23,9 @@ from __future__ import annotations
 
 import argparse
 import io
-import json
 import math
 import os
 import sys
-import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -45,7 +43,6 @@ __all__ = ["build_parser", "main"]
 DEMO_RUNS = 2
 DEMO_ORDERS = (100, 200, 600)
 SAMPLE_TIME = 0.1  # the paper's fast sample time, s
-_STYLES = {"LS": "tab:red", "DC": "tab:blue", "PK": "tab:green"}
 _DESCRIPTIONS = {"LS": "least squares", "DC": "DC kernel", "PK": "prior-knowledge kernel"}
 
 
@@ -365,92 +362,9 @@ def _figure(**kwargs):
     return Figure(layout="constrained", **kwargs)
 
 
-def _format_gof(value: float) -> str:
-    # enough decimals to tell 99.9990 % from 100 %
-    return f"{value:.2f}" if value < 99.99 else f"{value:.4f}"
-
-
 def _save(args, fig, path: Path) -> None:
     fig.savefig(path, dpi=150)
     _say(args, f"wrote {path}")
-
-
-def _study_figure(args, result, out: Path) -> None:
-    from gpmultirate.plotting import plot_study
-
-    fig = _figure(figsize=(6.4, 4.2))
-    ax = fig.subplots()
-    plot_study(result, ax=ax)
-    ax.set_title(f"GoF on validation data, mean ± 2 std over {result.n_runs} "
-                 f"run{'s' if result.n_runs > 1 else ''}", fontsize="medium")
-    _save(args, fig, out / "gof_vs_order.png")
-
-
-def _example_figures(args, example, out: Path) -> None:
-    from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
-    from gpmultirate.responses import ImpulseResponse, OutputPrediction
-
-    methods = list(example.models)
-    data = example.data
-    n = data.u.shape[0]
-    titles = {m: (f"{m} ({_DESCRIPTIONS[m]}), P = "
-                  f"{example.ls_order if m == 'LS' else example.order}, "
-                  f"GoF {_format_gof(example.gof[m])} %") for m in methods}
-
-    # Bode magnitude per estimator with the true FRF and 0.1 |G0 - G| (paper Fig. 6), at
-    # the DFT bins of the record, the frequencies the multisine excites
-    freqs = example.frequencies()
-    true_frf = example.true_frequency_response(freqs)
-    fig = _figure(figsize=(8.5, 2.6 * len(methods) + 0.4))
-    axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, method in zip(axes, methods):
-        frf = example.models[method].frequency_response(freqs, sample_time=data.sample_time)
-        plot_bode(frf, axes=ax, phase=False, label=method, color=_STYLES[method],
-                  true_frf=true_frf, show_error=True, error_scale=0.1)
-        ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    _save(args, fig, out / "bode.png")
-
-    # impulse responses: posterior mean and 95 % band over the first lags, true markers
-    n_lags = min(example.order, max(60, n // 4))
-    true_g = example.true_impulse_response(n_lags)
-    fig = _figure(figsize=(8.5, 2.4 * len(methods) + 0.4))
-    axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, method in zip(axes, methods):
-        model = example.models[method]
-        order = model.coef_.shape[0]
-        shown = min(order, n_lags)
-        lags = (np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1) if model.continuous_lags
-                else np.arange(shown))
-        plot_impulse_response(ImpulseResponse.from_model(model, lags), ax=ax, label=method,
-                              color=_STYLES[method], true_response=true_g)
-        ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    if n_lags < example.order:
-        axes[-1].set_xlabel(f"lag [samples] (the first {n_lags} of P)")
-    _save(args, fig, out / "impulse_response.png")
-
-    # intersample output on the training input: 20 slow periods in the middle
-    width = min(n, 20 * data.factor)
-    start = max(0, (n - width) // 2)
-    start -= start % data.factor
-    fig = _figure(figsize=(8.5, 2.4 * len(methods) + 0.4))
-    axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, method in zip(axes, methods):
-        prediction = OutputPrediction.from_model(
-            example.models[method], data.u, y_fast=data.y_fast, y_slow=data.y_slow,
-            sample_time=data.sample_time)
-        plot_intersample(prediction, ax=ax, window=(start, min(n, start + width)),
-                         label=method, color=_STYLES[method])
-        ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    _save(args, fig, out / "intersample.png")
 
 
 def _demo(parser, args) -> int:
@@ -556,13 +470,15 @@ def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int
     sys.stdout.flush()
 
     if not args.no_figures:
-        _study_figure(args, result, out)
+        from gpmultirate.plotting.report import example_figures, study_figure
+
+        _save(args, study_figure(result), out / "gof_vs_order.png")
         _say(args, f"fitting one run's models for the figures (order {example_order}) ...")
         example = paper_example(args.seed, example_order, methods=args.methods,
                                 n_jobs=min(joblib.effective_n_jobs(args.n_jobs), 2),
                                 **config)
-        if example.models:
-            _example_figures(args, example, out)
+        for name, figure in (example_figures(example) if example.models else {}).items():
+            _save(args, figure, out / name)
     journal.unlink(missing_ok=True)  # the study is complete: its runs are in study.json
     _say(args, f"done in {time.perf_counter() - started:.1f} s")
     return 0
@@ -638,45 +554,6 @@ def _read_inputs(parser, path, inputs, extra=()):
     return (u[:, 0] if u.shape[1] == 1 else u), [columns[name] for name in extra]
 
 
-def _slow_samples(parser, args, path, y):
-    """Measured instants and values of the output column, and the fit placement.
-
-    Returns ``(indices, values, placement)`` with ``placement`` the keyword
-    arguments of ``fit`` (``y_slow`` with NaN for samples missing from a
-    uniform grid, and ``factor``/``offset`` or ``sample_indices``) and
-    ``(factor, offset)`` of the grid (``offset`` None for irregular instants).
-    """
-    n = y.shape[0]
-    if args.factor is not None or args.offset is not None:
-        factor = 1 if args.factor is None else args.factor
-        offset = 0 if args.offset is None else args.offset
-        if offset >= factor:
-            parser.error(f"argument --offset: must lie in 0..F-1 = 0..{factor - 1} with "
-                         f"--factor {factor}; got {offset}")
-        if offset >= n:
-            parser.error(f"argument --offset: must be below the {n} rows of {path}; "
-                         f"got {offset}")
-        grid = np.arange(offset, n, factor)
-        measured = grid[np.isfinite(y[grid])]
-    else:
-        measured = np.flatnonzero(np.isfinite(y))
-        factor = (max(1, int(round(float(np.median(np.diff(measured))))))
-                  if measured.size > 1 else 1)
-        offset = int(measured[0] % factor) if measured.size else 0
-        grid = np.arange(offset, n, factor)
-    if measured.size == 0:
-        parser.error(f"{path}: output column {args.output_column!r} has no measured (finite) "
-                     "value" + (" at the kept rows" if args.factor is not None else ""))
-    values = y[measured]
-    if np.all((measured - offset) % factor == 0):
-        # on a uniform grid: factor and offset, NaN where a grid sample is missing
-        y_slow = np.full(grid.shape[0], np.nan)
-        y_slow[(measured - offset) // factor] = values
-        return measured, values, {"y_slow": y_slow, "factor": factor, "offset": offset}, \
-            (factor, offset)
-    return measured, values, {"y_slow": values, "sample_indices": measured}, (factor, None)
-
-
 def _fit_kernel(name: str):
     """The ``kernel`` argument of the estimator for ``--kernel name``.
 
@@ -696,219 +573,42 @@ def _fit_kernel(name: str):
     return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
 
 
-def _plain(value):
-    """``value`` as JSON-compatible plain Python data."""
-    import dataclasses
-
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if value is None or isinstance(value, str):
-        return value
-    return str(value)
-
-
-def _hyperparameters(kernel) -> dict:
-    params = kernel.get_params(deep=True)
-    out = {}
-    for hyper in kernel.hyperparameters:
-        value = params.get(hyper.name)
-        if value is not None:
-            out[hyper.name] = _plain(value)
-    return out
-
-
 def _png(fig) -> bytes:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=150)
     return buffer.getvalue()
 
 
-def _fit_figures(model, u, indices, values, names) -> dict[str, bytes]:
-    from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
-    from gpmultirate.responses import ImpulseResponse, OutputPrediction
-
-    n_inputs = model.n_inputs_
-    prediction_length = np.shape(u)[0]
-    figures = {}
-    # Bode: one magnitude and phase pair per input
-    fig = _figure(figsize=(4.8 * n_inputs + 1.2, 5.6))
-    axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
-    for k in range(n_inputs):
-        frf = model.frequency_response(input=k if n_inputs > 1 else None)
-        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean")
-        axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
-    figures["bode.png"] = _png(fig)
-
-    # impulse responses at 4 lags per sample, between the integer lags too
-    order = model.coef_.shape[-1]
-    shown = min(order, max(60, prediction_length // 4))
-    lags = np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1)
-    mean, std = model.impulse_response(lags, return_std=True)
-    mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
-    fig = _figure(figsize=(8.5, 2.6 * n_inputs + 0.4))
-    axes = fig.subplots(n_inputs, 1, sharex=True, squeeze=False)[:, 0]
-    for k, ax in enumerate(axes):
-        response = ImpulseResponse(lags=lags, mean=mean[k], std=std[k], level=0.95,
-                                   continuous=bool(model.continuous_lags))
-        plot_impulse_response(response, ax=ax, label="posterior mean (95 % band)")
-        ax.set_title(f"impulse response of input {names[k]}", fontsize="medium", loc="left")
-        ax.legend(fontsize="small")
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    if shown < order:
-        axes[-1].set_xlabel(f"lag [samples] (the first {shown} of P = {order})")
-    figures["impulse.png"] = _png(fig)
-
-    # fast-rate output on the record, all of it and a zoom on 20 slow periods
-    prediction = OutputPrediction.from_model(
-        model, u, y_slow=values, sample_indices=indices)
-    n = prediction.time.shape[0]
-    spacing = (max(1, int(round(float(np.median(np.diff(indices))))))
-               if indices.size > 1 else 1)
-    width = min(n, 20 * spacing)
-    start = max(0, (n - width) // 2)
-    fig = _figure(figsize=(8.5, 5.6))
-    full, zoom = fig.subplots(2, 1)
-    plot_intersample(prediction, ax=full, label="prediction (95 % band)")
-    full.set_title("fast-rate output predicted from the slow samples", fontsize="medium",
-                   loc="left")
-    plot_intersample(prediction, ax=zoom, window=(start, start + width),
-                     label="prediction (95 % band)")
-    zoom.set_title(f"fast samples {start}..{start + width - 1}", fontsize="medium", loc="left")
-    for ax in (full, zoom):
-        ax.legend(fontsize="small")
-    figures["intersample.png"] = _png(fig)
-    return figures
-
-
-def _cell_text(value) -> str:
-    return f"{value:.6g}" if isinstance(value, float) else str(value)
-
-
-def _summary_markdown(summary: dict) -> str:
-    data, model = summary["data"], summary["model"]
-    lines = ["# gpmultirate fit", "",
-             f"- data: `{data['file']}`, inputs {', '.join(f'`{c}`' for c in data['inputs'])}, "
-             f"output `{data['output']}`",
-             f"- {data['n_samples']} fast samples, {data['n_slow_samples']} measured slow "
-             f"samples ({data['sampling']}), sample time {data['sample_time']:g} s",
-             f"- estimator: {model['estimator']}, order {model['order']}, initial "
-             f"conditions {model['initial_conditions']}",
-             f"- kernel: `{model['kernel']}`",
-             f"- log evidence: {model['log_evidence']:.6g}",
-             f"- noise level (variance): {model['noise_level']:.6g} "
-             f"(std {math.sqrt(model['noise_level']):.6g})", "",
-             "## Hyperparameters", "", "| name | value |", "|---|---|"]
-    lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
-    resonances = summary.get("resonances")
-    if resonances and isinstance(resonances, list) and all(isinstance(r, dict)
-                                                           for r in resonances):
-        keys = list(dict.fromkeys(k for r in resonances for k in r))
-        lines += ["", "## Resonances found", "", "| " + " | ".join(keys) + " |",
-                  "|" + "---|" * len(keys)]
-        lines += ["| " + " | ".join(_cell_text(r.get(k)) for k in keys) + " |"
-                  for r in resonances]
-    elif "resonances" in summary:
-        lines += ["", "## Resonances found", "", "```",
-                  json.dumps(summary["resonances"], indent=1), "```"]
-    selection = summary.get("order_selection")
-    if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
-        criterion = selection.get("criterion")
-        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
-                else f"{criterion} per slow sample")
-        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
-                  "", "| order | score |", "|---|---|"]
-        lines += [f"| {o} | {_cell_text(v)} |"
-                  for o, v in zip(selection["orders"], selection.get("score", []))]
-    if "state_space" in summary:
-        lines += ["", "## State-space model", "",
-                  f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
-    if "validation" in summary:
-        val = summary["validation"]
-        lines += ["", "## Validation", "",
-                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
-                  f"({val['n_samples']} fast samples)"]
-        if "fit_percent" in val:
-            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
-    if summary["notes"]:
-        lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
-    return "\n".join(lines) + "\n"
-
-
-def _check_out_dir(parser, out: Path, names, force: bool) -> None:
-    if out.exists() and not out.is_dir():
-        parser.error(f"argument --out: {str(out)!r} exists and is not a directory")
-    if not force:
-        existing = [name for name in names if (out / name).exists()]
-        if existing:
-            parser.error(f"argument --out: {out / existing[0]} exists; use --force to "
-                         "overwrite")
-
-
-def _write_files(parser, out: Path, files: dict, force: bool, stale=()) -> None:
-    """Write ``files`` (name to bytes) into ``out`` atomically: temporary files, then renames."""
-    created = not out.exists()
-    temps = {}
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        for name, content in files.items():
-            handle, temp = tempfile.mkstemp(prefix=f".{name}.", suffix=".part", dir=out)
-            temps[name] = temp
-            with os.fdopen(handle, "wb") as stream:
-                stream.write(content)
-        if not force:
-            existing = [name for name in files if (out / name).exists()]
-            if existing:
-                raise FileExistsError(f"{out / existing[0]} appeared while writing")
-        for name, temp in temps.items():
-            os.replace(temp, out / name)
-        for name in stale:  # an older run's file that this run does not write
-            if name not in files and (out / name).exists():
-                (out / name).unlink()
-    except OSError as error:
-        for temp in temps.values():
-            if os.path.exists(temp):
-                os.unlink(temp)
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
-        parser.error(f"argument --out: cannot write to {str(out)!r} ({error})")
-    except BaseException:
-        for temp in temps.values():
-            if os.path.exists(temp):
-                os.unlink(temp)
-        raise
-
-
 def _fit(parser, args) -> int:
     import warnings
 
-    from gpmultirate import FIRGaussianProcess, fit_percent, save_model
+    from gpmultirate import FIRGaussianProcess, save_model
+    from gpmultirate.export import save_state_space
+    from gpmultirate.io import read_slow_samples, write_folder
+    from gpmultirate.plotting.report import fit_figures
+    from gpmultirate.report import fit_report
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
     out = Path(args.out)
-    _check_out_dir(parser, out, FIT_FILES, args.force)
+    _check_out_dir(parser, out, args.force)
     started = time.perf_counter()
     u, (y,) = _read_inputs(parser, path, inputs, [output])
     n = y.shape[0]
     if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")
-    indices, values, placement, (factor, offset) = _slow_samples(parser, args, path, y)
-    u_val = y_val = None
+    if args.offset is not None and args.offset >= (args.factor or 1):
+        parser.error(f"argument --offset: must lie in 0..F-1 = 0..{(args.factor or 1) - 1} "
+                     f"with --factor {args.factor or 1}; got {args.offset}")
+    if args.offset is not None and args.offset >= n:
+        parser.error(f"argument --offset: must be below the {n} rows of {path}; "
+                     f"got {args.offset}")
+    try:
+        samples = read_slow_samples(y, factor=args.factor, offset=args.offset)
+    except ValueError as error:
+        parser.error(f"{path}: {str(error).replace('column', f'output column {output!r}', 1)}")
+    validation = None
     if args.validate is not None:
         u_val, (y_val,) = _read_inputs(parser, args.validate, inputs, [output])
         missing = np.flatnonzero(np.isnan(y_val))
@@ -918,95 +618,55 @@ def _fit(parser, args) -> int:
         if np.ptp(y_val) == 0:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
+        validation = (u_val, y_val)
 
-    notes = []
-    params = {"kernel": _fit_kernel(args.kernel), "order": args.order,
-              "initial_conditions": args.initial_conditions, "sample_time": args.sample_time,
-              "tuning": args.tuning, "cv": args.cv}
-    y_slow = placement.pop("y_slow")
-    if "factor" in placement:
-        params.update(placement)
-        fit_kwargs = {}
-    else:
-        fit_kwargs = placement
-    sampling = (f"one sample in {factor}, from row {offset}" if offset is not None
-                else f"irregular instants, median spacing {factor}")
-    if offset is not None and values.shape[0] < len(range(offset, n, factor)):
-        sampling += f", {len(range(offset, n, factor)) - values.shape[0]} missing"
-    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {values.shape[0]} slow samples "
-               f"({sampling}), {len(inputs)} input(s) ...")
-    model = FIRGaussianProcess(**params)
+    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} slow "
+               f"samples ({samples.description}), {len(inputs)} input(s) ...")
+    model = FIRGaussianProcess(
+        kernel=_fit_kernel(args.kernel), order=args.order,
+        initial_conditions=args.initial_conditions, sample_time=args.sample_time,
+        tuning=args.tuning, cv=args.cv, **samples.estimator_params)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            model.fit(u, y_slow, **fit_kwargs)
+            model.fit(u, samples.y_slow, **samples.fit_params)
         except ValueError as error:
             parser.error(f"{path}: the model cannot be fitted: {error}")
     messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
     for message in messages:
         _say(args, f"warning: {message}")
 
-    summary = {
-        "data": {"file": str(path), "inputs": inputs, "output": output, "n_samples": n,
-                 "n_slow_samples": int(values.shape[0]), "sampling": sampling,
-                 "factor": factor, "offset": offset, "sample_time": args.sample_time},
-        "model": {"estimator": type(model).__name__, "order": int(model.coef_.shape[-1]),
-                  "n_inputs": int(model.n_inputs_),
-                  "initial_conditions": args.initial_conditions,
-                  "kernel_option": args.kernel, "kernel": str(model.kernel_),
-                  "hyperparameters": _hyperparameters(model.kernel_),
-                  "tuning": args.tuning,
-                  "log_evidence": float(model.log_marginal_likelihood_value_),
-                  "noise_level": float(model.noise_level_)},
-        "notes": notes,
-        "warnings": messages,
-    }
-    if hasattr(model, "resonances_"):
-        summary["resonances"] = _plain(model.resonances_)
-    if hasattr(model, "cv_log_predictive_likelihood_"):
-        summary["model"]["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
-    if hasattr(model, "order_selection_"):
-        selection = model.order_selection_
-        summary["order_selection"] = {
-            "criterion": selection["criterion"],
-            "orders": [int(o) for o in selection["order"]],
-            "score": [float(v) for v in selection["score"]],
-            "best_order": int(selection["best_order"]),
-        }
-    files = {}
+    files, notes, system = {}, [], None
     buffer = io.BytesIO()
     try:
         save_model(model, buffer)
     except (ValueError, TypeError) as error:
         parser.error(f"{path}: the model cannot be saved: {error}")
     files["model.npz"] = buffer.getvalue()
-    system = None
     try:
         system = model.to_state_space()
     except ValueError as error:
         notes.append(f"state_space.npz was not written: {error}")
     if system is not None:
-        dt = getattr(system, "dt", None)
         buffer = io.BytesIO()
-        np.savez(buffer, A=np.asarray(system.A, dtype=float),
-                 B=np.asarray(system.B, dtype=float), C=np.asarray(system.C, dtype=float),
-                 D=np.asarray(system.D, dtype=float),
-                 dt=np.asarray(args.sample_time if dt is None or dt is True else dt,
-                               dtype=float))
+        save_state_space(system, buffer, sample_time=args.sample_time)
         files["state_space.npz"] = buffer.getvalue()
-        summary["state_space"] = {"order": int(np.asarray(system.A).shape[0])}
-    if u_val is not None:
-        y_model = model.predict(u_val)
-        summary["validation"] = {"file": str(args.validate), "n_samples": int(y_val.shape[0]),
-                                 "gof_percent": float(model.score(u_val, y_val)),
-                                 "fit_percent": float(fit_percent(y_val, y_model))}
-    files.update(_fit_figures(model, u, indices, values, inputs))
-    summary_json = json.dumps(_plain(summary), indent=2) + "\n"
-    files["summary.json"] = summary_json.encode("utf-8")
-    files["summary.md"] = _summary_markdown(json.loads(summary_json)).encode("utf-8")
-    _write_files(parser, out, files, args.force, stale=FIT_FILES if args.force else ())
+    report = fit_report(model, samples, file=path, inputs=inputs, output=output,
+                        validation=validation, validation_file=args.validate,
+                        state_space=system, notes=notes, warnings=messages,
+                        kernel_option=args.kernel)
+    for name, figure in fit_figures(model, u, samples, inputs).items():
+        files[name] = _png(figure)
+    files["summary.json"] = report.to_json().encode("utf-8")
+    files["summary.md"] = report.to_markdown().encode("utf-8")
+    try:
+        write_folder(out, files, overwrite=args.force, replaceable=FIT_FILES)
+    except FileExistsError as error:  # a file that appeared during the fit
+        hint = "; use --force to overwrite" if str(error).endswith(" exists") else ""
+        parser.error(f"argument --out: {error}{hint}")
     for name in files:
         _say(args, f"wrote {out / name}")
+    summary = report.to_dict()
     line = (f"order {summary['model']['order']}, log evidence "
             f"{summary['model']['log_evidence']:.6g}, noise std "
             f"{math.sqrt(summary['model']['noise_level']):.4g}")
@@ -1019,8 +679,27 @@ def _fit(parser, args) -> int:
     return 0
 
 
+def _check_out_dir(parser, out: Path, force: bool) -> None:
+    """Refuse an --out that cannot hold the results before anything is computed."""
+    try:
+        if out.is_symlink() or (out.exists() and not out.is_dir()):
+            parser.error(f"argument --out: {str(out)!r} exists and is not a directory")
+        entries = sorted(os.listdir(out)) if out.exists() else []
+    except OSError as error:
+        parser.error(f"argument --out: cannot use {_shorten(str(out))!r} "
+                     f"({error.strerror or error})")
+    foreign = [name for name in entries if name not in FIT_FILES]
+    if foreign:
+        parser.error(f"argument --out: {out / foreign[0]} is not a result of gpmultirate fit; "
+                     "the folder is replaced as a whole, so choose an empty or new one")
+    if entries and not force:
+        existing = [name for name in FIT_FILES if name in entries]
+        parser.error(f"argument --out: {out / existing[0]} exists; use --force to overwrite")
+
+
 def _predict(parser, args) -> int:
     import gpmultirate as gm
+    from gpmultirate.io import write_file
 
     _check_columns(parser, args.inputs)
     out = Path(args.out)
@@ -1037,6 +716,9 @@ def _predict(parser, args) -> int:
                      f"input(s); got {len(args.inputs)} column(s)")
     u, _ = _read_inputs(parser, args.data, args.inputs)
     mean, std = model.predict(u, return_std=True)
+    if not (np.isfinite(mean).all() and np.isfinite(std).all()):
+        parser.error(f"{args.model}: the model's prediction for {args.data} is not finite "
+                     "(the model or the inputs are out of range); nothing was written")
     # a many-output model (MultiOutputFIR) predicts one column per output
     several = mean.ndim == 2
     mean, std = mean.reshape(mean.shape[0], -1), std.reshape(std.shape[0], -1)
@@ -1048,14 +730,38 @@ def _predict(parser, args) -> int:
     for k, (m, s) in enumerate(zip(mean, std)):
         values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
         text.write(f"{k},{k * sample_time:.17g},{values}\n")
-    _write_files(parser, out.parent if str(out.parent) else Path("."),
-                 {out.name: text.getvalue().encode("utf-8")}, args.force)
+    try:
+        write_file(out, text.getvalue().encode("utf-8"), overwrite=args.force)
+    except FileExistsError:
+        parser.error(f"argument --out: {str(out)!r} appeared while writing; use --force to "
+                     "overwrite")
     _say(args, f"wrote {out} ({mean.shape[0]} fast samples)")
     return 0
 
 
+def _shorten(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]}"
+
+
+def _one_line(error: BaseException) -> str:
+    """An exception as one line that names the file (shortened) for an OS error."""
+    if isinstance(error, OSError) and error.strerror:
+        names = [_shorten(os.fsdecode(name)) for name in (error.filename, error.filename2)
+                 if name is not None]
+        return ": ".join([*names, error.strerror])
+    if isinstance(error, MemoryError):
+        return f"out of memory: {error}" if str(error) else "out of memory"
+    text = " ".join(str(error).split())
+    return text if isinstance(error, ValueError) else f"{type(error).__name__}: {text}"
+
+
 def main(argv=None) -> int:
     """Run the ``gpmultirate`` command.
+
+    Every failure ends the command with one line on stderr: a Ctrl-C
+    (``KeyboardInterrupt``) with exit status 130, any other error (invalid
+    arguments or files, an operating-system error such as a full disk or a
+    file name that is too long, the memory guard's refusal) with status 2.
 
     Parameters
     ----------
@@ -1065,12 +771,19 @@ def main(argv=None) -> int:
     Returns
     -------
     int
-        The exit status, 0 on success.  Invalid arguments raise
+        The exit status, 0 on success, 130 after a Ctrl-C.  Errors raise
         :class:`SystemExit` with status 2, as argparse does.
     """
     parser = build_parser()
     args = parser.parse_args(argv)
-    return args.handler(args.command_parser, args)
+    command = args.command_parser
+    try:
+        return args.handler(command, args)
+    except KeyboardInterrupt:
+        print(f"{command.prog}: interrupted", file=sys.stderr, flush=True)
+        return 130
+    except Exception as error:  # every error is one line, not a traceback
+        command.error(_one_line(error))
 
 
 if __name__ == "__main__":  # pragma: no cover

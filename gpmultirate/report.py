@@ -1,0 +1,317 @@
+"""The report of a fit: its data, model, tuning and validation in JSON and Markdown.
+
+:func:`fit_report` collects what describes a fitted
+:class:`~gpmultirate.FIRGaussianProcess` (the data it saw, the tuned kernel
+and noise level, the log evidence, the resonances and the order selection
+when there were any, the goodness of fit on validation data) into a
+:class:`FitReport`.  ``gpmultirate fit`` writes its
+:meth:`~FitReport.to_json` and :meth:`~FitReport.to_markdown` as
+``summary.json`` and ``summary.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from sklearn.utils.validation import check_is_fitted
+
+from gpmultirate.io import SlowSamples, read_slow_samples
+
+__all__ = ["FitReport", "fit_report"]
+
+
+def _plain(value):
+    """``value`` as JSON-compatible plain Python data (non-finite floats become None)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+_ABSENT = object()  # an optional section that is not part of the report
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """What describes a fit, as plain data: the sections of ``summary.json``.
+
+    Build it with :func:`fit_report`, or from a ``summary.json`` with
+    :meth:`from_dict`.
+
+    Attributes
+    ----------
+    data : dict
+        The data: ``file``, ``inputs``, ``output`` (names), ``n_samples``,
+        ``n_slow_samples``, ``sampling`` (a phrase), ``factor``, ``offset``
+        (None for irregular instants) and ``sample_time``.
+    model : dict
+        The estimator, ``order``, ``n_inputs``, ``initial_conditions``,
+        ``kernel`` (its text), ``hyperparameters`` (name to value),
+        ``tuning``, ``log_evidence``, ``noise_level`` (a variance), and
+        ``cv_log_predictive`` after cross-validation.
+    notes, warnings : tuple of str
+        Remarks on the fit, and the warnings it raised.
+    resonances : list or None
+        The resonances found by ``kernel="auto"``, or None without a search.
+    order_selection : dict or None
+        ``criterion``, ``orders``, ``score`` and ``best_order`` when the order
+        was selected.
+    state_space : dict or None
+        ``order`` of the state-space model written beside the fit.
+    validation : dict or None
+        ``file``, ``n_samples``, ``gof_percent`` and ``fit_percent`` on
+        validation data.
+
+    Examples
+    --------
+    >>> from gpmultirate.report import FitReport
+    >>> report = FitReport.from_dict({
+    ...     "data": {"file": "data.csv", "inputs": ["u"], "output": "y", "n_samples": 90,
+    ...              "n_slow_samples": 30, "sampling": "one sample in 3, from row 0",
+    ...              "factor": 3, "offset": 0, "sample_time": 0.01},
+    ...     "model": {"estimator": "FIRGaussianProcess", "order": 30, "n_inputs": 1,
+    ...               "initial_conditions": "zero", "kernel": "DC()",
+    ...               "hyperparameters": {}, "tuning": "evidence", "log_evidence": 12.5,
+    ...               "noise_level": 0.04},
+    ...     "notes": [], "warnings": []})
+    >>> print(report.to_markdown().splitlines()[7])
+    - noise level (variance): 0.04 (std 0.2)
+    >>> FitReport.from_dict(report.to_dict()) == report
+    True
+    """
+
+    data: dict
+    model: dict
+    notes: tuple = ()
+    warnings: tuple = ()
+    resonances: object = field(default=_ABSENT, repr=False)
+    order_selection: dict | None = None
+    state_space: dict | None = None
+    validation: dict | None = None
+
+    def to_dict(self) -> dict:
+        """The report as JSON-compatible plain data (the content of ``summary.json``).
+
+        Returns
+        -------
+        dict
+            ``data``, ``model``, ``notes``, ``warnings`` and those of
+            ``resonances``, ``order_selection``, ``state_space`` and
+            ``validation`` that the fit has; non-finite numbers become None.
+        """
+        out = {"data": self.data, "model": self.model, "notes": list(self.notes),
+               "warnings": list(self.warnings)}
+        if self.resonances is not _ABSENT:
+            out["resonances"] = self.resonances
+        for name in ("order_selection", "state_space", "validation"):
+            if getattr(self, name) is not None:
+                out[name] = getattr(self, name)
+        return _plain(out)
+
+    def to_json(self) -> str:
+        """The report as indented JSON text, ending with a newline."""
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+    @classmethod
+    def from_dict(cls, summary: dict) -> FitReport:
+        """The report of a :meth:`to_dict` (or a parsed ``summary.json``)."""
+        return cls(data=summary["data"], model=summary["model"],
+                   notes=tuple(summary.get("notes", ())),
+                   warnings=tuple(summary.get("warnings", ())),
+                   resonances=summary.get("resonances", _ABSENT),
+                   order_selection=summary.get("order_selection"),
+                   state_space=summary.get("state_space"),
+                   validation=summary.get("validation"))
+
+    def to_markdown(self) -> str:
+        """The report as a Markdown page (the content of ``summary.md``)."""
+        return _markdown(self.to_dict())
+
+
+def _cell_text(value) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _markdown(summary: dict) -> str:
+    data, model = summary["data"], summary["model"]
+    lines = ["# gpmultirate fit", "",
+             f"- data: `{data['file']}`, inputs {', '.join(f'`{c}`' for c in data['inputs'])}, "
+             f"output `{data['output']}`",
+             f"- {data['n_samples']} fast samples, {data['n_slow_samples']} measured slow "
+             f"samples ({data['sampling']}), sample time {data['sample_time']:g} s",
+             f"- estimator: {model['estimator']}, order {model['order']}, initial "
+             f"conditions {model['initial_conditions']}",
+             f"- kernel: `{model['kernel']}`",
+             f"- log evidence: {model['log_evidence']:.6g}",
+             f"- noise level (variance): {model['noise_level']:.6g} "
+             f"(std {math.sqrt(model['noise_level']):.6g})", "",
+             "## Hyperparameters", "", "| name | value |", "|---|---|"]
+    lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
+    resonances = summary.get("resonances")
+    if resonances and isinstance(resonances, list) and all(isinstance(r, dict)
+                                                           for r in resonances):
+        keys = list(dict.fromkeys(k for r in resonances for k in r))
+        lines += ["", "## Resonances found", "", "| " + " | ".join(keys) + " |",
+                  "|" + "---|" * len(keys)]
+        lines += ["| " + " | ".join(_cell_text(r.get(k)) for k in keys) + " |"
+                  for r in resonances]
+    elif "resonances" in summary:
+        lines += ["", "## Resonances found", "", "```",
+                  json.dumps(summary["resonances"], indent=1), "```"]
+    selection = summary.get("order_selection")
+    if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
+        criterion = selection.get("criterion")
+        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
+                else f"{criterion} per slow sample")
+        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
+                  "", "| order | score |", "|---|---|"]
+        lines += [f"| {o} | {_cell_text(v)} |"
+                  for o, v in zip(selection["orders"], selection.get("score", []))]
+    if "state_space" in summary:
+        lines += ["", "## State-space model", "",
+                  f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
+    if "validation" in summary:
+        val = summary["validation"]
+        lines += ["", "## Validation", "",
+                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
+                  f"({val['n_samples']} fast samples)"]
+        if "fit_percent" in val:
+            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
+    if summary["notes"]:
+        lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
+    return "\n".join(lines) + "\n"
+
+
+def _hyperparameters(kernel) -> dict:
+    params = kernel.get_params(deep=True)
+    return {hyper.name: _plain(params[hyper.name]) for hyper in kernel.hyperparameters
+            if params.get(hyper.name) is not None}
+
+
+def _samples_of(model) -> SlowSamples:
+    """The slow samples a fitted model saw, read from its sample instants."""
+    operator = model.operator_
+    column = np.full(int(operator.n_samples), np.nan)
+    column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
+    return read_slow_samples(column)
+
+
+def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,
+               output: str = "y", validation=None, validation_file=None, state_space=None,
+               notes=(), warnings=(), kernel_option: str | None = None) -> FitReport:
+    """The report of a fitted :class:`~gpmultirate.FIRGaussianProcess`.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator.
+    samples : SlowSamples, optional
+        The slow samples it was fitted to (:func:`gpmultirate.io.read_slow_samples`);
+        by default read from the model's sample instants.
+    file : str or path-like, optional
+        The data file, for the report's text.
+    inputs : sequence of str, optional
+        Names of the input columns; default ``u`` (``u0, u1, ...`` for several
+        inputs).
+    output : str, default "y"
+        Name of the output column.
+    validation : tuple (u, y), optional
+        Validation data with the output measured at every fast sample: the
+        report gets the goodness of fit ``model.score(u, y)`` and the fit
+        percentage of MATLAB's ``compare``
+        (:func:`gpmultirate.metrics.fit_percent`).
+    validation_file : str or path-like, optional
+        The file of the validation data, for the report's text.
+    state_space : object with a matrix ``A``, optional
+        A state-space model written beside the fit
+        (:func:`gpmultirate.export.save_state_space`); its order is reported.
+    notes, warnings : sequence of str
+        Remarks, and the warnings the fit raised.
+    kernel_option : str, optional
+        The kernel as the user chose it (``gpmultirate fit --kernel``).
+
+    Returns
+    -------
+    FitReport
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import fit_report
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(90)
+    >>> y = np.convolve(u, 0.7 ** np.arange(20))[:90] + 0.01 * rng.standard_normal(90)
+    >>> model = gm.FIRGaussianProcess(order=20, factor=3).fit(u, y[::3])
+    >>> report = fit_report(model, validation=(u, y))
+    >>> report.data["sampling"], report.model["order"]
+    ('one sample in 3, from row 0', 20)
+    >>> bool(report.validation["gof_percent"] > 99)
+    True
+    >>> report.to_markdown().splitlines()[0]
+    '# gpmultirate fit'
+    """
+    from gpmultirate.metrics import fit_percent
+
+    check_is_fitted(model, "kernel_")
+    if samples is None:
+        samples = _samples_of(model)
+    n_inputs = int(model.n_inputs_)
+    if inputs is None:
+        inputs = ["u"] if n_inputs == 1 else [f"u{k}" for k in range(n_inputs)]
+    data = {"file": None if file is None else str(file), "inputs": list(inputs),
+            "output": output, "n_samples": int(samples.n_samples),
+            "n_slow_samples": int(samples.values.shape[0]), "sampling": samples.description,
+            "factor": samples.factor, "offset": samples.offset,
+            "sample_time": model.sample_time}
+    summary = {"estimator": type(model).__name__, "order": int(model.coef_.shape[-1]),
+               "n_inputs": n_inputs, "initial_conditions": model.initial_conditions}
+    if kernel_option is not None:
+        summary["kernel_option"] = kernel_option
+    summary.update({"kernel": str(model.kernel_),
+                    "hyperparameters": _hyperparameters(model.kernel_),
+                    "tuning": model.tuning,
+                    "log_evidence": float(model.log_marginal_likelihood_value_),
+                    "noise_level": float(model.noise_level_)})
+    if hasattr(model, "cv_log_predictive_likelihood_"):
+        summary["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
+    selection = None
+    if hasattr(model, "order_selection_"):
+        found = model.order_selection_
+        selection = {"criterion": found["criterion"],
+                     "orders": [int(o) for o in found["order"]],
+                     "score": [float(v) for v in found["score"]],
+                     "best_order": int(found["best_order"])}
+    checked = None
+    if validation is not None:
+        u_val, y_val = validation
+        y_model = model.predict(u_val)
+        checked = {"file": None if validation_file is None else str(validation_file),
+                   "n_samples": int(np.shape(y_val)[0]),
+                   "gof_percent": float(model.score(u_val, y_val)),
+                   "fit_percent": float(fit_percent(y_val, y_model))}
+    return FitReport(
+        data=data, model=summary, notes=tuple(notes), warnings=tuple(warnings),
+        resonances=_plain(model.resonances_) if hasattr(model, "resonances_") else _ABSENT,
+        order_selection=selection,
+        state_space=(None if state_space is None
+                     else {"order": int(np.asarray(state_space.A).shape[0])}),
+        validation=checked)
