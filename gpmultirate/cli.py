@@ -54,52 +54,39 @@ def _available_cpus() -> int:
 
 
 # ------------------------------------------------------------ argument types
-def _int_at_least(low: int):
-    def parse(text: str) -> int:
+def _argument(name: str, convert, ok, problem, expected: str = "an integer"):
+    """An argparse type: ``convert(text)`` if ``ok`` holds, else ``problem(text, value)``."""
+    def parse(text: str):
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if not ok(value):
+            raise argparse.ArgumentTypeError(problem(text, value))
         return value
 
-    parse.__name__ = f"integer >= {low}"
+    parse.__name__ = name
     return parse
 
 
-def _order_or_auto(text: str):
-    if text == "auto":
-        return "auto"
-    try:
-        return _int_at_least(1)(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(
-            f"expected an integer >= 1 or 'auto', got {text!r}") from None
+def _int_at_least(low: int):
+    return _argument(f"integer >= {low}", int, lambda value: value >= low,
+                     lambda text, value: f"must be at least {low}, got {value}")
 
 
-_order_or_auto.__name__ = "order"
-
-
-def _nonzero_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value == 0:
-        raise argparse.ArgumentTypeError("must not be 0 (use a positive count, or -1 for all "
-                                         "CPUs)")
-    return value
-
-
-def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not np.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
-    return value
+_nonzero_int = _argument("integer", int, lambda value: value != 0, lambda text, value:
+                         "must not be 0 (use a positive count, or -1 for all CPUs)")
+_finite_float = _argument("number", float, math.isfinite,
+                          lambda text, value: f"must be finite, got {text!r}", "a number")
+# a sample time whose reciprocal, a frequency, is a finite normal number too
+_sample_time = _argument("seconds", float, lambda value: 1e-300 <= value <= 1e300,
+                         lambda text, value: "must be a positive number between 1e-300 and "
+                                             f"1e300 seconds, got {text!r}", "a number")
+_order_or_auto = _argument(
+    "order", lambda text: text if text == "auto" else int(text),
+    lambda value: value == "auto" or value >= 1,
+    lambda text, value: f"expected an integer >= 1 or 'auto', got {text!r}",
+    "an integer >= 1 or 'auto'")
 
 
 class _OneLineErrorParser(argparse.ArgumentParser):
@@ -117,20 +104,14 @@ def _add_output(parser: argparse.ArgumentParser, default: str) -> None:
 
 #: Kernels of ``gpmultirate fit --kernel``.
 FIT_KERNELS = ("dc", "tc", "ss", "auto")
-#: Data sets of ``gpmultirate fit --example``: file in ``gpmultirate/data``, inputs, output.
-EXAMPLES = {"robot-arm": ("robot_arm_multirate.csv", ("u",), "y_slow")}
+#: Data sets of ``gpmultirate fit --example``: function of gpmultirate.datasets giving the
+#: file, inputs, output.
+EXAMPLES = {"robot-arm": ("robot_arm_csv", ("u",), "y_slow")}
 #: Files written by ``gpmultirate fit`` into ``--out``.
 FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "summary.json",
              "summary.md", "state_space.npz")
 FIT_OUT = "gpmultirate-fit"
 PREDICT_OUT = "gpmultirate-prediction.csv"
-
-
-def _positive_float(text: str) -> float:
-    value = _finite_float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
 
 
 def _add_fit_parser(commands) -> None:
@@ -164,7 +145,7 @@ def _add_fit_parser(commands) -> None:
                           "testing); by default the measured samples are used as they are")
     fit.add_argument("--offset", type=_int_at_least(0), default=None, metavar="O",
                      help="row of the first kept sample with --factor, 0..F-1 (default: 0)")
-    fit.add_argument("--sample-time", type=_positive_float, default=1.0, metavar="T",
+    fit.add_argument("--sample-time", type=_sample_time, default=1.0, metavar="T",
                      help="fast sample time in seconds; frequencies are in Hz (default: 1, "
                           "cycles per sample)")
     fit.add_argument("--order", type=_order_or_auto, default=None, metavar="P",
@@ -355,35 +336,23 @@ def _output_dir(parser, path: str) -> Path:
     return out
 
 
-def _figure(**kwargs):
-    # A bare Figure renders with the Agg canvas and never touches pyplot's state.
-    from matplotlib.figure import Figure
-
-    return Figure(layout="constrained", **kwargs)
-
-
 def _save(args, fig, path: Path) -> None:
     fig.savefig(path, dpi=150)
     _say(args, f"wrote {path}")
 
 
 def _demo(parser, args) -> int:
-    n = args.n_samples
-    if args.factor > n:
-        parser.error(f"argument --factor: must not exceed --n-samples ({n}), got {args.factor}")
-    bad = [p for p in args.orders if p > n]
-    if bad:
-        parser.error(f"argument --orders: orders must lie in 1..N = 1..{n}; got {bad}")
-    if len(set(args.orders)) != len(args.orders):
-        parser.error(f"argument --orders: orders must not repeat; got {args.orders}")
-    if len(set(args.methods)) != len(args.methods):
-        parser.error(f"argument --methods: methods must not repeat; got {args.methods}")
-    low, high = args.snr
-    if low > high:
-        parser.error(f"argument --snr: LOW must not exceed HIGH; got {low:g} {high:g}")
+    from gpmultirate.study.simulation import check_config, check_methods, check_orders
+
+    n = args.n_samples  # the library's checks, before anything is written
+    if args.snr[0] > args.snr[1]:
+        parser.error(f"argument --snr: LOW must not exceed HIGH; got {args.snr[0]:g} "
+                     f"{args.snr[1]:g}")
+    check_config(n, args.factor, SAMPLE_TIME, tuple(args.snr), 0.1)
+    check_orders(args.orders, n)
+    check_methods(args.methods)
     example_order = n if args.example_order is None else args.example_order
-    if example_order > n:
-        parser.error(f"argument --example-order: must lie in 1..N = 1..{n}; got {example_order}")
+    check_orders([example_order], n, name="example_order")
     out = _output_dir(parser, args.output)
     journal = out / JOURNAL_NAME
     _check_journal(parser, args, journal)
@@ -438,9 +407,8 @@ def _interrupted(args, journal: Path) -> None:
 
 def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int:
     n = args.n_samples
-    low, high = args.snr
     config = {"n_samples": n, "factor": args.factor, "sample_time": SAMPLE_TIME,
-              "snr_db": (low, high)}
+              "snr_db": tuple(args.snr)}
     started = time.perf_counter()
     _say(args, f"gpmultirate demo: {args.runs} run(s), orders {' '.join(map(str, args.orders))}, "
                f"methods {' '.join(args.methods)}, N = {n}, n_jobs = {args.n_jobs}")
@@ -450,23 +418,13 @@ def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int
                                  journal=journal, **config)
     except JournalError as error:
         parser.error(f"argument --resume: {error}" if args.resume else str(error))
-    result.to_csv(out / "study.csv")
-    result.to_csv(out / "study_runs.csv", runs=True)
-    result.to_json(out / "study.json")
-    header = (f"Goodness of fit [%] of fast-rate FIR models on noise-free validation data: "
-              f"mean ± sample std over {result.n_runs} run(s); N = {n} fast samples, "
-              f"M = {result.n_slow_samples} slow samples (factor {args.factor}), SNR "
-              f"{low:g}-{high:g} dB, seed {args.seed}."
-              + (" LS is not identifiable for P >= M." if "LS" in args.methods else ""))
-    table = result.to_markdown()
-    (out / "study.md").write_text(f"# gpmultirate demo\n\n{header}\n\n{table}",
-                                  encoding="utf-8")
-    (out / "study.rst").write_text(f"{header}\n\n{result.to_rst()}", encoding="utf-8")
-    for name in ("study.csv", "study_runs.csv", "study.json", "study.md", "study.rst"):
-        _say(args, f"wrote {out / name}")
-    print(header)
+    from gpmultirate.report import study_header, write_study
+
+    for path in write_study(result, out):
+        _say(args, f"wrote {path}")
+    print(study_header(result))
     print()
-    print(table, end="")
+    print(result.to_markdown(), end="")
     sys.stdout.flush()
 
     if not args.no_figures:
@@ -485,7 +443,7 @@ def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int
 
 
 def _example1(parser, args) -> int:
-    from gpmultirate.plotting import plot_nonidentifiable_example
+    from gpmultirate.plotting.report import nonidentifiable_figure
     from gpmultirate.study import nonidentifiable_example
 
     if args.n_samples < 2 * args.factor:
@@ -493,31 +451,21 @@ def _example1(parser, args) -> int:
                      f"got {args.n_samples}")
     out = _output_dir(parser, args.output)
     example = nonidentifiable_example(args.n_samples, args.factor, random_state=args.seed)
-    fig = _figure(figsize=(9.0, 6.0))
-    plot_nonidentifiable_example(example, axes=fig.subplots(2, 2))
-    _save(args, fig, out / "example1.png")
+    _save(args, nonidentifiable_figure(example), out / "example1.png")
     return 0
 
 
 # ------------------------------------------------------------- fit, predict
-def _data_error(parser, error) -> None:
-    parser.error(str(error))
-
-
-def _example_path(name: str) -> Path:
-    from importlib import resources
-
-    return Path(str(resources.files("gpmultirate").joinpath("data", EXAMPLES[name][0])))
-
-
 def _fit_source(parser, args):
     """The data file, input columns and output column of ``gpmultirate fit``."""
+    from gpmultirate import datasets
+
     if args.example is not None:
         if args.data is not None:
             parser.error(f"argument --example: give either DATA or --example, not both "
                          f"(got DATA {args.data!r})")
         _, inputs, output = EXAMPLES[args.example]
-        path = _example_path(args.example)
+        path = Path(getattr(datasets, EXAMPLES[args.example][0])())
         return (path, list(args.inputs or inputs),
                 output if args.output_column is None else args.output_column)
     if args.data is None:
@@ -535,23 +483,6 @@ def _check_columns(parser, inputs, output=None) -> None:
             parser.error(f"argument --input: column {name!r} is given twice")
     if output is not None and output in inputs:
         parser.error(f"argument --output: column {output!r} is also an --input column")
-
-
-def _read_inputs(parser, path, inputs, extra=()):
-    """Float columns of ``path``: the inputs as ``(N,)`` or ``(N, k)``, and the extra ones."""
-    from gpmultirate.io import DataFileError, read_columns
-
-    try:
-        columns = read_columns(path, [*inputs, *extra])
-    except DataFileError as error:
-        _data_error(parser, error)
-    for name in inputs:
-        missing = np.flatnonzero(np.isnan(columns[name]))
-        if missing.size:
-            parser.error(f"{path}: input column {name!r} has a missing value (empty or NaN) "
-                         f"at row {missing[0]}; inputs must be measured at every row")
-    u = np.column_stack([columns[name] for name in inputs])
-    return (u[:, 0] if u.shape[1] == 1 else u), [columns[name] for name in extra]
 
 
 def _fit_kernel(name: str):
@@ -573,52 +504,40 @@ def _fit_kernel(name: str):
     return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
 
 
-def _png(fig) -> bytes:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=150)
-    return buffer.getvalue()
-
-
 def _fit(parser, args) -> int:
     import warnings
 
-    from gpmultirate import FIRGaussianProcess, save_model
-    from gpmultirate.export import save_state_space
-    from gpmultirate.io import read_slow_samples, write_folder
-    from gpmultirate.plotting.report import fit_figures
-    from gpmultirate.report import fit_report
+    from gpmultirate import FIRGaussianProcess
+    from gpmultirate.io import check_folder, read_record, read_slow_samples, write_folder
+    from gpmultirate.report import fit_files
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
     out = Path(args.out)
-    _check_out_dir(parser, out, args.force)
+    _check_out(parser, lambda: check_folder(out, FIT_FILES, overwrite=args.force))
     started = time.perf_counter()
-    u, (y,) = _read_inputs(parser, path, inputs, [output])
+    u, y = read_record(path, inputs, output)
     n = y.shape[0]
     if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")
-    if args.offset is not None and args.offset >= (args.factor or 1):
-        parser.error(f"argument --offset: must lie in 0..F-1 = 0..{(args.factor or 1) - 1} "
-                     f"with --factor {args.factor or 1}; got {args.offset}")
+    factor = args.factor or 1
+    if args.offset is not None and args.offset >= factor:
+        parser.error(f"argument --offset: must lie in 0..F-1 = 0..{factor - 1} with --factor "
+                     f"{factor}; got {args.offset}")
     if args.offset is not None and args.offset >= n:
-        parser.error(f"argument --offset: must be below the {n} rows of {path}; "
-                     f"got {args.offset}")
+        parser.error(f"argument --offset: must be below the {n} rows of {path}; got "
+                     f"{args.offset}")
     try:
         samples = read_slow_samples(y, factor=args.factor, offset=args.offset)
     except ValueError as error:
         parser.error(f"{path}: {str(error).replace('column', f'output column {output!r}', 1)}")
     validation = None
     if args.validate is not None:
-        u_val, (y_val,) = _read_inputs(parser, args.validate, inputs, [output])
-        missing = np.flatnonzero(np.isnan(y_val))
-        if missing.size:
-            parser.error(f"{args.validate}: output column {output!r} must be measured at "
-                         f"every row for validation; row {missing[0]} is missing")
-        if np.ptp(y_val) == 0:
+        validation = read_record(args.validate, inputs, output, complete=True)
+        if np.ptp(validation[1]) == 0:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
-        validation = (u_val, y_val)
 
     _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} slow "
                f"samples ({samples.description}), {len(inputs)} input(s) ...")
@@ -635,35 +554,15 @@ def _fit(parser, args) -> int:
     messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
     for message in messages:
         _say(args, f"warning: {message}")
-
-    files, notes, system = {}, [], None
-    buffer = io.BytesIO()
     try:
-        save_model(model, buffer)
-    except (ValueError, TypeError) as error:
-        parser.error(f"{path}: the model cannot be saved: {error}")
-    files["model.npz"] = buffer.getvalue()
-    try:
-        system = model.to_state_space()
+        files, report = fit_files(model, u, samples, file=path, inputs=inputs, output=output,
+                                  validation=validation, validation_file=args.validate,
+                                  warnings=messages, kernel_option=args.kernel)
     except ValueError as error:
-        notes.append(f"state_space.npz was not written: {error}")
-    if system is not None:
-        buffer = io.BytesIO()
-        save_state_space(system, buffer, sample_time=args.sample_time)
-        files["state_space.npz"] = buffer.getvalue()
-    report = fit_report(model, samples, file=path, inputs=inputs, output=output,
-                        validation=validation, validation_file=args.validate,
-                        state_space=system, notes=notes, warnings=messages,
-                        kernel_option=args.kernel)
-    for name, figure in fit_figures(model, u, samples, inputs).items():
-        files[name] = _png(figure)
-    files["summary.json"] = report.to_json().encode("utf-8")
-    files["summary.md"] = report.to_markdown().encode("utf-8")
-    try:
-        write_folder(out, files, overwrite=args.force, replaceable=FIT_FILES)
-    except FileExistsError as error:  # a file that appeared during the fit
-        hint = "; use --force to overwrite" if str(error).endswith(" exists") else ""
-        parser.error(f"argument --out: {error}{hint}")
+        parser.error(f"{path}: {error}")
+    # the folder appears complete in one step (or not at all), see io.write_folder
+    _check_out(parser, lambda: write_folder(out, files, overwrite=args.force,
+                                            replaceable=FIT_FILES))
     for name in files:
         _say(args, f"wrote {out / name}")
     summary = report.to_dict()
@@ -673,33 +572,28 @@ def _fit(parser, args) -> int:
     if "validation" in summary:
         line += f", validation GoF {summary['validation']['gof_percent']:.2f} %"
     print(line)
-    for note in notes:
+    for note in report.notes:
         _say(args, f"note: {note}")
     _say(args, f"done in {time.perf_counter() - started:.1f} s")
     return 0
 
 
-def _check_out_dir(parser, out: Path, force: bool) -> None:
-    """Refuse an --out that cannot hold the results before anything is computed."""
+def _check_out(parser, action) -> None:
+    """Run ``action`` on ``--out``; a file that is in the way or an OS error ends the command."""
     try:
-        if out.is_symlink() or (out.exists() and not out.is_dir()):
-            parser.error(f"argument --out: {str(out)!r} exists and is not a directory")
-        entries = sorted(os.listdir(out)) if out.exists() else []
+        action()
+    except FileExistsError as error:
+        hint = "; use --force to overwrite" if str(error).endswith(" exists") else ""
+        parser.error(f"argument --out: {error}{hint}")
     except OSError as error:
-        parser.error(f"argument --out: cannot use {_shorten(str(out))!r} "
+        parser.error(f"argument --out: cannot write to {_shorten(error.filename or '')!r} "
                      f"({error.strerror or error})")
-    foreign = [name for name in entries if name not in FIT_FILES]
-    if foreign:
-        parser.error(f"argument --out: {out / foreign[0]} is not a result of gpmultirate fit; "
-                     "the folder is replaced as a whole, so choose an empty or new one")
-    if entries and not force:
-        existing = [name for name in FIT_FILES if name in entries]
-        parser.error(f"argument --out: {out / existing[0]} exists; use --force to overwrite")
 
 
 def _predict(parser, args) -> int:
     import gpmultirate as gm
-    from gpmultirate.io import write_file
+    from gpmultirate.io import read_record, write_file
+    from gpmultirate.report import prediction_csv
 
     _check_columns(parser, args.inputs)
     out = Path(args.out)
@@ -714,28 +608,13 @@ def _predict(parser, args) -> int:
     if len(args.inputs) != model.n_inputs_:
         parser.error(f"argument --input: the model of {args.model} has {model.n_inputs_} "
                      f"input(s); got {len(args.inputs)} column(s)")
-    u, _ = _read_inputs(parser, args.data, args.inputs)
-    mean, std = model.predict(u, return_std=True)
-    if not (np.isfinite(mean).all() and np.isfinite(std).all()):
-        parser.error(f"{args.model}: the model's prediction for {args.data} is not finite "
-                     "(the model or the inputs are out of range); nothing was written")
-    # a many-output model (MultiOutputFIR) predicts one column per output
-    several = mean.ndim == 2
-    mean, std = mean.reshape(mean.shape[0], -1), std.reshape(std.shape[0], -1)
-    models = getattr(model, "estimators_", [model])
-    sample_time = float(getattr(models[0], "sample_time", 1.0))
-    names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
-    text = io.StringIO()
-    text.write(",".join(["index,time", *names]) + "\n")
-    for k, (m, s) in enumerate(zip(mean, std)):
-        values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
-        text.write(f"{k},{k * sample_time:.17g},{values}\n")
+    u, _ = read_record(args.data, args.inputs)
     try:
-        write_file(out, text.getvalue().encode("utf-8"), overwrite=args.force)
-    except FileExistsError:
-        parser.error(f"argument --out: {str(out)!r} appeared while writing; use --force to "
-                     "overwrite")
-    _say(args, f"wrote {out} ({mean.shape[0]} fast samples)")
+        table = prediction_csv(model, u)
+    except ValueError as error:
+        parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
+    _check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
+    _say(args, f"wrote {out} ({table.count(chr(10)) - 1} fast samples)")
     return 0
 
 
@@ -783,7 +662,12 @@ def main(argv=None) -> int:
         print(f"{command.prog}: interrupted", file=sys.stderr, flush=True)
         return 130
     except Exception as error:  # every error is one line, not a traceback
-        command.error(_one_line(error))
+        message = _one_line(error)
+        # a library message that starts with a parameter's name: name the option
+        option = "--" + message.split(" ", 1)[0].replace("_", "-")
+        known = any(option in action.option_strings for action in command._actions)
+        command.error(f"argument {option}: {message}" if known and isinstance(
+            error, ValueError) else message)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DataFileError", "DataTable", "SlowSamples", "read_columns", "read_slow_samples",
-           "read_table"]
+__all__ = ["DataFileError", "DataTable", "SlowSamples", "check_folder", "read_columns",
+           "read_record", "read_slow_samples", "read_table", "write_file", "write_folder"]
 
 #: The largest number of columns a CSV file may have.
 MAX_COLUMNS = 100_000
@@ -461,6 +461,57 @@ def read_columns(path, specs) -> dict[str, np.ndarray]:
     return read_table(path).columns(specs)
 
 
+def read_record(path, inputs, output: str | None = None, *, complete: bool = False):
+    """Read a record's input columns, and its output column, from a data file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``.csv``, ``.npz`` or ``.mat`` file (see :func:`read_columns`).
+    inputs : sequence of str
+        The input columns; every row must hold a value.
+    output : str, optional
+        The output column: ``NaN`` where nothing was measured (see
+        :func:`read_slow_samples`).
+    complete : bool, default False
+        Require the output at every row (validation data).
+
+    Returns
+    -------
+    u : ndarray of shape (n_rows,) or (n_rows, n_inputs)
+        The inputs, one column per input when there are several.
+    y : ndarray of shape (n_rows,) or None
+        The output column, or None without ``output``.
+
+    Raises
+    ------
+    DataFileError
+        The file or a column cannot be read, or a value is missing where one
+        is required; the message names the file, the column and the row.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import read_record
+    >>> path = os.path.join(tempfile.mkdtemp(), "data.csv")
+    >>> with open(path, "w") as f:
+    ...     _ = f.write("u,y\\n1,2\\n3,\\n5,6\\n")
+    >>> read_record(path, ["u"], "y")
+    (array([1., 3., 5.]), array([ 2., nan,  6.]))
+    """
+    columns = read_columns(path, [*inputs] + ([] if output is None else [output]))
+    required = [*inputs] + ([output] if complete and output is not None else [])
+    for name in required:
+        missing = np.flatnonzero(np.isnan(columns[name]))
+        if missing.size:
+            what = "inputs" if name in inputs else "the output of validation data"
+            raise DataFileError(path, f"{'input' if name in inputs else 'output'} column "
+                                      f"{name!r} has a missing value (empty or NaN) at row "
+                                      f"{missing[0]}; {what} must be measured at every row")
+    u = np.column_stack([columns[name] for name in inputs])
+    return (u[:, 0] if u.shape[1] == 1 else u), (None if output is None else columns[output])
+
+
 @dataclass(frozen=True)
 class SlowSamples:
     """The measured samples of an output column and where they lie on the fast grid.
@@ -801,7 +852,7 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
     for name in files:
         if not name or os.sep in name or name in (".", ".."):
             raise ValueError(f"files must be plain file names; got {name!r}")
-    _check_replaceable(folder, [*files, *replaceable], overwrite)
+    check_folder(folder, [*files, *replaceable], overwrite=overwrite)
     parent = folder.parent
     parent.mkdir(parents=True, exist_ok=True)
     temp = Path(tempfile.mkdtemp(prefix=_temp_name(folder, "part"), dir=parent))
@@ -810,7 +861,7 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
         for name, content in files.items():
             _write_new(temp / name, content)
         _fsync_dir(temp)
-        _check_replaceable(folder, [*files, *replaceable], overwrite)
+        check_folder(folder, [*files, *replaceable], overwrite=overwrite)
         with _SignalsHeld():
             try:
                 os.rename(temp, folder)  # onto a missing or an empty folder
@@ -837,7 +888,39 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
             shutil.rmtree(aside, ignore_errors=True)
 
 
-def _check_replaceable(folder: Path, names, overwrite: bool) -> None:
+def check_folder(folder, names, *, overwrite: bool = False) -> None:
+    """Check that :func:`write_folder` may replace ``folder`` with result files ``names``.
+
+    Parameters
+    ----------
+    folder : str or path-like
+    names : sequence of str
+        The files an existing ``folder`` may hold.
+    overwrite : bool, default False
+        Whether a folder holding some of them may be replaced.
+
+    Raises
+    ------
+    FileExistsError
+        ``folder`` is not a directory, holds a file not in ``names``, or
+        holds any of them and ``overwrite`` is false.
+    OSError
+        ``folder`` cannot be examined (e.g. its name is too long).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import check_folder
+    >>> folder = tempfile.mkdtemp()
+    >>> check_folder(folder, ["a.txt"])  # empty: fine
+    >>> open(os.path.join(folder, "notes.txt"), "w").close()
+    >>> try:
+    ...     check_folder(folder, ["a.txt"], overwrite=True)
+    ... except FileExistsError as error:
+    ...     print(str(error).endswith("may hold only results"))
+    True
+    """
+    folder = Path(os.fspath(folder))
     if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
         raise FileExistsError(f"{folder} exists and is not a directory")
     if not folder.exists():

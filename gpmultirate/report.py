@@ -6,7 +6,9 @@ and noise level, the log evidence, the resonances and the order selection
 when there were any, the goodness of fit on validation data) into a
 :class:`FitReport`.  ``gpmultirate fit`` writes its
 :meth:`~FitReport.to_json` and :meth:`~FitReport.to_markdown` as
-``summary.json`` and ``summary.md``.
+``summary.json`` and ``summary.md``; :func:`fit_files` gives every file it
+writes, :func:`prediction_csv` the table of ``gpmultirate predict``, and
+:func:`write_study` the tables of ``gpmultirate demo``.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.io import SlowSamples, read_slow_samples
 
-__all__ = ["FitReport", "fit_report"]
+__all__ = ["FitReport", "fit_files", "fit_report", "prediction_csv", "study_header",
+           "write_study"]
 
 
 def _plain(value):
@@ -259,7 +262,8 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
     >>> from gpmultirate.report import fit_report
     >>> rng = np.random.default_rng(0)
     >>> u = rng.standard_normal(90)
-    >>> y = np.convolve(u, 0.7 ** np.arange(20))[:90] + 0.01 * rng.standard_normal(90)
+    >>> g = 0.8 ** np.arange(20) * np.cos(0.7 * np.arange(20))
+    >>> y = np.convolve(u, g)[:90] + 0.01 * rng.standard_normal(90)
     >>> model = gm.FIRGaussianProcess(order=20, factor=3).fit(u, y[::3])
     >>> report = fit_report(model, validation=(u, y))
     >>> report.data["sampling"], report.model["order"]
@@ -315,3 +319,194 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
         state_space=(None if state_space is None
                      else {"order": int(np.asarray(state_space.A).shape[0])}),
         validation=checked)
+
+
+def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs=None,
+              output: str = "y", validation=None, validation_file=None, warnings=(),
+              kernel_option: str | None = None) -> tuple[dict, FitReport]:
+    """Every file ``gpmultirate fit`` writes for a fitted model, as bytes.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator.
+    u : array-like of shape (n_samples,) or (n_samples, n_inputs)
+        The input it was fitted to.
+    samples, file, inputs, output, validation, validation_file, warnings, kernel_option
+        As for :func:`fit_report`.
+
+    Returns
+    -------
+    files : dict of str to bytes
+        ``model.npz`` (:func:`gpmultirate.save_model`), ``state_space.npz``
+        when the model has a state-space reduction
+        (:func:`gpmultirate.export.save_state_space`; otherwise a note in
+        the report says why not), the figures ``bode.png``, ``impulse.png``
+        and ``intersample.png`` (:func:`gpmultirate.plotting.report.fit_figures`),
+        ``summary.json`` and ``summary.md``.  Write them with
+        :func:`gpmultirate.io.write_folder`.
+    report : FitReport
+
+    Raises
+    ------
+    ValueError
+        If the model cannot be saved.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import fit_files
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(60)
+    >>> g = 0.8 ** np.arange(15) * np.cos(0.7 * np.arange(15))
+    >>> y = np.convolve(u, g)[:60] + 0.01 * rng.standard_normal(60)
+    >>> model = gm.FIRGaussianProcess(order=15, factor=3).fit(u, y[::3])
+    >>> files, report = fit_files(model, u)
+    >>> sorted(files)  # doctest: +NORMALIZE_WHITESPACE
+    ['bode.png', 'impulse.png', 'intersample.png', 'model.npz', 'state_space.npz',
+     'summary.json', 'summary.md']
+    """
+    import io
+
+    from gpmultirate.export import save_state_space
+    from gpmultirate.persistence import save_model
+    from gpmultirate.plotting.report import fit_figures
+
+    if samples is None:
+        samples = _samples_of(model)
+    files, notes, system = {}, [], None
+    buffer = io.BytesIO()
+    try:
+        save_model(model, buffer)
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"the model cannot be saved: {error}") from None
+    files["model.npz"] = buffer.getvalue()
+    try:
+        system = model.to_state_space()
+    except ValueError as error:
+        notes.append(f"state_space.npz was not written: {error}")
+    if system is not None:
+        buffer = io.BytesIO()
+        save_state_space(system, buffer, sample_time=model.sample_time)
+        files["state_space.npz"] = buffer.getvalue()
+    report = fit_report(model, samples, file=file, inputs=inputs, output=output,
+                        validation=validation, validation_file=validation_file,
+                        state_space=system, notes=notes, warnings=warnings,
+                        kernel_option=kernel_option)
+    for name, figure in fit_figures(model, u, samples, inputs).items():
+        buffer = io.BytesIO()
+        figure.savefig(buffer, format="png", dpi=150)
+        files[name] = buffer.getvalue()
+    files["summary.json"] = report.to_json().encode("utf-8")
+    files["summary.md"] = report.to_markdown().encode("utf-8")
+    return files, report
+
+
+def prediction_csv(model, u) -> str:
+    """The fast-rate prediction of a fitted model as CSV text (``gpmultirate predict``).
+
+    Parameters
+    ----------
+    model : fitted estimator
+        ``FIRGaussianProcess``, ``LeastSquaresFIR`` or ``MultiOutputFIR``.
+    u : array-like of shape (n_samples,) or (n_samples, n_inputs)
+
+    Returns
+    -------
+    str
+        A header ``index,time,y,y_std`` (``y_j,y_std_j`` for every output
+        ``j`` of a many-output model) and one row per fast sample, the
+        numbers with 17 significant digits; ``time`` is ``index`` times the
+        model's ``sample_time``.
+
+    Raises
+    ------
+    ValueError
+        If a predicted mean or standard deviation is not finite: no table
+        holds ``nan`` or ``inf``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import prediction_csv
+    >>> u = np.random.default_rng(0).standard_normal(40)
+    >>> y = np.convolve(u, [1.0, 0.5])[:40]
+    >>> model = gm.LeastSquaresFIR(order=2).fit(u, y)
+    >>> print(prediction_csv(model, [1.0, 0.0]).splitlines()[0])
+    index,time,y,y_std
+    """
+    mean, std = model.predict(u, return_std=True)
+    if not (np.isfinite(mean).all() and np.isfinite(std).all()):
+        raise ValueError("the prediction is not finite (the model or the inputs are out of "
+                         "range)")
+    several = mean.ndim == 2  # a many-output model predicts one column per output
+    mean, std = mean.reshape(mean.shape[0], -1), std.reshape(std.shape[0], -1)
+    models = getattr(model, "estimators_", [model])
+    sample_time = float(getattr(models[0], "sample_time", 1.0))
+    names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
+    rows = [",".join(["index,time", *names])]
+    for k, (m, s) in enumerate(zip(mean, std)):
+        values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
+        rows.append(f"{k},{k * sample_time:.17g},{values}")
+    return "\n".join(rows) + "\n"
+
+
+def study_header(result) -> str:
+    """One paragraph describing a study: what its table's numbers are and its settings.
+
+    Parameters
+    ----------
+    result : StudyResult
+
+    Returns
+    -------
+    str
+    """
+    low, high = result.snr_range
+    return (f"Goodness of fit [%] of fast-rate FIR models on noise-free validation data: "
+            f"mean ± sample std over {result.n_runs} run(s); N = {result.n_samples} fast "
+            f"samples, M = {result.n_slow_samples} slow samples (factor {result.factor}), SNR "
+            f"{low:g}-{high:g} dB, seed {result.random_state}."
+            + (" LS is not identifiable for P >= M." if "LS" in result.methods else ""))
+
+
+def write_study(result, folder) -> list:
+    """Write a study's tables to a folder: the tables of ``gpmultirate demo``.
+
+    Parameters
+    ----------
+    result : StudyResult
+    folder : str or path-like
+        An existing folder.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written: ``study.csv`` (the summary), ``study_runs.csv``
+        (every fit), ``study.json`` (:meth:`StudyResult.from_json` reads it
+        back), ``study.md`` and ``study.rst`` (the table under
+        :func:`study_header`).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from gpmultirate.study import run_paper_study
+    >>> from gpmultirate.report import write_study
+    >>> result = run_paper_study(1, [6], ["LS"], n_samples=30, factor=3, n_jobs=1)
+    >>> [path.name for path in write_study(result, tempfile.mkdtemp())]
+    ['study.csv', 'study_runs.csv', 'study.json', 'study.md', 'study.rst']
+    """
+    from pathlib import Path
+
+    folder = Path(folder)
+    header = study_header(result)
+    result.to_csv(folder / "study.csv")
+    result.to_csv(folder / "study_runs.csv", runs=True)
+    result.to_json(folder / "study.json")
+    (folder / "study.md").write_text(f"# gpmultirate demo\n\n{header}\n\n"
+                                     f"{result.to_markdown()}", encoding="utf-8")
+    (folder / "study.rst").write_text(f"{header}\n\n{result.to_rst()}", encoding="utf-8")
+    return [folder / name for name in ("study.csv", "study_runs.csv", "study.json",
+                                       "study.md", "study.rst")]

@@ -18,7 +18,7 @@ from gpmultirate.plotting.study import plot_study
 from gpmultirate.plotting.time import plot_impulse_response, plot_intersample
 from gpmultirate.responses import ImpulseResponse, OutputPrediction
 
-__all__ = ["example_figures", "fit_figures", "study_figure"]
+__all__ = ["example_figures", "fit_figures", "nonidentifiable_figure", "study_figure"]
 
 _STYLES = {"LS": "tab:red", "DC": "tab:blue", "PK": "tab:green"}
 _DESCRIPTIONS = {"LS": "least squares", "DC": "DC kernel", "PK": "prior-knowledge kernel"}
@@ -243,3 +243,31 @@ def example_figures(example) -> dict:
         finish(ax, axes, method)
     figures["intersample.png"] = fig
     return figures
+
+
+def nonidentifiable_figure(example):
+    """Three fast-rate models with identical slow-rate outputs (paper Example 1, Fig. 2).
+
+    Parameters
+    ----------
+    example : NonidentifiableExample
+        From :func:`gpmultirate.study.nonidentifiable_example`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The four panels of :func:`gpmultirate.plotting.plot_nonidentifiable_example`
+        (``example1.png`` of ``gpmultirate example1``).
+
+    Examples
+    --------
+    >>> from gpmultirate.study import nonidentifiable_example
+    >>> from gpmultirate.plotting.report import nonidentifiable_figure
+    >>> len(nonidentifiable_figure(nonidentifiable_example(40, 4)).axes)
+    4
+    """
+    from gpmultirate.plotting.time import plot_nonidentifiable_example
+
+    fig = _figure(figsize=(9.0, 6.0))
+    plot_nonidentifiable_example(example, axes=fig.subplots(2, 2))
+    return fig
