@@ -628,9 +628,9 @@ def _one_line(error: BaseException) -> str:
         names = [_shorten(os.fsdecode(name)) for name in (error.filename, error.filename2)
                  if name is not None]
         return ": ".join([*names, error.strerror])
-    if isinstance(error, MemoryError):
-        return f"out of memory: {error}" if str(error) else "out of memory"
     text = " ".join(str(error).split())
+    if isinstance(error, MemoryError):  # the memory guard's refusal says how much and why
+        return text or "out of memory"
     return text if isinstance(error, ValueError) else f"{type(error).__name__}: {text}"
 
 
@@ -653,16 +653,20 @@ def main(argv=None) -> int:
         The exit status, 0 on success, 130 after a Ctrl-C.  Errors raise
         :class:`SystemExit` with status 2, as argparse does.
     """
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    command = args.command_parser
+    command = None
     try:
+        args = build_parser().parse_args(argv)
+        command = args.command_parser
         return args.handler(command, args)
     except KeyboardInterrupt:
-        print(f"{command.prog}: interrupted", file=sys.stderr, flush=True)
+        print(f"{'gpmultirate' if command is None else command.prog}: interrupted",
+              file=sys.stderr, flush=True)
         return 130
     except Exception as error:  # every error is one line, not a traceback
         message = _one_line(error)
+        if command is None:
+            print(f"gpmultirate: error: {message}", file=sys.stderr, flush=True)
+            return 2
         # a library message that starts with a parameter's name: name the option
         option = "--" + message.split(" ", 1)[0].replace("_", "-")
         known = any(option in action.option_strings for action in command._actions)

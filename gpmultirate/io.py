@@ -757,6 +757,7 @@ def write_file(path, content: bytes, *, overwrite: bool = False) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     handle, temp = _mkstemp(path)
     try:
+        os.chmod(temp, 0o666 & ~_umask())  # as open() would make it, not mkstemp's 0o600
         with os.fdopen(handle, "wb") as stream:
             stream.write(content)
             stream.flush()
@@ -858,6 +859,7 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
     temp = Path(tempfile.mkdtemp(prefix=_temp_name(folder, "part"), dir=parent))
     aside = None
     try:
+        os.chmod(temp, 0o777 & ~_umask())  # as os.mkdir would make it, not mkdtemp's 0o700
         for name, content in files.items():
             _write_new(temp / name, content)
         _fsync_dir(temp)
@@ -879,13 +881,18 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
         _fsync_dir(parent)
     except BaseException:
         shutil.rmtree(temp, ignore_errors=True)
-        if aside is not None and not folder.exists():  # pragma: no cover - defensive
-            os.rename(aside, folder)
-            aside = None
         raise
     finally:
-        if aside is not None:
+        # the earlier results go only once the new ones are in place; if even moving them
+        # back failed, they stay in .NAME.old-* (see above)
+        if aside is not None and folder.is_dir():
             shutil.rmtree(aside, ignore_errors=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def check_folder(folder, names, *, overwrite: bool = False) -> None:
