@@ -345,8 +345,8 @@ def save_state_space(system, file, *, sample_time: float | None = None,
         is reduced by its ``to_state_space()``.
     file : str, path-like or binary file object
     sample_time : float, optional
-        The sample time when ``system`` carries none (``dt`` None or True);
-        default 1.
+        The sample time when ``system`` carries none: for ``dt=True``
+        (default 1) or ``dt=None``.
     overwrite : bool, default True
         Replace an existing file of that name; otherwise
         :class:`FileExistsError`.
@@ -391,10 +391,13 @@ def save_state_space(system, file, *, sample_time: float | None = None,
     if not all(np.isfinite(matrix).all() for matrix in (A, B, C, D)):
         raise ValueError("system must have finite matrices")
     dt = getattr(system, "dt", None)
-    if dt is None or dt is True:
+    if dt is True:  # discrete-time with an unspecified sample time
         dt = 1.0 if sample_time is None else sample_time
-    if dt is False or dt == 0:
-        raise ValueError("system must be discrete-time; got a continuous-time model")
+    elif dt is None and sample_time is not None:
+        dt = sample_time
+    if dt is None or dt is False or dt == 0:
+        raise ValueError("system must be discrete-time (dt > 0 or True), or sample_time "
+                         "given; got a model without a sample time")
     dt = check_positive(dt, "sample_time")
     buffer = io.BytesIO()
     np.savez(buffer, A=A, B=B, C=C, D=D, dt=np.asarray(dt, dtype=float))
