@@ -156,8 +156,8 @@ def _cell_text(value) -> str:
 def _markdown(summary: dict) -> str:
     data, model = summary["data"], summary["model"]
     lines = ["# gpmultirate fit", "",
-             f"- data: `{data['file']}`, inputs {', '.join(f'`{c}`' for c in data['inputs'])}, "
-             f"output `{data['output']}`",
+             ("- data: " if data["file"] is None else f"- data: `{data['file']}`, ")
+             + f"inputs {', '.join(f'`{c}`' for c in data['inputs'])}, output `{data['output']}`",
              f"- {data['n_samples']} fast samples, {data['n_slow_samples']} measured slow "
              f"samples ({data['sampling']}), sample time {data['sample_time']:g} s",
              f"- estimator: {model['estimator']}, order {model['order']}, initial "
