@@ -15,8 +15,17 @@ example1`` draws the non-identifiability example (the paper's Example 1,
 Fig. 2).  Figures are rendered with
 matplotlib's Agg canvas, without pyplot, so the command never opens a window.
 
-Errors in the arguments or the files end the command with exit status 2 and
-one line on stderr that names the option, file or column.
+The commands parse their arguments and call the library: the files are read
+by :func:`gpmultirate.io.read_record` and
+:func:`gpmultirate.io.read_slow_samples`, the results of a fit are
+:func:`gpmultirate.report.fit_files` written by
+:func:`gpmultirate.io.write_folder` (all at once), a prediction is
+:func:`gpmultirate.report.prediction_csv`, and the study's tables and figures
+come from :func:`gpmultirate.report.write_study` and
+:mod:`gpmultirate.plotting.report`.
+
+Every failure ends the command with one line on stderr: exit status 2 for
+an error (naming the option, file or column), 130 for Ctrl-C.
 """
 
 from __future__ import annotations

@@ -807,7 +807,7 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
     only files of a result (the names in ``files`` and ``replaceable``):
     with ``overwrite`` it is renamed aside, the new folder renamed in, and
     the old one removed.  Interrupts (SIGINT, SIGTERM) are held back during
-    the two renames, so Ctrl-C never separates them.  Only a crash of the
+    the two renames and the removal, so Ctrl-C never separates them.  Only a crash of the
     machine or ``SIGKILL`` between them leaves no ``folder``; then the old
     results are in ``.NAME.old-*`` and the new, complete ones in
     ``.NAME.part-*`` beside it, either of which can be renamed to ``NAME``.
@@ -864,7 +864,7 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
             _write_new(temp / name, content)
         _fsync_dir(temp)
         check_folder(folder, [*files, *replaceable], overwrite=overwrite)
-        with _SignalsHeld():
+        with _SignalsHeld():  # the swap and the removal of the earlier folder
             try:
                 os.rename(temp, folder)  # onto a missing or an empty folder
             except OSError:
@@ -878,15 +878,18 @@ def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()
                     os.rename(aside, folder)
                     aside = None
                     raise
+            if aside is not None:
+                shutil.rmtree(aside, ignore_errors=True)
+                aside = None
         _fsync_dir(parent)
     except BaseException:
-        shutil.rmtree(temp, ignore_errors=True)
+        with _SignalsHeld():
+            shutil.rmtree(temp, ignore_errors=True)
+            # the earlier results go only once the new ones are in place; if even moving
+            # them back failed, they stay in .NAME.old-* (see above)
+            if aside is not None and folder.is_dir():
+                shutil.rmtree(aside, ignore_errors=True)
         raise
-    finally:
-        # the earlier results go only once the new ones are in place; if even moving them
-        # back failed, they stay in .NAME.old-* (see above)
-        if aside is not None and folder.is_dir():
-            shutil.rmtree(aside, ignore_errors=True)
 
 
 def _umask() -> int:

@@ -23,8 +23,8 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.io import SlowSamples, read_slow_samples
 
-__all__ = ["FitReport", "fit_files", "fit_report", "prediction_csv", "study_header",
-           "write_study"]
+__all__ = ["FitReport", "fit_files", "fit_report", "model_slow_samples", "prediction_csv",
+           "study_header", "write_study"]
 
 
 def _plain(value):
@@ -209,8 +209,32 @@ def _hyperparameters(kernel) -> dict:
             if params.get(hyper.name) is not None}
 
 
-def _samples_of(model) -> SlowSamples:
-    """The slow samples a fitted model saw, read from its sample instants."""
+def model_slow_samples(model) -> SlowSamples:
+    """The slow samples a fitted model saw, read from its sample instants.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator of one record.
+
+    Returns
+    -------
+    SlowSamples
+        As :func:`gpmultirate.io.read_slow_samples` reads them from a column
+        holding the model's ``y_slow_`` at its sample instants and ``NaN``
+        elsewhere.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import model_slow_samples
+    >>> u = np.random.default_rng(0).standard_normal(30)
+    >>> model = gm.FIRGaussianProcess(order=5, factor=3, offset=1).fit(u, u[1::3])
+    >>> model_slow_samples(model).description
+    'one sample in 3, from row 1'
+    """
+    check_is_fitted(model, "operator_")
     operator = model.operator_
     column = np.full(int(operator.n_samples), np.nan)
     column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
@@ -228,7 +252,7 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
         A fitted estimator.
     samples : SlowSamples, optional
         The slow samples it was fitted to (:func:`gpmultirate.io.read_slow_samples`);
-        by default read from the model's sample instants.
+        by default :func:`model_slow_samples`.
     file : str or path-like, optional
         The data file, for the report's text.
     inputs : sequence of str, optional
@@ -277,7 +301,7 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
 
     check_is_fitted(model, "kernel_")
     if samples is None:
-        samples = _samples_of(model)
+        samples = model_slow_samples(model)
     n_inputs = int(model.n_inputs_)
     if inputs is None:
         inputs = ["u"] if n_inputs == 1 else [f"u{k}" for k in range(n_inputs)]
@@ -374,7 +398,7 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
     from gpmultirate.plotting.report import fit_figures
 
     if samples is None:
-        samples = _samples_of(model)
+        samples = model_slow_samples(model)
     files, notes, system = {}, [], None
     buffer = io.BytesIO()
     try:

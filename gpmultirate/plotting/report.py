@@ -71,10 +71,10 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     ['bode.png', 'impulse.png', 'intersample.png']
     >>> figures["bode.png"].savefig(__import__("io").BytesIO(), format="png")
     """
-    from gpmultirate.report import _samples_of
+    from gpmultirate.report import model_slow_samples
 
     if samples is None:
-        samples = _samples_of(model)
+        samples = model_slow_samples(model)
     indices, values = samples.indices, samples.values
     n_inputs = model.n_inputs_
     names = list(inputs) if inputs is not None else [f"u{k}" for k in range(n_inputs)]
