@@ -779,22 +779,41 @@ def _mkstemp(path: Path):
 
 
 class _SignalsHeld:
-    """Hold back SIGINT and SIGTERM in a block of a few system calls (delivered after it)."""
+    """Hold back SIGINT and SIGTERM in a block of a few system calls (delivered after it).
+
+    The Python-level handlers are swapped for ones that only take note: blocking the
+    signals with a mask would not do, since the kernel may deliver them to another
+    thread (a BLAS worker), whose C handler then interrupts the main thread anyway.
+    Outside the main thread nothing is held (handlers can only be set there).
+    """
 
     def __enter__(self):
         import signal
+        import threading
 
-        self._mask = None
-        if hasattr(signal, "pthread_sigmask"):
-            self._mask = signal.pthread_sigmask(signal.SIG_BLOCK,
-                                                {signal.SIGINT, signal.SIGTERM})
+        self._previous, self._pending = {}, []
+        if threading.current_thread() is threading.main_thread():
+            for number in (signal.SIGINT, signal.SIGTERM):
+                previous = signal.getsignal(number)
+                if previous is not None:  # None: a handler not set from Python; keep it
+                    self._previous[number] = previous
+                    signal.signal(number, self._note)
         return self
+
+    def _note(self, number, frame):
+        self._pending.append((number, frame))
 
     def __exit__(self, *exc):
         import signal
 
-        if self._mask is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, self._mask)
+        for number, previous in self._previous.items():
+            signal.signal(number, previous)
+        for number, frame in self._pending[:1]:  # now act on it as it would have
+            previous = self._previous[number]
+            if callable(previous):
+                previous(number, frame)  # e.g. default_int_handler: KeyboardInterrupt
+            elif previous == signal.SIG_DFL:
+                os.kill(os.getpid(), number)
         return False
 
 

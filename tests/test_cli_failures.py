@@ -431,3 +431,24 @@ def test_ctrl_c_at_random_moments_leaves_the_folder_complete_or_absent(tmp_path)
         else:
             assert not replace, "the earlier result was lost"
     assert 130 in outcomes  # the interrupts did land
+
+
+@pytest.mark.parametrize("existing", [False, True], ids=["new", "replace"])
+def test_ctrl_c_during_the_swap_is_acted_on_after_it(existing, tmp_path, monkeypatch):
+    """SIGINT at a rename of write_folder: the swap completes, then KeyboardInterrupt."""
+    folder = tmp_path / "out"
+    if existing:
+        gpmultirate.io.write_folder(folder, {"a": b"old", "b": b"old"})
+    rename = os.rename
+
+    def rename_with_sigint(source, target):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the signal has arrived
+        rename(source, target)
+
+    monkeypatch.setattr(os, "rename", rename_with_sigint)
+    with pytest.raises(KeyboardInterrupt):
+        gpmultirate.io.write_folder(folder, {"a": b"new"}, overwrite=True, replaceable=["b"])
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == {"a": b"new"}
+    assert _leftovers(tmp_path) == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
