@@ -2,7 +2,10 @@
 
 import sys
 
-from gpmultirate.cli import main
-
 if __name__ == "__main__":
+    try:  # a Ctrl-C while the libraries load is one line too
+        from gpmultirate.cli import main
+    except KeyboardInterrupt:
+        print("gpmultirate: interrupted", file=sys.stderr, flush=True)
+        sys.exit(130)
     sys.exit(main())

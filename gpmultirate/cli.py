@@ -15,19 +15,26 @@ example1`` draws the non-identifiability example (the paper's Example 1,
 Fig. 2).  Figures are rendered with
 matplotlib's Agg canvas, without pyplot, so the command never opens a window.
 
-Errors in the arguments or the files end the command with exit status 2 and
-one line on stderr that names the option, file or column.
+The commands parse their arguments and call the library: the files are read
+by :func:`gpmultirate.io.read_record` and
+:func:`gpmultirate.io.read_slow_samples`, the results of a fit are
+:func:`gpmultirate.report.fit_files` written by
+:func:`gpmultirate.io.write_folder` (all at once), a prediction is
+:func:`gpmultirate.report.prediction_csv`, and the study's tables and figures
+come from :func:`gpmultirate.report.write_study` and
+:mod:`gpmultirate.plotting.report`.
+
+Every failure ends the command with one line on stderr: exit status 2 for
+an error (naming the option, file or column), 130 for Ctrl-C.
 """
 
 from __future__ import annotations
 
 import argparse
 import io
-import json
 import math
 import os
 import sys
-import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -45,7 +52,6 @@ __all__ = ["build_parser", "main"]
 DEMO_RUNS = 2
 DEMO_ORDERS = (100, 200, 600)
 SAMPLE_TIME = 0.1  # the paper's fast sample time, s
-_STYLES = {"LS": "tab:red", "DC": "tab:blue", "PK": "tab:green"}
 _DESCRIPTIONS = {"LS": "least squares", "DC": "DC kernel", "PK": "prior-knowledge kernel"}
 
 
@@ -57,52 +63,39 @@ def _available_cpus() -> int:
 
 
 # ------------------------------------------------------------ argument types
-def _int_at_least(low: int):
-    def parse(text: str) -> int:
+def _argument(name: str, convert, ok, problem, expected: str = "an integer"):
+    """An argparse type: ``convert(text)`` if ``ok`` holds, else ``problem(text, value)``."""
+    def parse(text: str):
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if not ok(value):
+            raise argparse.ArgumentTypeError(problem(text, value))
         return value
 
-    parse.__name__ = f"integer >= {low}"
+    parse.__name__ = name
     return parse
 
 
-def _order_or_auto(text: str):
-    if text == "auto":
-        return "auto"
-    try:
-        return _int_at_least(1)(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(
-            f"expected an integer >= 1 or 'auto', got {text!r}") from None
+def _int_at_least(low: int):
+    return _argument(f"integer >= {low}", int, lambda value: value >= low,
+                     lambda text, value: f"must be at least {low}, got {value}")
 
 
-_order_or_auto.__name__ = "order"
-
-
-def _nonzero_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value == 0:
-        raise argparse.ArgumentTypeError("must not be 0 (use a positive count, or -1 for all "
-                                         "CPUs)")
-    return value
-
-
-def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not np.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
-    return value
+_nonzero_int = _argument("integer", int, lambda value: value != 0, lambda text, value:
+                         "must not be 0 (use a positive count, or -1 for all CPUs)")
+_finite_float = _argument("number", float, math.isfinite,
+                          lambda text, value: f"must be finite, got {text!r}", "a number")
+# a sample time whose reciprocal, a frequency, is a finite normal number too
+_sample_time = _argument("seconds", float, lambda value: 1e-300 <= value <= 1e300,
+                         lambda text, value: "must be a positive number between 1e-300 and "
+                                             f"1e300 seconds, got {text!r}", "a number")
+_order_or_auto = _argument(
+    "order", lambda text: text if text == "auto" else int(text),
+    lambda value: value == "auto" or value >= 1,
+    lambda text, value: f"expected an integer >= 1 or 'auto', got {text!r}",
+    "an integer >= 1 or 'auto'")
 
 
 class _OneLineErrorParser(argparse.ArgumentParser):
@@ -120,20 +113,14 @@ def _add_output(parser: argparse.ArgumentParser, default: str) -> None:
 
 #: Kernels of ``gpmultirate fit --kernel``.
 FIT_KERNELS = ("dc", "tc", "ss", "auto")
-#: Data sets of ``gpmultirate fit --example``: file in ``gpmultirate/data``, inputs, output.
-EXAMPLES = {"robot-arm": ("robot_arm_multirate.csv", ("u",), "y_slow")}
+#: Data sets of ``gpmultirate fit --example``: function of gpmultirate.datasets giving the
+#: file, inputs, output.
+EXAMPLES = {"robot-arm": ("robot_arm_csv", ("u",), "y_slow")}
 #: Files written by ``gpmultirate fit`` into ``--out``.
 FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "summary.json",
              "summary.md", "state_space.npz")
 FIT_OUT = "gpmultirate-fit"
 PREDICT_OUT = "gpmultirate-prediction.csv"
-
-
-def _positive_float(text: str) -> float:
-    value = _finite_float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
 
 
 def _add_fit_parser(commands) -> None:
@@ -167,7 +154,7 @@ def _add_fit_parser(commands) -> None:
                           "testing); by default the measured samples are used as they are")
     fit.add_argument("--offset", type=_int_at_least(0), default=None, metavar="O",
                      help="row of the first kept sample with --factor, 0..F-1 (default: 0)")
-    fit.add_argument("--sample-time", type=_positive_float, default=1.0, metavar="T",
+    fit.add_argument("--sample-time", type=_sample_time, default=1.0, metavar="T",
                      help="fast sample time in seconds; frequencies are in Hz (default: 1, "
                           "cycles per sample)")
     fit.add_argument("--order", type=_order_or_auto, default=None, metavar="P",
@@ -358,118 +345,23 @@ def _output_dir(parser, path: str) -> Path:
     return out
 
 
-def _figure(**kwargs):
-    # A bare Figure renders with the Agg canvas and never touches pyplot's state.
-    from matplotlib.figure import Figure
-
-    return Figure(layout="constrained", **kwargs)
-
-
-def _format_gof(value: float) -> str:
-    # enough decimals to tell 99.9990 % from 100 %
-    return f"{value:.2f}" if value < 99.99 else f"{value:.4f}"
-
-
 def _save(args, fig, path: Path) -> None:
     fig.savefig(path, dpi=150)
     _say(args, f"wrote {path}")
 
 
-def _study_figure(args, result, out: Path) -> None:
-    from gpmultirate.plotting import plot_study
-
-    fig = _figure(figsize=(6.4, 4.2))
-    ax = fig.subplots()
-    plot_study(result, ax=ax)
-    ax.set_title(f"GoF on validation data, mean ± 2 std over {result.n_runs} "
-                 f"run{'s' if result.n_runs > 1 else ''}", fontsize="medium")
-    _save(args, fig, out / "gof_vs_order.png")
-
-
-def _example_figures(args, example, out: Path) -> None:
-    from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
-    from gpmultirate.responses import ImpulseResponse, OutputPrediction
-
-    methods = list(example.models)
-    data = example.data
-    n = data.u.shape[0]
-    titles = {m: (f"{m} ({_DESCRIPTIONS[m]}), P = "
-                  f"{example.ls_order if m == 'LS' else example.order}, "
-                  f"GoF {_format_gof(example.gof[m])} %") for m in methods}
-
-    # Bode magnitude per estimator with the true FRF and 0.1 |G0 - G| (paper Fig. 6), at
-    # the DFT bins of the record, the frequencies the multisine excites
-    freqs = example.frequencies()
-    true_frf = example.true_frequency_response(freqs)
-    fig = _figure(figsize=(8.5, 2.6 * len(methods) + 0.4))
-    axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, method in zip(axes, methods):
-        frf = example.models[method].frequency_response(freqs, sample_time=data.sample_time)
-        plot_bode(frf, axes=ax, phase=False, label=method, color=_STYLES[method],
-                  true_frf=true_frf, show_error=True, error_scale=0.1)
-        ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    _save(args, fig, out / "bode.png")
-
-    # impulse responses: posterior mean and 95 % band over the first lags, true markers
-    n_lags = min(example.order, max(60, n // 4))
-    true_g = example.true_impulse_response(n_lags)
-    fig = _figure(figsize=(8.5, 2.4 * len(methods) + 0.4))
-    axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, method in zip(axes, methods):
-        model = example.models[method]
-        order = model.coef_.shape[0]
-        shown = min(order, n_lags)
-        lags = (np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1) if model.continuous_lags
-                else np.arange(shown))
-        plot_impulse_response(ImpulseResponse.from_model(model, lags), ax=ax, label=method,
-                              color=_STYLES[method], true_response=true_g)
-        ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    if n_lags < example.order:
-        axes[-1].set_xlabel(f"lag [samples] (the first {n_lags} of P)")
-    _save(args, fig, out / "impulse_response.png")
-
-    # intersample output on the training input: 20 slow periods in the middle
-    width = min(n, 20 * data.factor)
-    start = max(0, (n - width) // 2)
-    start -= start % data.factor
-    fig = _figure(figsize=(8.5, 2.4 * len(methods) + 0.4))
-    axes = fig.subplots(len(methods), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, method in zip(axes, methods):
-        prediction = OutputPrediction.from_model(
-            example.models[method], data.u, y_fast=data.y_fast, y_slow=data.y_slow,
-            sample_time=data.sample_time)
-        plot_intersample(prediction, ax=ax, window=(start, min(n, start + width)),
-                         label=method, color=_STYLES[method])
-        ax.set_title(titles[method], fontsize="medium", loc="left", pad=14)
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    _save(args, fig, out / "intersample.png")
-
-
 def _demo(parser, args) -> int:
-    n = args.n_samples
-    if args.factor > n:
-        parser.error(f"argument --factor: must not exceed --n-samples ({n}), got {args.factor}")
-    bad = [p for p in args.orders if p > n]
-    if bad:
-        parser.error(f"argument --orders: orders must lie in 1..N = 1..{n}; got {bad}")
-    if len(set(args.orders)) != len(args.orders):
-        parser.error(f"argument --orders: orders must not repeat; got {args.orders}")
-    if len(set(args.methods)) != len(args.methods):
-        parser.error(f"argument --methods: methods must not repeat; got {args.methods}")
-    low, high = args.snr
-    if low > high:
-        parser.error(f"argument --snr: LOW must not exceed HIGH; got {low:g} {high:g}")
+    from gpmultirate.study.simulation import check_config, check_methods, check_orders
+
+    n = args.n_samples  # the library's checks, before anything is written
+    if args.snr[0] > args.snr[1]:
+        parser.error(f"argument --snr: LOW must not exceed HIGH; got {args.snr[0]:g} "
+                     f"{args.snr[1]:g}")
+    check_config(n, args.factor, SAMPLE_TIME, tuple(args.snr), 0.1)
+    check_orders(args.orders, n)
+    check_methods(args.methods)
     example_order = n if args.example_order is None else args.example_order
-    if example_order > n:
-        parser.error(f"argument --example-order: must lie in 1..N = 1..{n}; got {example_order}")
+    check_orders([example_order], n, name="example_order")
     out = _output_dir(parser, args.output)
     journal = out / JOURNAL_NAME
     _check_journal(parser, args, journal)
@@ -524,9 +416,8 @@ def _interrupted(args, journal: Path) -> None:
 
 def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int:
     n = args.n_samples
-    low, high = args.snr
     config = {"n_samples": n, "factor": args.factor, "sample_time": SAMPLE_TIME,
-              "snr_db": (low, high)}
+              "snr_db": tuple(args.snr)}
     started = time.perf_counter()
     _say(args, f"gpmultirate demo: {args.runs} run(s), orders {' '.join(map(str, args.orders))}, "
                f"methods {' '.join(args.methods)}, N = {n}, n_jobs = {args.n_jobs}")
@@ -536,40 +427,32 @@ def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int
                                  journal=journal, **config)
     except JournalError as error:
         parser.error(f"argument --resume: {error}" if args.resume else str(error))
-    result.to_csv(out / "study.csv")
-    result.to_csv(out / "study_runs.csv", runs=True)
-    result.to_json(out / "study.json")
-    header = (f"Goodness of fit [%] of fast-rate FIR models on noise-free validation data: "
-              f"mean ± sample std over {result.n_runs} run(s); N = {n} fast samples, "
-              f"M = {result.n_slow_samples} slow samples (factor {args.factor}), SNR "
-              f"{low:g}-{high:g} dB, seed {args.seed}."
-              + (" LS is not identifiable for P >= M." if "LS" in args.methods else ""))
-    table = result.to_markdown()
-    (out / "study.md").write_text(f"# gpmultirate demo\n\n{header}\n\n{table}",
-                                  encoding="utf-8")
-    (out / "study.rst").write_text(f"{header}\n\n{result.to_rst()}", encoding="utf-8")
-    for name in ("study.csv", "study_runs.csv", "study.json", "study.md", "study.rst"):
-        _say(args, f"wrote {out / name}")
-    print(header)
+    from gpmultirate.report import study_header, write_study
+
+    for path in write_study(result, out):
+        _say(args, f"wrote {path}")
+    print(study_header(result))
     print()
-    print(table, end="")
+    print(result.to_markdown(), end="")
     sys.stdout.flush()
 
     if not args.no_figures:
-        _study_figure(args, result, out)
+        from gpmultirate.plotting.report import example_figures, study_figure
+
+        _save(args, study_figure(result), out / "gof_vs_order.png")
         _say(args, f"fitting one run's models for the figures (order {example_order}) ...")
         example = paper_example(args.seed, example_order, methods=args.methods,
                                 n_jobs=min(joblib.effective_n_jobs(args.n_jobs), 2),
                                 **config)
-        if example.models:
-            _example_figures(args, example, out)
+        for name, figure in (example_figures(example) if example.models else {}).items():
+            _save(args, figure, out / name)
     journal.unlink(missing_ok=True)  # the study is complete: its runs are in study.json
     _say(args, f"done in {time.perf_counter() - started:.1f} s")
     return 0
 
 
 def _example1(parser, args) -> int:
-    from gpmultirate.plotting import plot_nonidentifiable_example
+    from gpmultirate.plotting.report import nonidentifiable_figure
     from gpmultirate.study import nonidentifiable_example
 
     if args.n_samples < 2 * args.factor:
@@ -577,31 +460,21 @@ def _example1(parser, args) -> int:
                      f"got {args.n_samples}")
     out = _output_dir(parser, args.output)
     example = nonidentifiable_example(args.n_samples, args.factor, random_state=args.seed)
-    fig = _figure(figsize=(9.0, 6.0))
-    plot_nonidentifiable_example(example, axes=fig.subplots(2, 2))
-    _save(args, fig, out / "example1.png")
+    _save(args, nonidentifiable_figure(example), out / "example1.png")
     return 0
 
 
 # ------------------------------------------------------------- fit, predict
-def _data_error(parser, error) -> None:
-    parser.error(str(error))
-
-
-def _example_path(name: str) -> Path:
-    from importlib import resources
-
-    return Path(str(resources.files("gpmultirate").joinpath("data", EXAMPLES[name][0])))
-
-
 def _fit_source(parser, args):
     """The data file, input columns and output column of ``gpmultirate fit``."""
+    from gpmultirate import datasets
+
     if args.example is not None:
         if args.data is not None:
             parser.error(f"argument --example: give either DATA or --example, not both "
                          f"(got DATA {args.data!r})")
         _, inputs, output = EXAMPLES[args.example]
-        path = _example_path(args.example)
+        path = Path(getattr(datasets, EXAMPLES[args.example][0])())
         return (path, list(args.inputs or inputs),
                 output if args.output_column is None else args.output_column)
     if args.data is None:
@@ -619,62 +492,6 @@ def _check_columns(parser, inputs, output=None) -> None:
             parser.error(f"argument --input: column {name!r} is given twice")
     if output is not None and output in inputs:
         parser.error(f"argument --output: column {output!r} is also an --input column")
-
-
-def _read_inputs(parser, path, inputs, extra=()):
-    """Float columns of ``path``: the inputs as ``(N,)`` or ``(N, k)``, and the extra ones."""
-    from gpmultirate.io import DataFileError, read_columns
-
-    try:
-        columns = read_columns(path, [*inputs, *extra])
-    except DataFileError as error:
-        _data_error(parser, error)
-    for name in inputs:
-        missing = np.flatnonzero(np.isnan(columns[name]))
-        if missing.size:
-            parser.error(f"{path}: input column {name!r} has a missing value (empty or NaN) "
-                         f"at row {missing[0]}; inputs must be measured at every row")
-    u = np.column_stack([columns[name] for name in inputs])
-    return (u[:, 0] if u.shape[1] == 1 else u), [columns[name] for name in extra]
-
-
-def _slow_samples(parser, args, path, y):
-    """Measured instants and values of the output column, and the fit placement.
-
-    Returns ``(indices, values, placement)`` with ``placement`` the keyword
-    arguments of ``fit`` (``y_slow`` with NaN for samples missing from a
-    uniform grid, and ``factor``/``offset`` or ``sample_indices``) and
-    ``(factor, offset)`` of the grid (``offset`` None for irregular instants).
-    """
-    n = y.shape[0]
-    if args.factor is not None or args.offset is not None:
-        factor = 1 if args.factor is None else args.factor
-        offset = 0 if args.offset is None else args.offset
-        if offset >= factor:
-            parser.error(f"argument --offset: must lie in 0..F-1 = 0..{factor - 1} with "
-                         f"--factor {factor}; got {offset}")
-        if offset >= n:
-            parser.error(f"argument --offset: must be below the {n} rows of {path}; "
-                         f"got {offset}")
-        grid = np.arange(offset, n, factor)
-        measured = grid[np.isfinite(y[grid])]
-    else:
-        measured = np.flatnonzero(np.isfinite(y))
-        factor = (max(1, int(round(float(np.median(np.diff(measured))))))
-                  if measured.size > 1 else 1)
-        offset = int(measured[0] % factor) if measured.size else 0
-        grid = np.arange(offset, n, factor)
-    if measured.size == 0:
-        parser.error(f"{path}: output column {args.output_column!r} has no measured (finite) "
-                     "value" + (" at the kept rows" if args.factor is not None else ""))
-    values = y[measured]
-    if np.all((measured - offset) % factor == 0):
-        # on a uniform grid: factor and offset, NaN where a grid sample is missing
-        y_slow = np.full(grid.shape[0], np.nan)
-        y_slow[(measured - offset) // factor] = values
-        return measured, values, {"y_slow": y_slow, "factor": factor, "offset": offset}, \
-            (factor, offset)
-    return measured, values, {"y_slow": values, "sample_indices": measured}, (factor, None)
 
 
 def _fit_kernel(name: str):
@@ -696,331 +513,96 @@ def _fit_kernel(name: str):
     return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
 
 
-def _plain(value):
-    """``value`` as JSON-compatible plain Python data."""
-    import dataclasses
-
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if value is None or isinstance(value, str):
-        return value
-    return str(value)
-
-
-def _hyperparameters(kernel) -> dict:
-    params = kernel.get_params(deep=True)
-    out = {}
-    for hyper in kernel.hyperparameters:
-        value = params.get(hyper.name)
-        if value is not None:
-            out[hyper.name] = _plain(value)
-    return out
-
-
-def _png(fig) -> bytes:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=150)
-    return buffer.getvalue()
-
-
-def _fit_figures(model, u, indices, values, names) -> dict[str, bytes]:
-    from gpmultirate.plotting import plot_bode, plot_impulse_response, plot_intersample
-    from gpmultirate.responses import ImpulseResponse, OutputPrediction
-
-    n_inputs = model.n_inputs_
-    prediction_length = np.shape(u)[0]
-    figures = {}
-    # Bode: one magnitude and phase pair per input
-    fig = _figure(figsize=(4.8 * n_inputs + 1.2, 5.6))
-    axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
-    for k in range(n_inputs):
-        frf = model.frequency_response(input=k if n_inputs > 1 else None)
-        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean")
-        axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
-    figures["bode.png"] = _png(fig)
-
-    # impulse responses at 4 lags per sample, between the integer lags too
-    order = model.coef_.shape[-1]
-    shown = min(order, max(60, prediction_length // 4))
-    lags = np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1)
-    mean, std = model.impulse_response(lags, return_std=True)
-    mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
-    fig = _figure(figsize=(8.5, 2.6 * n_inputs + 0.4))
-    axes = fig.subplots(n_inputs, 1, sharex=True, squeeze=False)[:, 0]
-    for k, ax in enumerate(axes):
-        response = ImpulseResponse(lags=lags, mean=mean[k], std=std[k], level=0.95,
-                                   continuous=bool(model.continuous_lags))
-        plot_impulse_response(response, ax=ax, label="posterior mean (95 % band)")
-        ax.set_title(f"impulse response of input {names[k]}", fontsize="medium", loc="left")
-        ax.legend(fontsize="small")
-        if ax is not axes[-1]:
-            ax.set_xlabel("")
-    if shown < order:
-        axes[-1].set_xlabel(f"lag [samples] (the first {shown} of P = {order})")
-    figures["impulse.png"] = _png(fig)
-
-    # fast-rate output on the record, all of it and a zoom on 20 slow periods
-    prediction = OutputPrediction.from_model(
-        model, u, y_slow=values, sample_indices=indices)
-    n = prediction.time.shape[0]
-    spacing = (max(1, int(round(float(np.median(np.diff(indices))))))
-               if indices.size > 1 else 1)
-    width = min(n, 20 * spacing)
-    start = max(0, (n - width) // 2)
-    fig = _figure(figsize=(8.5, 5.6))
-    full, zoom = fig.subplots(2, 1)
-    plot_intersample(prediction, ax=full, label="prediction (95 % band)")
-    full.set_title("fast-rate output predicted from the slow samples", fontsize="medium",
-                   loc="left")
-    plot_intersample(prediction, ax=zoom, window=(start, start + width),
-                     label="prediction (95 % band)")
-    zoom.set_title(f"fast samples {start}..{start + width - 1}", fontsize="medium", loc="left")
-    for ax in (full, zoom):
-        ax.legend(fontsize="small")
-    figures["intersample.png"] = _png(fig)
-    return figures
-
-
-def _cell_text(value) -> str:
-    return f"{value:.6g}" if isinstance(value, float) else str(value)
-
-
-def _summary_markdown(summary: dict) -> str:
-    data, model = summary["data"], summary["model"]
-    lines = ["# gpmultirate fit", "",
-             f"- data: `{data['file']}`, inputs {', '.join(f'`{c}`' for c in data['inputs'])}, "
-             f"output `{data['output']}`",
-             f"- {data['n_samples']} fast samples, {data['n_slow_samples']} measured slow "
-             f"samples ({data['sampling']}), sample time {data['sample_time']:g} s",
-             f"- estimator: {model['estimator']}, order {model['order']}, initial "
-             f"conditions {model['initial_conditions']}",
-             f"- kernel: `{model['kernel']}`",
-             f"- log evidence: {model['log_evidence']:.6g}",
-             f"- noise level (variance): {model['noise_level']:.6g} "
-             f"(std {math.sqrt(model['noise_level']):.6g})", "",
-             "## Hyperparameters", "", "| name | value |", "|---|---|"]
-    lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
-    resonances = summary.get("resonances")
-    if resonances and isinstance(resonances, list) and all(isinstance(r, dict)
-                                                           for r in resonances):
-        keys = list(dict.fromkeys(k for r in resonances for k in r))
-        lines += ["", "## Resonances found", "", "| " + " | ".join(keys) + " |",
-                  "|" + "---|" * len(keys)]
-        lines += ["| " + " | ".join(_cell_text(r.get(k)) for k in keys) + " |"
-                  for r in resonances]
-    elif "resonances" in summary:
-        lines += ["", "## Resonances found", "", "```",
-                  json.dumps(summary["resonances"], indent=1), "```"]
-    selection = summary.get("order_selection")
-    if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
-        criterion = selection.get("criterion")
-        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
-                else f"{criterion} per slow sample")
-        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
-                  "", "| order | score |", "|---|---|"]
-        lines += [f"| {o} | {_cell_text(v)} |"
-                  for o, v in zip(selection["orders"], selection.get("score", []))]
-    if "state_space" in summary:
-        lines += ["", "## State-space model", "",
-                  f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
-    if "validation" in summary:
-        val = summary["validation"]
-        lines += ["", "## Validation", "",
-                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
-                  f"({val['n_samples']} fast samples)"]
-        if "fit_percent" in val:
-            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
-    if summary["notes"]:
-        lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
-    return "\n".join(lines) + "\n"
-
-
-def _check_out_dir(parser, out: Path, names, force: bool) -> None:
-    if out.exists() and not out.is_dir():
-        parser.error(f"argument --out: {str(out)!r} exists and is not a directory")
-    if not force:
-        existing = [name for name in names if (out / name).exists()]
-        if existing:
-            parser.error(f"argument --out: {out / existing[0]} exists; use --force to "
-                         "overwrite")
-
-
-def _write_files(parser, out: Path, files: dict, force: bool, stale=()) -> None:
-    """Write ``files`` (name to bytes) into ``out`` atomically: temporary files, then renames."""
-    created = not out.exists()
-    temps = {}
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        for name, content in files.items():
-            handle, temp = tempfile.mkstemp(prefix=f".{name}.", suffix=".part", dir=out)
-            temps[name] = temp
-            with os.fdopen(handle, "wb") as stream:
-                stream.write(content)
-        if not force:
-            existing = [name for name in files if (out / name).exists()]
-            if existing:
-                raise FileExistsError(f"{out / existing[0]} appeared while writing")
-        for name, temp in temps.items():
-            os.replace(temp, out / name)
-        for name in stale:  # an older run's file that this run does not write
-            if name not in files and (out / name).exists():
-                (out / name).unlink()
-    except OSError as error:
-        for temp in temps.values():
-            if os.path.exists(temp):
-                os.unlink(temp)
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
-        parser.error(f"argument --out: cannot write to {str(out)!r} ({error})")
-    except BaseException:
-        for temp in temps.values():
-            if os.path.exists(temp):
-                os.unlink(temp)
-        raise
-
-
 def _fit(parser, args) -> int:
     import warnings
 
-    from gpmultirate import FIRGaussianProcess, fit_percent, save_model
+    from gpmultirate import FIRGaussianProcess
+    from gpmultirate.io import check_folder, read_record, read_slow_samples, write_folder
+    from gpmultirate.report import fit_files
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
     out = Path(args.out)
-    _check_out_dir(parser, out, FIT_FILES, args.force)
+    _check_out(parser, lambda: check_folder(out, FIT_FILES, overwrite=args.force))
     started = time.perf_counter()
-    u, (y,) = _read_inputs(parser, path, inputs, [output])
+    u, y = read_record(path, inputs, output)
     n = y.shape[0]
     if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")
-    indices, values, placement, (factor, offset) = _slow_samples(parser, args, path, y)
-    u_val = y_val = None
+    factor = args.factor or 1
+    if args.offset is not None and args.offset >= factor:
+        parser.error(f"argument --offset: must lie in 0..F-1 = 0..{factor - 1} with --factor "
+                     f"{factor}; got {args.offset}")
+    if args.offset is not None and args.offset >= n:
+        parser.error(f"argument --offset: must be below the {n} rows of {path}; got "
+                     f"{args.offset}")
+    try:
+        samples = read_slow_samples(y, factor=args.factor, offset=args.offset)
+    except ValueError as error:
+        parser.error(f"{path}: {str(error).replace('column', f'output column {output!r}', 1)}")
+    validation = None
     if args.validate is not None:
-        u_val, (y_val,) = _read_inputs(parser, args.validate, inputs, [output])
-        missing = np.flatnonzero(np.isnan(y_val))
-        if missing.size:
-            parser.error(f"{args.validate}: output column {output!r} must be measured at "
-                         f"every row for validation; row {missing[0]} is missing")
-        if np.ptp(y_val) == 0:
+        validation = read_record(args.validate, inputs, output, complete=True)
+        if np.ptp(validation[1]) == 0:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
 
-    notes = []
-    params = {"kernel": _fit_kernel(args.kernel), "order": args.order,
-              "initial_conditions": args.initial_conditions, "sample_time": args.sample_time,
-              "tuning": args.tuning, "cv": args.cv}
-    y_slow = placement.pop("y_slow")
-    if "factor" in placement:
-        params.update(placement)
-        fit_kwargs = {}
-    else:
-        fit_kwargs = placement
-    sampling = (f"one sample in {factor}, from row {offset}" if offset is not None
-                else f"irregular instants, median spacing {factor}")
-    if offset is not None and values.shape[0] < len(range(offset, n, factor)):
-        sampling += f", {len(range(offset, n, factor)) - values.shape[0]} missing"
-    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {values.shape[0]} slow samples "
-               f"({sampling}), {len(inputs)} input(s) ...")
-    model = FIRGaussianProcess(**params)
+    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} slow "
+               f"samples ({samples.description}), {len(inputs)} input(s) ...")
+    model = FIRGaussianProcess(
+        kernel=_fit_kernel(args.kernel), order=args.order,
+        initial_conditions=args.initial_conditions, sample_time=args.sample_time,
+        tuning=args.tuning, cv=args.cv, **samples.estimator_params)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            model.fit(u, y_slow, **fit_kwargs)
+            model.fit(u, samples.y_slow, **samples.fit_params)
         except ValueError as error:
             parser.error(f"{path}: the model cannot be fitted: {error}")
     messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
     for message in messages:
         _say(args, f"warning: {message}")
-
-    summary = {
-        "data": {"file": str(path), "inputs": inputs, "output": output, "n_samples": n,
-                 "n_slow_samples": int(values.shape[0]), "sampling": sampling,
-                 "factor": factor, "offset": offset, "sample_time": args.sample_time},
-        "model": {"estimator": type(model).__name__, "order": int(model.coef_.shape[-1]),
-                  "n_inputs": int(model.n_inputs_),
-                  "initial_conditions": args.initial_conditions,
-                  "kernel_option": args.kernel, "kernel": str(model.kernel_),
-                  "hyperparameters": _hyperparameters(model.kernel_),
-                  "tuning": args.tuning,
-                  "log_evidence": float(model.log_marginal_likelihood_value_),
-                  "noise_level": float(model.noise_level_)},
-        "notes": notes,
-        "warnings": messages,
-    }
-    if hasattr(model, "resonances_"):
-        summary["resonances"] = _plain(model.resonances_)
-    if hasattr(model, "cv_log_predictive_likelihood_"):
-        summary["model"]["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
-    if hasattr(model, "order_selection_"):
-        selection = model.order_selection_
-        summary["order_selection"] = {
-            "criterion": selection["criterion"],
-            "orders": [int(o) for o in selection["order"]],
-            "score": [float(v) for v in selection["score"]],
-            "best_order": int(selection["best_order"]),
-        }
-    files = {}
-    buffer = io.BytesIO()
     try:
-        save_model(model, buffer)
-    except (ValueError, TypeError) as error:
-        parser.error(f"{path}: the model cannot be saved: {error}")
-    files["model.npz"] = buffer.getvalue()
-    system = None
-    try:
-        system = model.to_state_space()
+        files, report = fit_files(model, u, samples, file=path, inputs=inputs, output=output,
+                                  validation=validation, validation_file=args.validate,
+                                  warnings=messages, kernel_option=args.kernel)
     except ValueError as error:
-        notes.append(f"state_space.npz was not written: {error}")
-    if system is not None:
-        dt = getattr(system, "dt", None)
-        buffer = io.BytesIO()
-        np.savez(buffer, A=np.asarray(system.A, dtype=float),
-                 B=np.asarray(system.B, dtype=float), C=np.asarray(system.C, dtype=float),
-                 D=np.asarray(system.D, dtype=float),
-                 dt=np.asarray(args.sample_time if dt is None or dt is True else dt,
-                               dtype=float))
-        files["state_space.npz"] = buffer.getvalue()
-        summary["state_space"] = {"order": int(np.asarray(system.A).shape[0])}
-    if u_val is not None:
-        y_model = model.predict(u_val)
-        summary["validation"] = {"file": str(args.validate), "n_samples": int(y_val.shape[0]),
-                                 "gof_percent": float(model.score(u_val, y_val)),
-                                 "fit_percent": float(fit_percent(y_val, y_model))}
-    files.update(_fit_figures(model, u, indices, values, inputs))
-    summary_json = json.dumps(_plain(summary), indent=2) + "\n"
-    files["summary.json"] = summary_json.encode("utf-8")
-    files["summary.md"] = _summary_markdown(json.loads(summary_json)).encode("utf-8")
-    _write_files(parser, out, files, args.force, stale=FIT_FILES if args.force else ())
+        parser.error(f"{path}: {error}")
+    # the folder appears complete in one step (or not at all), see io.write_folder
+    _check_out(parser, lambda: write_folder(out, files, overwrite=args.force,
+                                            replaceable=FIT_FILES))
     for name in files:
         _say(args, f"wrote {out / name}")
+    summary = report.to_dict()
     line = (f"order {summary['model']['order']}, log evidence "
             f"{summary['model']['log_evidence']:.6g}, noise std "
             f"{math.sqrt(summary['model']['noise_level']):.4g}")
     if "validation" in summary:
         line += f", validation GoF {summary['validation']['gof_percent']:.2f} %"
     print(line)
-    for note in notes:
+    for note in report.notes:
         _say(args, f"note: {note}")
     _say(args, f"done in {time.perf_counter() - started:.1f} s")
     return 0
 
 
+def _check_out(parser, action) -> None:
+    """Run ``action`` on ``--out``; a file that is in the way or an OS error ends the command."""
+    try:
+        action()
+    except FileExistsError as error:
+        hint = "; use --force to overwrite" if str(error).endswith(" exists") else ""
+        parser.error(f"argument --out: {error}{hint}")
+    except OSError as error:
+        parser.error(f"argument --out: cannot write to {_shorten(error.filename or '')!r} "
+                     f"({error.strerror or error})")
+
+
 def _predict(parser, args) -> int:
     import gpmultirate as gm
+    from gpmultirate.io import read_record, write_file
+    from gpmultirate.report import prediction_csv
 
     _check_columns(parser, args.inputs)
     out = Path(args.out)
@@ -1035,27 +617,39 @@ def _predict(parser, args) -> int:
     if len(args.inputs) != model.n_inputs_:
         parser.error(f"argument --input: the model of {args.model} has {model.n_inputs_} "
                      f"input(s); got {len(args.inputs)} column(s)")
-    u, _ = _read_inputs(parser, args.data, args.inputs)
-    mean, std = model.predict(u, return_std=True)
-    # a many-output model (MultiOutputFIR) predicts one column per output
-    several = mean.ndim == 2
-    mean, std = mean.reshape(mean.shape[0], -1), std.reshape(std.shape[0], -1)
-    models = getattr(model, "estimators_", [model])
-    sample_time = float(getattr(models[0], "sample_time", 1.0))
-    names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
-    text = io.StringIO()
-    text.write(",".join(["index,time", *names]) + "\n")
-    for k, (m, s) in enumerate(zip(mean, std)):
-        values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
-        text.write(f"{k},{k * sample_time:.17g},{values}\n")
-    _write_files(parser, out.parent if str(out.parent) else Path("."),
-                 {out.name: text.getvalue().encode("utf-8")}, args.force)
-    _say(args, f"wrote {out} ({mean.shape[0]} fast samples)")
+    u, _ = read_record(args.data, args.inputs)
+    try:
+        table = prediction_csv(model, u)
+    except ValueError as error:
+        parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
+    _check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
+    _say(args, f"wrote {out} ({table.count(chr(10)) - 1} fast samples)")
     return 0
+
+
+def _shorten(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]}"
+
+
+def _one_line(error: BaseException) -> str:
+    """An exception as one line that names the file (shortened) for an OS error."""
+    if isinstance(error, OSError) and error.strerror:
+        names = [_shorten(os.fsdecode(name)) for name in (error.filename, error.filename2)
+                 if name is not None]
+        return ": ".join([*names, error.strerror])
+    text = " ".join(str(error).split())
+    if isinstance(error, MemoryError):  # the memory guard's refusal says how much and why
+        return text or "out of memory"
+    return text if isinstance(error, ValueError) else f"{type(error).__name__}: {text}"
 
 
 def main(argv=None) -> int:
     """Run the ``gpmultirate`` command.
+
+    Every failure ends the command with one line on stderr: a Ctrl-C
+    (``KeyboardInterrupt``) with exit status 130, any other error (invalid
+    arguments or files, an operating-system error such as a full disk or a
+    file name that is too long, the memory guard's refusal) with status 2.
 
     Parameters
     ----------
@@ -1065,12 +659,28 @@ def main(argv=None) -> int:
     Returns
     -------
     int
-        The exit status, 0 on success.  Invalid arguments raise
+        The exit status, 0 on success, 130 after a Ctrl-C.  Errors raise
         :class:`SystemExit` with status 2, as argparse does.
     """
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    return args.handler(args.command_parser, args)
+    command = None
+    try:
+        args = build_parser().parse_args(argv)
+        command = args.command_parser
+        return args.handler(command, args)
+    except KeyboardInterrupt:
+        print(f"{'gpmultirate' if command is None else command.prog}: interrupted",
+              file=sys.stderr, flush=True)
+        return 130
+    except Exception as error:  # every error is one line, not a traceback
+        message = _one_line(error)
+        if command is None:
+            print(f"gpmultirate: error: {message}", file=sys.stderr, flush=True)
+            return 2
+        # a library message that starts with a parameter's name: name the option
+        option = "--" + message.split(" ", 1)[0].replace("_", "-")
+        known = any(option in action.option_strings for action in command._actions)
+        command.error(f"argument {option}: {message}" if known and isinstance(
+            error, ValueError) else message)
 
 
 if __name__ == "__main__":  # pragma: no cover

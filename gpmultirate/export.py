@@ -291,3 +291,115 @@ def frequency_response_to_control(frf):
     if not isinstance(frf, FrequencyResponse):
         raise ValueError(f"frf must be a FrequencyResponse; got {type(frf).__name__}")
     return frf.to_control()
+
+
+# ------------------------------------------------------------ state-space files
+__all__ += ["load_state_space", "save_state_space"]
+
+
+def save_state_space(system, file, *, sample_time: float | None = None,
+                     overwrite: bool = True) -> None:
+    """Write a discrete-time state-space model to an ``.npz`` file.
+
+    The file holds the float arrays ``A``, ``B``, ``C``, ``D`` and the
+    sample time ``dt`` (seconds), readable without gpmultirate
+    (``numpy.load``) or with :func:`load_state_space`.  A file name is
+    written all at once (:func:`gpmultirate.io.write_file`): an
+    interruption leaves the earlier file or none.
+
+    Parameters
+    ----------
+    system : scipy.signal.StateSpace, control.StateSpace or fitted estimator
+        A model with matrices ``A``, ``B``, ``C``, ``D`` and a sample time
+        ``dt``; an estimator (``FIRGaussianProcess``, ``LeastSquaresFIR``)
+        is reduced by its ``to_state_space()``.
+    file : str, path-like or binary file object
+    sample_time : float, optional
+        The sample time when ``system`` carries none: for ``dt=True``
+        (default 1) or ``dt=None``.
+    overwrite : bool, default True
+        Replace an existing file of that name; otherwise
+        :class:`FileExistsError`.
+
+    Raises
+    ------
+    ValueError
+        If ``system`` is not a discrete-time state-space model with finite
+        matrices of matching shapes, or the sample time is not positive.
+
+    Examples
+    --------
+    >>> import io
+    >>> import numpy as np
+    >>> from scipy import signal
+    >>> from gpmultirate.export import load_state_space, save_state_space
+    >>> system = signal.StateSpace([[0.5]], [[1.0]], [[2.0]], [[0.0]], dt=0.1)
+    >>> buffer = io.BytesIO()
+    >>> save_state_space(system, buffer)
+    >>> loaded = load_state_space(io.BytesIO(buffer.getvalue()))
+    >>> loaded.A, loaded.dt
+    (array([[0.5]]), 0.1)
+    """
+    import io
+    import os
+
+    from gpmultirate.io import write_file
+
+    if hasattr(system, "to_state_space") and not hasattr(system, "A"):
+        system = system.to_state_space()
+    try:
+        A, B, C, D = (np.array(getattr(system, name), dtype=float) for name in "ABCD")
+    except (AttributeError, TypeError, ValueError):
+        raise ValueError("system must be a state-space model with matrices A, B, C and D; "
+                         f"got {type(system).__name__}") from None
+    A, B, C, D = (np.atleast_2d(matrix) for matrix in (A, B, C, D))
+    n = A.shape[0]
+    if (A.shape != (n, n) or B.shape[0] != n or C.shape[1] != n
+            or D.shape != (C.shape[0], B.shape[1])):
+        raise ValueError("system must have matrices A (n, n), B (n, m), C (p, n) and D (p, m); "
+                         f"got shapes {A.shape}, {B.shape}, {C.shape}, {D.shape}")
+    if not all(np.isfinite(matrix).all() for matrix in (A, B, C, D)):
+        raise ValueError("system must have finite matrices")
+    dt = getattr(system, "dt", None)
+    if dt is True:  # discrete-time with an unspecified sample time
+        dt = 1.0 if sample_time is None else sample_time
+    elif dt is None and sample_time is not None:
+        dt = sample_time
+    if dt is None or dt is False or dt == 0:
+        raise ValueError("system must be discrete-time (dt > 0 or True), or sample_time "
+                         "given; got a model without a sample time")
+    dt = check_positive(dt, "sample_time")
+    buffer = io.BytesIO()
+    np.savez(buffer, A=A, B=B, C=C, D=D, dt=np.asarray(dt, dtype=float))
+    if hasattr(file, "write"):
+        file.write(buffer.getvalue())
+    else:
+        write_file(os.fspath(file), buffer.getvalue(), overwrite=overwrite)
+
+
+def load_state_space(file) -> signal.StateSpace:
+    """Read a state-space model written by :func:`save_state_space`.
+
+    Parameters
+    ----------
+    file : str, path-like or binary file object
+
+    Returns
+    -------
+    scipy.signal.StateSpace
+        Discrete-time, with ``dt`` from the file.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from scipy import signal
+    >>> from gpmultirate.export import load_state_space, save_state_space
+    >>> path = os.path.join(tempfile.mkdtemp(), "state_space.npz")
+    >>> save_state_space(signal.StateSpace([[0.0]], [[1.0]], [[1.0]], [[0.5]], dt=True),
+    ...                  path, sample_time=0.01)
+    >>> load_state_space(path).dt
+    0.01
+    """
+    with np.load(file, allow_pickle=False) as arrays:
+        A, B, C, D, dt = (np.array(arrays[name]) for name in ("A", "B", "C", "D", "dt"))
+    return signal.StateSpace(A, B, C, D, dt=float(dt))

@@ -1,6 +1,8 @@
 """Read named columns of measured data from CSV, NumPy ``.npz`` and MATLAB ``.mat`` files.
 
-The rows of a file are fast samples.  A column is named by
+The rows of a file are fast samples.  :func:`read_slow_samples` finds the
+slow-sample instants of an output column from its empty cells.  A column is
+named by
 
 * its header name in a CSV file (comma-separated, UTF-8, a header row,
   empty cells or ``NaN`` for samples that were not measured);
@@ -20,13 +22,15 @@ from __future__ import annotations
 import csv
 import os
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from gpmultirate.exceptions import DataFileError
 
-__all__ = ["DataFileError", "DataTable", "read_columns", "read_table"]
+__all__ = ["DataFileError", "DataTable", "SlowSamples", "check_folder", "read_columns",
+           "read_record", "read_slow_samples", "read_table", "write_file", "write_folder"]
 
 #: The largest number of columns a CSV file may have.
 MAX_COLUMNS = 100_000
@@ -386,10 +390,13 @@ def read_table(path) -> DataTable:
         path = Path(os.fspath(path))
     except TypeError:
         raise DataFileError(path, "is not a file name") from None
-    if not path.exists():
-        raise DataFileError(path, "does not exist")
-    if not path.is_file():
-        raise DataFileError(path, "is not a file")
+    try:
+        if not path.exists():
+            raise DataFileError(path, "does not exist")
+        if not path.is_file():
+            raise DataFileError(path, "is not a file")
+    except OSError as error:  # e.g. a name too long for the file system
+        raise DataFileError(path, f"cannot be opened ({error.strerror or error})") from None
     suffix = path.suffix.lower()
     if suffix == ".csv":
         return _read_csv(path)
@@ -436,3 +443,505 @@ def read_columns(path, specs) -> dict[str, np.ndarray]:
     line 3, column 'y': 'oops' is not a number
     """
     return read_table(path).columns(specs)
+
+
+def read_record(path, inputs, output: str | None = None, *, complete: bool = False):
+    """Read a record's input columns, and its output column, from a data file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``.csv``, ``.npz`` or ``.mat`` file (see :func:`read_columns`).
+    inputs : sequence of str
+        The input columns; every row must hold a value.
+    output : str, optional
+        The output column: ``NaN`` where nothing was measured (see
+        :func:`read_slow_samples`).
+    complete : bool, default False
+        Require the output at every row (validation data).
+
+    Returns
+    -------
+    u : ndarray of shape (n_rows,) or (n_rows, n_inputs)
+        The inputs, one column per input when there are several.
+    y : ndarray of shape (n_rows,) or None
+        The output column, or None without ``output``.
+
+    Raises
+    ------
+    DataFileError
+        The file or a column cannot be read, or a value is missing where one
+        is required; the message names the file, the column and the row.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import read_record
+    >>> path = os.path.join(tempfile.mkdtemp(), "data.csv")
+    >>> with open(path, "w") as f:
+    ...     _ = f.write("u,y\\n1,2\\n3,\\n5,6\\n")
+    >>> read_record(path, ["u"], "y")
+    (array([1., 3., 5.]), array([ 2., nan,  6.]))
+    """
+    columns = read_columns(path, [*inputs] + ([] if output is None else [output]))
+    required = [*inputs] + ([output] if complete and output is not None else [])
+    for name in required:
+        missing = np.flatnonzero(np.isnan(columns[name]))
+        if missing.size:
+            what = "inputs" if name in inputs else "the output of validation data"
+            raise DataFileError(path, f"{'input' if name in inputs else 'output'} column "
+                                      f"{name!r} has a missing value (empty or NaN) at row "
+                                      f"{missing[0]}; {what} must be measured at every row")
+    u = np.column_stack([columns[name] for name in inputs])
+    return (u[:, 0] if u.shape[1] == 1 else u), (None if output is None else columns[output])
+
+
+@dataclass(frozen=True)
+class SlowSamples:
+    """The measured samples of an output column and where they lie on the fast grid.
+
+    Build it with :func:`read_slow_samples`.  The samples lie either on a
+    uniform slow grid (``offset`` is an int: rows ``offset, offset + factor,
+    ...``, some of which may be missing) or at irregular instants (``offset``
+    is None).
+
+    Attributes
+    ----------
+    indices : ndarray of int, shape (n_measured,)
+        Rows (fast-sample indices) of the measured samples, increasing.
+    values : ndarray of float, shape (n_measured,)
+        The measured values.
+    n_samples : int
+        Rows of the column: the number of fast samples ``N``.
+    factor : int
+        Spacing of the slow grid; for irregular instants the median spacing
+        (the slow Nyquist frequency of plots).
+    offset : int or None
+        Row of the first grid sample, or None for irregular instants.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate.io import read_slow_samples
+    >>> samples = read_slow_samples([np.nan, 1.0, np.nan, np.nan, 2.0, np.nan])
+    >>> samples.factor, samples.offset, samples.indices
+    (3, 1, array([1, 4]))
+    """
+
+    indices: np.ndarray
+    values: np.ndarray
+    n_samples: int
+    factor: int
+    offset: int | None
+
+    @property
+    def uniform(self) -> bool:
+        """Whether the samples lie on the uniform grid ``offset + factor * k``."""
+        return self.offset is not None
+
+    @property
+    def n_missing(self) -> int:
+        """Samples of the uniform grid that were not measured (0 for irregular instants)."""
+        if not self.uniform:
+            return 0
+        return len(range(self.offset, self.n_samples, self.factor)) - self.values.shape[0]
+
+    @property
+    def y_slow(self) -> np.ndarray:
+        """The ``y_slow`` argument of ``fit``: on a uniform grid every grid sample, ``NaN``
+        where one is missing; otherwise the measured values."""
+        if not self.uniform:
+            return self.values.copy()
+        y_slow = np.full(len(range(self.offset, self.n_samples, self.factor)), np.nan)
+        y_slow[(self.indices - self.offset) // self.factor] = self.values
+        return y_slow
+
+    @property
+    def estimator_params(self) -> dict:
+        """Constructor arguments of the estimator: ``factor`` and ``offset`` on a uniform
+        grid, none for irregular instants."""
+        return {"factor": self.factor, "offset": self.offset} if self.uniform else {}
+
+    @property
+    def fit_params(self) -> dict:
+        """Keyword arguments of ``fit`` beside ``y_slow``: ``sample_indices`` for irregular
+        instants, none on a uniform grid."""
+        return {} if self.uniform else {"sample_indices": self.indices.copy()}
+
+    @property
+    def description(self) -> str:
+        """One phrase describing the sampling, e.g. ``'one sample in 3, from row 1'``."""
+        if not self.uniform:
+            return f"irregular instants, median spacing {self.factor}"
+        text = f"one sample in {self.factor}, from row {self.offset}"
+        return text + (f", {self.n_missing} missing" if self.n_missing else "")
+
+
+def read_slow_samples(column, *, factor: int | None = None,
+                      offset: int | None = None) -> SlowSamples:
+    """The slow samples of an output column whose unmeasured rows are ``NaN``.
+
+    A data file's output column holds a value at the rows where the output
+    was measured and an empty cell (``NaN``, as :func:`read_columns` returns
+    it) elsewhere.  Without ``factor`` and ``offset`` the sampling is read
+    from that pattern: the slow grid's spacing is the median spacing of the
+    measured rows, and when every measured row lies on that grid the samples
+    are placed on it (missing grid samples become ``NaN`` in
+    :attr:`SlowSamples.y_slow`); otherwise they are irregular instants.
+    With ``factor`` (and ``offset``, default 0) the rows ``offset, offset +
+    factor, ...`` are kept, as from a fully measured output, and the finite
+    ones among them are the measured samples.
+
+    Parameters
+    ----------
+    column : array-like of shape (n_samples,)
+        One value per fast sample, ``NaN`` where nothing was measured.
+    factor : int, optional
+        Keep every ``factor``-th row.
+    offset : int, optional
+        Row of the first kept sample, in ``0 .. factor - 1``; only used with
+        ``factor`` or alone (then ``factor`` is 1).
+
+    Returns
+    -------
+    SlowSamples
+        Its :attr:`~SlowSamples.estimator_params`, :attr:`~SlowSamples.y_slow`
+        and :attr:`~SlowSamples.fit_params` are the arguments of
+        :class:`~gpmultirate.FIRGaussianProcess`.
+
+    Raises
+    ------
+    ValueError
+        If ``column`` is not one-dimensional or holds an infinite value,
+        ``factor`` or ``offset`` is out of range, or no kept row is measured.
+
+    Examples
+    --------
+    Every third row measured, one of them missing:
+
+    >>> import numpy as np
+    >>> from gpmultirate.io import read_slow_samples
+    >>> y = np.full(15, np.nan)
+    >>> y[[1, 4, 7, 13]] = [0.5, 0.25, 0.75, 1.0]
+    >>> samples = read_slow_samples(y)
+    >>> samples.description
+    'one sample in 3, from row 1, 1 missing'
+    >>> samples.estimator_params, samples.y_slow
+    ({'factor': 3, 'offset': 1}, array([0.5 , 0.25, 0.75,  nan, 1.  ]))
+
+    Rows off the grid make the instants irregular:
+
+    >>> y[9] = 2.0
+    >>> samples = read_slow_samples(y)
+    >>> samples.offset is None, samples.fit_params
+    (True, {'sample_indices': array([ 1,  4,  7,  9, 13])})
+
+    which fit as ``FIRGaussianProcess(**samples.estimator_params).fit(u,
+    samples.y_slow, **samples.fit_params)``.
+    """
+    y = np.array(column, dtype=float)  # a copy: the caller's array is never touched
+    if y.ndim != 1:
+        raise ValueError(f"column must be one-dimensional; got shape {y.shape}")
+    infinite = np.flatnonzero(np.isinf(y))
+    if infinite.size:
+        raise ValueError(f"column must hold finite values or NaN; row {infinite[0]} is "
+                         f"{y[infinite[0]]}")
+    n = y.shape[0]
+    if factor is not None or offset is not None:
+        factor = 1 if factor is None else _count(factor, "factor", 1)
+        offset = 0 if offset is None else _count(offset, "offset", 0)
+        if offset >= factor:
+            raise ValueError(f"offset must lie in 0..factor-1 = 0..{factor - 1}; got {offset}")
+        if offset >= n:
+            raise ValueError(f"offset must be below the {n} rows of the column; got {offset}")
+        grid = np.arange(offset, n, factor)
+        measured = grid[np.isfinite(y[grid])]
+        if measured.size == 0:
+            raise ValueError("column has no measured (finite) value at the kept rows")
+    else:
+        measured = np.flatnonzero(np.isfinite(y))
+        if measured.size == 0:
+            raise ValueError("column has no measured (finite) value")
+        factor = (max(1, int(round(float(np.median(np.diff(measured))))))
+                  if measured.size > 1 else 1)
+        offset = int(measured[0] % factor)
+    uniform = bool(np.all((measured - offset) % factor == 0))
+    return SlowSamples(indices=measured, values=y[measured], n_samples=n, factor=int(factor),
+                       offset=int(offset) if uniform else None)
+
+
+def _count(value, name: str, low: int) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer; got {value!r}")
+    if value < low:
+        raise ValueError(f"{name} must be at least {low}; got {value}")
+    return int(value)
+
+
+# ------------------------------------------------------------------ writing
+def _fsync_dir(folder: Path) -> None:
+    try:
+        handle = os.open(folder, os.O_RDONLY)
+    except OSError:  # pragma: no cover - a platform without directory handles
+        return
+    try:
+        os.fsync(handle)
+    except OSError:  # pragma: no cover - a file system that cannot sync folders
+        pass
+    finally:
+        os.close(handle)
+
+
+def _write_new(path: Path, content: bytes) -> None:
+    with open(path, "xb") as stream:
+        stream.write(content)
+        stream.flush()
+        os.fsync(stream.fileno())
+
+
+def _temp_name(path: Path, tag: str) -> str:
+    # the prefix keeps the name of the target, shortened to stay within 255 bytes
+    return f".{path.name[:96]}.{tag}-"
+
+
+def write_file(path, content: bytes, *, overwrite: bool = False) -> None:
+    """Write ``content`` to ``path`` all at once: the file is complete or absent.
+
+    The bytes go to a temporary file in the same folder, which is flushed
+    to disk and then renamed onto ``path`` in one step (``os.replace``), so
+    an interruption, a full disk or a size limit leaves the earlier file (or
+    none) and no temporary file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file; its folder is created if needed.
+    content : bytes
+    overwrite : bool, default False
+        Replace an existing file; otherwise :class:`FileExistsError`.
+
+    Raises
+    ------
+    OSError
+        The file cannot be written; nothing was changed.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import write_file
+    >>> path = os.path.join(tempfile.mkdtemp(), "out", "table.csv")
+    >>> write_file(path, b"a,b\\n1,2\\n")
+    >>> open(path).read()
+    'a,b\\n1,2\\n'
+    """
+    path = Path(os.fspath(path))
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists")
+    folder = path.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    handle, temp = _mkstemp(path)
+    try:
+        os.chmod(temp, 0o666 & ~_umask())  # as open() would make it, not mkstemp's 0o600
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(content)
+            stream.flush()
+            os.fsync(stream.fileno())
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path} appeared while writing")
+        os.replace(temp, path)
+    except BaseException:
+        if os.path.exists(temp):
+            os.unlink(temp)
+        raise
+    _fsync_dir(folder)
+
+
+def _mkstemp(path: Path):
+    import tempfile
+
+    return tempfile.mkstemp(prefix=_temp_name(path, "part"), dir=path.parent)
+
+
+class _SignalsHeld:
+    """Hold back SIGINT and SIGTERM in a block of a few system calls (delivered after it).
+
+    The Python-level handlers are swapped for ones that only take note: blocking the
+    signals with a mask would not do, since the kernel may deliver them to another
+    thread (a BLAS worker), whose C handler then interrupts the main thread anyway.
+    Outside the main thread nothing is held (handlers can only be set there).
+    """
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self._previous, self._pending = {}, []
+        if threading.current_thread() is threading.main_thread():
+            for number in (signal.SIGINT, signal.SIGTERM):
+                previous = signal.getsignal(number)
+                if previous is not None:  # None: a handler not set from Python; keep it
+                    self._previous[number] = previous
+                    signal.signal(number, self._note)
+        return self
+
+    def _note(self, number, frame):
+        self._pending.append((number, frame))
+
+    def __exit__(self, *exc):
+        import signal
+
+        for number, previous in self._previous.items():
+            signal.signal(number, previous)
+        for number, frame in self._pending[:1]:  # now act on it as it would have
+            previous = self._previous[number]
+            if callable(previous):
+                previous(number, frame)  # e.g. default_int_handler: KeyboardInterrupt
+            elif previous == signal.SIG_DFL:
+                os.kill(os.getpid(), number)
+        return False
+
+
+def write_folder(folder, files: dict, *, overwrite: bool = False, replaceable=()) -> None:
+    """Write a folder of files all at once: it holds all of them or none.
+
+    The files are written into a temporary folder beside ``folder``,
+    flushed to disk, and the temporary folder is renamed to ``folder`` in
+    one step.  An existing ``folder`` is replaced as a whole, so it may hold
+    only files of a result (the names in ``files`` and ``replaceable``):
+    with ``overwrite`` it is renamed aside, the new folder renamed in, and
+    the old one removed.  Interrupts (SIGINT, SIGTERM) are held back during
+    the two renames and the removal, so Ctrl-C never separates them.  Only a crash of the
+    machine or ``SIGKILL`` between them leaves no ``folder``; then the old
+    results are in ``.NAME.old-*`` and the new, complete ones in
+    ``.NAME.part-*`` beside it, either of which can be renamed to ``NAME``.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The folder; its parent is created if needed.
+    files : dict of str to bytes
+        File names (without folders) and their content.
+    overwrite : bool, default False
+        Replace a folder that holds any of the result files; otherwise
+        :class:`FileExistsError`.  An empty folder is always replaced.
+    replaceable : sequence of str
+        Further names an existing folder may hold (results of an earlier run
+        that this one does not write).
+
+    Raises
+    ------
+    FileExistsError
+        ``folder`` holds results and ``overwrite`` is false, or holds other
+        files, or is not a folder.
+    OSError
+        The files cannot be written; nothing was changed and no temporary
+        folder is left.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import write_folder
+    >>> folder = os.path.join(tempfile.mkdtemp(), "results")
+    >>> write_folder(folder, {"a.txt": b"1", "b.txt": b"2"})
+    >>> sorted(os.listdir(folder))
+    ['a.txt', 'b.txt']
+    >>> write_folder(folder, {"a.txt": b"3"}, overwrite=True, replaceable=["b.txt"])
+    >>> sorted(os.listdir(folder))
+    ['a.txt']
+    """
+    import shutil
+    import tempfile
+
+    folder = Path(os.fspath(folder))
+    for name in files:
+        if not name or os.sep in name or name in (".", ".."):
+            raise ValueError(f"files must be plain file names; got {name!r}")
+    check_folder(folder, [*files, *replaceable], overwrite=overwrite)
+    parent = folder.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    temp = Path(tempfile.mkdtemp(prefix=_temp_name(folder, "part"), dir=parent))
+    aside = None
+    try:
+        os.chmod(temp, 0o777 & ~_umask())  # as os.mkdir would make it, not mkdtemp's 0o700
+        for name, content in files.items():
+            _write_new(temp / name, content)
+        _fsync_dir(temp)
+        check_folder(folder, [*files, *replaceable], overwrite=overwrite)
+        with _SignalsHeld():  # the swap and the removal of the earlier folder
+            try:
+                os.rename(temp, folder)  # onto a missing or an empty folder
+            except OSError:
+                if not folder.is_dir():
+                    raise
+                aside = Path(tempfile.mkdtemp(prefix=_temp_name(folder, "old"), dir=parent))
+                os.rename(folder, aside)
+                try:
+                    os.rename(temp, folder)
+                except BaseException:
+                    os.rename(aside, folder)
+                    aside = None
+                    raise
+            if aside is not None:
+                shutil.rmtree(aside, ignore_errors=True)
+                aside = None
+        _fsync_dir(parent)
+    except BaseException:
+        with _SignalsHeld():
+            shutil.rmtree(temp, ignore_errors=True)
+            # the earlier results go only once the new ones are in place; if even moving
+            # them back failed, they stay in .NAME.old-* (see above)
+            if aside is not None and folder.is_dir():
+                shutil.rmtree(aside, ignore_errors=True)
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def check_folder(folder, names, *, overwrite: bool = False) -> None:
+    """Check that :func:`write_folder` may replace ``folder`` with result files ``names``.
+
+    Parameters
+    ----------
+    folder : str or path-like
+    names : sequence of str
+        The files an existing ``folder`` may hold.
+    overwrite : bool, default False
+        Whether a folder holding some of them may be replaced.
+
+    Raises
+    ------
+    FileExistsError
+        ``folder`` is not a directory, holds a file not in ``names``, or
+        holds any of them and ``overwrite`` is false.
+    OSError
+        ``folder`` cannot be examined (e.g. its name is too long).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import check_folder
+    >>> folder = tempfile.mkdtemp()
+    >>> check_folder(folder, ["a.txt"])  # empty: fine
+    >>> open(os.path.join(folder, "notes.txt"), "w").close()
+    >>> try:
+    ...     check_folder(folder, ["a.txt"], overwrite=True)
+    ... except FileExistsError as error:
+    ...     print(str(error).endswith("may hold only results"))
+    True
+    """
+    folder = Path(os.fspath(folder))
+    if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+        raise FileExistsError(f"{folder} exists and is not a directory")
+    if not folder.exists():
+        return
+    entries = sorted(os.listdir(folder))
+    foreign = [name for name in entries if name not in names]
+    if foreign:
+        raise FileExistsError(f"{folder / foreign[0]} is not a result file; the folder is "
+                              "replaced as a whole, so it may hold only results")
+    if entries and not overwrite:
+        raise FileExistsError(f"{folder / entries[0]} exists")

@@ -1,0 +1,536 @@
+"""The report of a fit: its data, model, tuning and validation in JSON and Markdown.
+
+:func:`fit_report` collects what describes a fitted
+:class:`~gpmultirate.FIRGaussianProcess` (the data it saw, the tuned kernel
+and noise level, the log evidence, the resonances and the order selection
+when there were any, the goodness of fit on validation data) into a
+:class:`FitReport`.  ``gpmultirate fit`` writes its
+:meth:`~FitReport.to_json` and :meth:`~FitReport.to_markdown` as
+``summary.json`` and ``summary.md``; :func:`fit_files` gives every file it
+writes, :func:`prediction_csv` the table of ``gpmultirate predict``, and
+:func:`write_study` the tables of ``gpmultirate demo``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from sklearn.utils.validation import check_is_fitted
+
+from gpmultirate.io import SlowSamples, read_slow_samples
+
+__all__ = ["FitReport", "fit_files", "fit_report", "model_slow_samples", "prediction_csv",
+           "study_header", "write_study"]
+
+
+def _plain(value):
+    """``value`` as JSON-compatible plain Python data (non-finite floats become None)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+_ABSENT = object()  # an optional section that is not part of the report
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """What describes a fit, as plain data: the sections of ``summary.json``.
+
+    Build it with :func:`fit_report`, or from a ``summary.json`` with
+    :meth:`from_dict`.
+
+    Attributes
+    ----------
+    data : dict
+        The data: ``file``, ``inputs``, ``output`` (names), ``n_samples``,
+        ``n_slow_samples``, ``sampling`` (a phrase), ``factor``, ``offset``
+        (None for irregular instants) and ``sample_time``.
+    model : dict
+        The estimator, ``order``, ``n_inputs``, ``initial_conditions``,
+        ``kernel`` (its text), ``hyperparameters`` (name to value),
+        ``tuning``, ``log_evidence``, ``noise_level`` (a variance), and
+        ``cv_log_predictive`` after cross-validation.
+    notes, warnings : tuple of str
+        Remarks on the fit, and the warnings it raised.
+    resonances : list or None
+        The resonances found by ``kernel="auto"``, or None without a search.
+    order_selection : dict or None
+        ``criterion``, ``orders``, ``score`` and ``best_order`` when the order
+        was selected.
+    state_space : dict or None
+        ``order`` of the state-space model written beside the fit.
+    validation : dict or None
+        ``file``, ``n_samples``, ``gof_percent`` and ``fit_percent`` on
+        validation data.
+
+    Examples
+    --------
+    >>> from gpmultirate.report import FitReport
+    >>> report = FitReport.from_dict({
+    ...     "data": {"file": "data.csv", "inputs": ["u"], "output": "y", "n_samples": 90,
+    ...              "n_slow_samples": 30, "sampling": "one sample in 3, from row 0",
+    ...              "factor": 3, "offset": 0, "sample_time": 0.01},
+    ...     "model": {"estimator": "FIRGaussianProcess", "order": 30, "n_inputs": 1,
+    ...               "initial_conditions": "zero", "kernel": "DC()",
+    ...               "hyperparameters": {}, "tuning": "evidence", "log_evidence": 12.5,
+    ...               "noise_level": 0.04},
+    ...     "notes": [], "warnings": []})
+    >>> print(report.to_markdown().splitlines()[7])
+    - noise level (variance): 0.04 (std 0.2)
+    >>> FitReport.from_dict(report.to_dict()) == report
+    True
+    """
+
+    data: dict
+    model: dict
+    notes: tuple = ()
+    warnings: tuple = ()
+    resonances: object = field(default=_ABSENT, repr=False)
+    order_selection: dict | None = None
+    state_space: dict | None = None
+    validation: dict | None = None
+
+    def to_dict(self) -> dict:
+        """The report as JSON-compatible plain data (the content of ``summary.json``).
+
+        Returns
+        -------
+        dict
+            ``data``, ``model``, ``notes``, ``warnings`` and those of
+            ``resonances``, ``order_selection``, ``state_space`` and
+            ``validation`` that the fit has; non-finite numbers become None.
+        """
+        out = {"data": self.data, "model": self.model, "notes": list(self.notes),
+               "warnings": list(self.warnings)}
+        if self.resonances is not _ABSENT:
+            out["resonances"] = self.resonances
+        for name in ("order_selection", "state_space", "validation"):
+            if getattr(self, name) is not None:
+                out[name] = getattr(self, name)
+        return _plain(out)
+
+    def to_json(self) -> str:
+        """The report as indented JSON text, ending with a newline."""
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+    @classmethod
+    def from_dict(cls, summary: dict) -> FitReport:
+        """The report of a :meth:`to_dict` (or a parsed ``summary.json``)."""
+        return cls(data=summary["data"], model=summary["model"],
+                   notes=tuple(summary.get("notes", ())),
+                   warnings=tuple(summary.get("warnings", ())),
+                   resonances=summary.get("resonances", _ABSENT),
+                   order_selection=summary.get("order_selection"),
+                   state_space=summary.get("state_space"),
+                   validation=summary.get("validation"))
+
+    def to_markdown(self) -> str:
+        """The report as a Markdown page (the content of ``summary.md``)."""
+        return _markdown(self.to_dict())
+
+
+def _cell_text(value) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _markdown(summary: dict) -> str:
+    data, model = summary["data"], summary["model"]
+    lines = ["# gpmultirate fit", "",
+             ("- data: " if data["file"] is None else f"- data: `{data['file']}`, ")
+             + f"inputs {', '.join(f'`{c}`' for c in data['inputs'])}, output `{data['output']}`",
+             f"- {data['n_samples']} fast samples, {data['n_slow_samples']} measured slow "
+             f"samples ({data['sampling']}), sample time {data['sample_time']:g} s",
+             f"- estimator: {model['estimator']}, order {model['order']}, initial "
+             f"conditions {model['initial_conditions']}",
+             f"- kernel: `{model['kernel']}`",
+             f"- log evidence: {model['log_evidence']:.6g}",
+             f"- noise level (variance): {model['noise_level']:.6g} "
+             f"(std {math.sqrt(model['noise_level']):.6g})", "",
+             "## Hyperparameters", "", "| name | value |", "|---|---|"]
+    lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
+    resonances = summary.get("resonances")
+    if resonances and isinstance(resonances, list) and all(isinstance(r, dict)
+                                                           for r in resonances):
+        keys = list(dict.fromkeys(k for r in resonances for k in r))
+        lines += ["", "## Resonances found", "", "| " + " | ".join(keys) + " |",
+                  "|" + "---|" * len(keys)]
+        lines += ["| " + " | ".join(_cell_text(r.get(k)) for k in keys) + " |"
+                  for r in resonances]
+    elif "resonances" in summary:
+        lines += ["", "## Resonances found", "", "```",
+                  json.dumps(summary["resonances"], indent=1), "```"]
+    selection = summary.get("order_selection")
+    if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
+        criterion = selection.get("criterion")
+        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
+                else f"{criterion} per slow sample")
+        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
+                  "", "| order | score |", "|---|---|"]
+        lines += [f"| {o} | {_cell_text(v)} |"
+                  for o, v in zip(selection["orders"], selection.get("score", []))]
+    if "state_space" in summary:
+        lines += ["", "## State-space model", "",
+                  f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
+    if "validation" in summary:
+        val = summary["validation"]
+        lines += ["", "## Validation", "",
+                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
+                  f"({val['n_samples']} fast samples)"]
+        if "fit_percent" in val:
+            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
+    if summary["notes"]:
+        lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
+    return "\n".join(lines) + "\n"
+
+
+def _hyperparameters(kernel) -> dict:
+    params = kernel.get_params(deep=True)
+    return {hyper.name: _plain(params[hyper.name]) for hyper in kernel.hyperparameters
+            if params.get(hyper.name) is not None}
+
+
+def model_slow_samples(model) -> SlowSamples:
+    """The slow samples a fitted model saw, read from its sample instants.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator of one record.
+
+    Returns
+    -------
+    SlowSamples
+        As :func:`gpmultirate.io.read_slow_samples` reads them from a column
+        holding the model's ``y_slow_`` at its sample instants and ``NaN``
+        elsewhere.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import model_slow_samples
+    >>> u = np.random.default_rng(0).standard_normal(30)
+    >>> model = gm.FIRGaussianProcess(order=5, factor=3, offset=1).fit(u, u[1::3])
+    >>> model_slow_samples(model).description
+    'one sample in 3, from row 1'
+    """
+    check_is_fitted(model, "operator_")
+    operator = model.operator_
+    column = np.full(int(operator.n_samples), np.nan)
+    column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
+    return read_slow_samples(column)
+
+
+def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,
+               output: str = "y", validation=None, validation_file=None, state_space=None,
+               notes=(), warnings=(), kernel_option: str | None = None) -> FitReport:
+    """The report of a fitted :class:`~gpmultirate.FIRGaussianProcess`.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator.
+    samples : SlowSamples, optional
+        The slow samples it was fitted to (:func:`gpmultirate.io.read_slow_samples`);
+        by default :func:`model_slow_samples`.
+    file : str or path-like, optional
+        The data file, for the report's text.
+    inputs : sequence of str, optional
+        Names of the input columns; default ``u`` (``u0, u1, ...`` for several
+        inputs).
+    output : str, default "y"
+        Name of the output column.
+    validation : tuple (u, y), optional
+        Validation data with the output measured at every fast sample: the
+        report gets the goodness of fit ``model.score(u, y)`` and the fit
+        percentage of MATLAB's ``compare``
+        (:func:`gpmultirate.metrics.fit_percent`).
+    validation_file : str or path-like, optional
+        The file of the validation data, for the report's text.
+    state_space : object with a matrix ``A``, optional
+        A state-space model written beside the fit
+        (:func:`gpmultirate.export.save_state_space`); its order is reported.
+    notes, warnings : sequence of str
+        Remarks, and the warnings the fit raised.
+    kernel_option : str, optional
+        The kernel as the user chose it (``gpmultirate fit --kernel``).
+
+    Returns
+    -------
+    FitReport
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import fit_report
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(90)
+    >>> g = 0.8 ** np.arange(20) * np.cos(0.7 * np.arange(20))
+    >>> y = np.convolve(u, g)[:90] + 0.01 * rng.standard_normal(90)
+    >>> model = gm.FIRGaussianProcess(order=20, factor=3).fit(u, y[::3])
+    >>> report = fit_report(model, validation=(u, y))
+    >>> report.data["sampling"], report.model["order"]
+    ('one sample in 3, from row 0', 20)
+    >>> bool(report.validation["gof_percent"] > 99)
+    True
+    >>> report.to_markdown().splitlines()[0]
+    '# gpmultirate fit'
+    """
+    from gpmultirate.metrics import fit_percent
+
+    check_is_fitted(model, "kernel_")
+    if samples is None:
+        samples = model_slow_samples(model)
+    n_inputs = int(model.n_inputs_)
+    if inputs is None:
+        inputs = ["u"] if n_inputs == 1 else [f"u{k}" for k in range(n_inputs)]
+    data = {"file": None if file is None else str(file), "inputs": list(inputs),
+            "output": output, "n_samples": int(samples.n_samples),
+            "n_slow_samples": int(samples.values.shape[0]), "sampling": samples.description,
+            "factor": samples.factor, "offset": samples.offset,
+            "sample_time": model.sample_time}
+    summary = {"estimator": type(model).__name__, "order": int(model.coef_.shape[-1]),
+               "n_inputs": n_inputs, "initial_conditions": model.initial_conditions}
+    if kernel_option is not None:
+        summary["kernel_option"] = kernel_option
+    summary.update({"kernel": str(model.kernel_),
+                    "hyperparameters": _hyperparameters(model.kernel_),
+                    "tuning": model.tuning,
+                    "log_evidence": float(model.log_marginal_likelihood_value_),
+                    "noise_level": float(model.noise_level_)})
+    if hasattr(model, "cv_log_predictive_likelihood_"):
+        summary["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
+    selection = None
+    if hasattr(model, "order_selection_"):
+        found = model.order_selection_
+        selection = {"criterion": found["criterion"],
+                     "orders": [int(o) for o in found["order"]],
+                     "score": [float(v) for v in found["score"]],
+                     "best_order": int(found["best_order"])}
+    checked = None
+    if validation is not None:
+        u_val, y_val = validation
+        y_model = model.predict(u_val)
+        checked = {"file": None if validation_file is None else str(validation_file),
+                   "n_samples": int(np.shape(y_val)[0]),
+                   "gof_percent": float(model.score(u_val, y_val)),
+                   "fit_percent": float(fit_percent(y_val, y_model))}
+    return FitReport(
+        data=data, model=summary, notes=tuple(notes), warnings=tuple(warnings),
+        resonances=_plain(model.resonances_) if hasattr(model, "resonances_") else _ABSENT,
+        order_selection=selection,
+        state_space=(None if state_space is None
+                     else {"order": int(np.asarray(state_space.A).shape[0])}),
+        validation=checked)
+
+
+def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs=None,
+              output: str = "y", validation=None, validation_file=None, warnings=(),
+              kernel_option: str | None = None) -> tuple[dict, FitReport]:
+    """Every file ``gpmultirate fit`` writes for a fitted model, as bytes.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator.
+    u : array-like of shape (n_samples,) or (n_samples, n_inputs)
+        The input it was fitted to.
+    samples, file, inputs, output, validation, validation_file, warnings, kernel_option
+        As for :func:`fit_report`.
+
+    Returns
+    -------
+    files : dict of str to bytes
+        ``model.npz`` (:func:`gpmultirate.save_model`), ``state_space.npz``
+        when the model has a state-space reduction
+        (:func:`gpmultirate.export.save_state_space`; otherwise a note in
+        the report says why not), the figures ``bode.png``, ``impulse.png``
+        and ``intersample.png`` (:func:`gpmultirate.plotting.report.fit_figures`),
+        ``summary.json`` and ``summary.md``.  Write them with
+        :func:`gpmultirate.io.write_folder`.
+    report : FitReport
+
+    Raises
+    ------
+    ValueError
+        If the model cannot be saved.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import fit_files
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(60)
+    >>> g = 0.8 ** np.arange(15) * np.cos(0.7 * np.arange(15))
+    >>> y = np.convolve(u, g)[:60] + 0.01 * rng.standard_normal(60)
+    >>> model = gm.FIRGaussianProcess(order=15, factor=3).fit(u, y[::3])
+    >>> files, report = fit_files(model, u)
+    >>> sorted(files)  # doctest: +NORMALIZE_WHITESPACE
+    ['bode.png', 'impulse.png', 'intersample.png', 'model.npz', 'state_space.npz',
+     'summary.json', 'summary.md']
+    """
+    import io
+
+    from gpmultirate.export import save_state_space
+    from gpmultirate.persistence import save_model
+    from gpmultirate.plotting.report import fit_figures
+
+    if samples is None:
+        samples = model_slow_samples(model)
+    files, notes, system = {}, [], None
+    buffer = io.BytesIO()
+    try:
+        save_model(model, buffer)
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"the model cannot be saved: {error}") from None
+    files["model.npz"] = buffer.getvalue()
+    try:
+        system = model.to_state_space()
+    except ValueError as error:
+        notes.append(f"state_space.npz was not written: {error}")
+    if system is not None:
+        buffer = io.BytesIO()
+        save_state_space(system, buffer, sample_time=model.sample_time)
+        files["state_space.npz"] = buffer.getvalue()
+    report = fit_report(model, samples, file=file, inputs=inputs, output=output,
+                        validation=validation, validation_file=validation_file,
+                        state_space=system, notes=notes, warnings=warnings,
+                        kernel_option=kernel_option)
+    for name, figure in fit_figures(model, u, samples, inputs).items():
+        buffer = io.BytesIO()
+        figure.savefig(buffer, format="png", dpi=150)
+        files[name] = buffer.getvalue()
+    files["summary.json"] = report.to_json().encode("utf-8")
+    files["summary.md"] = report.to_markdown().encode("utf-8")
+    return files, report
+
+
+def prediction_csv(model, u) -> str:
+    """The fast-rate prediction of a fitted model as CSV text (``gpmultirate predict``).
+
+    Parameters
+    ----------
+    model : fitted estimator
+        ``FIRGaussianProcess``, ``LeastSquaresFIR`` or ``MultiOutputFIR``.
+    u : array-like of shape (n_samples,) or (n_samples, n_inputs)
+
+    Returns
+    -------
+    str
+        A header ``index,time,y,y_std`` (``y_j,y_std_j`` for every output
+        ``j`` of a many-output model) and one row per fast sample, the
+        numbers with 17 significant digits; ``time`` is ``index`` times the
+        model's ``sample_time``.
+
+    Raises
+    ------
+    ValueError
+        If a predicted mean or standard deviation is not finite: no table
+        holds ``nan`` or ``inf``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.report import prediction_csv
+    >>> u = np.random.default_rng(0).standard_normal(40)
+    >>> y = np.convolve(u, [1.0, 0.5])[:40]
+    >>> model = gm.LeastSquaresFIR(order=2).fit(u, y)
+    >>> print(prediction_csv(model, [1.0, 0.0]).splitlines()[0])
+    index,time,y,y_std
+    """
+    mean, std = model.predict(u, return_std=True)
+    if not (np.isfinite(mean).all() and np.isfinite(std).all()):
+        raise ValueError("the prediction is not finite (the model or the inputs are out of "
+                         "range)")
+    several = mean.ndim == 2  # a many-output model predicts one column per output
+    mean, std = mean.reshape(mean.shape[0], -1), std.reshape(std.shape[0], -1)
+    models = getattr(model, "estimators_", [model])
+    sample_time = float(getattr(models[0], "sample_time", 1.0))
+    names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
+    rows = [",".join(["index,time", *names])]
+    for k, (m, s) in enumerate(zip(mean, std)):
+        values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
+        rows.append(f"{k},{k * sample_time:.17g},{values}")
+    return "\n".join(rows) + "\n"
+
+
+def study_header(result) -> str:
+    """One paragraph describing a study: what its table's numbers are and its settings.
+
+    Parameters
+    ----------
+    result : StudyResult
+
+    Returns
+    -------
+    str
+    """
+    low, high = result.snr_range
+    return (f"Goodness of fit [%] of fast-rate FIR models on noise-free validation data: "
+            f"mean ± sample std over {result.n_runs} run(s); N = {result.n_samples} fast "
+            f"samples, M = {result.n_slow_samples} slow samples (factor {result.factor}), SNR "
+            f"{low:g}-{high:g} dB, seed {result.random_state}."
+            + (" LS is not identifiable for P >= M." if "LS" in result.methods else ""))
+
+
+def write_study(result, folder) -> list:
+    """Write a study's tables to a folder: the tables of ``gpmultirate demo``.
+
+    Parameters
+    ----------
+    result : StudyResult
+    folder : str or path-like
+        An existing folder.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written: ``study.csv`` (the summary), ``study_runs.csv``
+        (every fit), ``study.json`` (:meth:`StudyResult.from_json` reads it
+        back), ``study.md`` and ``study.rst`` (the table under
+        :func:`study_header`).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from gpmultirate.study import run_paper_study
+    >>> from gpmultirate.report import write_study
+    >>> result = run_paper_study(1, [6], ["LS"], n_samples=30, factor=3, n_jobs=1)
+    >>> [path.name for path in write_study(result, tempfile.mkdtemp())]
+    ['study.csv', 'study_runs.csv', 'study.json', 'study.md', 'study.rst']
+    """
+    from pathlib import Path
+
+    folder = Path(folder)
+    header = study_header(result)
+    result.to_csv(folder / "study.csv")
+    result.to_csv(folder / "study_runs.csv", runs=True)
+    result.to_json(folder / "study.json")
+    (folder / "study.md").write_text(f"# gpmultirate demo\n\n{header}\n\n"
+                                     f"{result.to_markdown()}", encoding="utf-8")
+    (folder / "study.rst").write_text(f"{header}\n\n{result.to_rst()}", encoding="utf-8")
+    return [folder / name for name in ("study.csv", "study_runs.csv", "study.json",
+                                       "study.md", "study.rst")]
