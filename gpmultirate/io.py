@@ -26,11 +26,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.exceptions import DataFileError
 
-__all__ = ["DataFileError", "DataTable", "SlowSamples", "check_folder", "read_columns",
-           "read_record", "read_slow_samples", "read_table", "write_file", "write_folder"]
+__all__ = ["DataFileError", "DataTable", "SlowSamples", "check_folder", "model_slow_samples",
+           "read_columns", "read_record", "read_slow_samples", "read_table", "write_file",
+           "write_folder"]
 
 #: The largest number of columns a CSV file may have.
 MAX_COLUMNS = 100_000
@@ -945,3 +947,35 @@ def check_folder(folder, names, *, overwrite: bool = False) -> None:
                               "replaced as a whole, so it may hold only results")
     if entries and not overwrite:
         raise FileExistsError(f"{folder / entries[0]} exists")
+
+
+def model_slow_samples(model) -> SlowSamples:
+    """The slow samples a fitted model saw, read from its sample instants.
+
+    Parameters
+    ----------
+    model : FIRGaussianProcess
+        A fitted estimator of one record.
+
+    Returns
+    -------
+    SlowSamples
+        As :func:`gpmultirate.io.read_slow_samples` reads them from a column
+        holding the model's ``y_slow_`` at its sample instants and ``NaN``
+        elsewhere.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> from gpmultirate.io import model_slow_samples
+    >>> u = np.random.default_rng(0).standard_normal(30)
+    >>> model = gm.FIRGaussianProcess(order=5, factor=3, offset=1).fit(u, u[1::3])
+    >>> model_slow_samples(model).description
+    'one sample in 3, from row 1'
+    """
+    check_is_fitted(model, "observation_")
+    operator = model.observation_
+    column = np.full(int(operator.n_samples), np.nan)
+    column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
+    return read_slow_samples(column)

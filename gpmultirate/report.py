@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate.io import SlowSamples, read_slow_samples
+from gpmultirate.io import SlowSamples, model_slow_samples, read_slow_samples
 
 __all__ = ["FitReport", "fit_files", "fit_report", "model_slow_samples", "prediction_csv",
            "study_header", "write_study"]
@@ -207,38 +207,6 @@ def _hyperparameters(kernel) -> dict:
     params = kernel.get_params(deep=True)
     return {hyper.name: _plain(params[hyper.name]) for hyper in kernel.hyperparameters
             if params.get(hyper.name) is not None}
-
-
-def model_slow_samples(model) -> SlowSamples:
-    """The slow samples a fitted model saw, read from its sample instants.
-
-    Parameters
-    ----------
-    model : FIRGaussianProcess
-        A fitted estimator of one record.
-
-    Returns
-    -------
-    SlowSamples
-        As :func:`gpmultirate.io.read_slow_samples` reads them from a column
-        holding the model's ``y_slow_`` at its sample instants and ``NaN``
-        elsewhere.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> import gpmultirate as gm
-    >>> from gpmultirate.report import model_slow_samples
-    >>> u = np.random.default_rng(0).standard_normal(30)
-    >>> model = gm.FIRGaussianProcess(order=5, factor=3, offset=1).fit(u, u[1::3])
-    >>> model_slow_samples(model).description
-    'one sample in 3, from row 1'
-    """
-    check_is_fitted(model, "operator_")
-    operator = model.operator_
-    column = np.full(int(operator.n_samples), np.nan)
-    column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
-    return read_slow_samples(column)
 
 
 def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,

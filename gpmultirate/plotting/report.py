@@ -71,7 +71,7 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     ['bode.png', 'impulse.png', 'intersample.png']
     >>> figures["bode.png"].savefig(__import__("io").BytesIO(), format="png")
     """
-    from gpmultirate.report import model_slow_samples
+    from gpmultirate.io import model_slow_samples
 
     if samples is None:
         samples = model_slow_samples(model)
