@@ -1,0 +1,212 @@
+"""Slow samples at their own instants: every number against a brute-force dense computation.
+
+The reference readings are built here from the model alone: the output at
+real time ``t`` is ``sum_j u[j] g(t - j)``; a reading with exposure is the
+window average, by Gauss-Legendre quadrature on the pieces between ticks
+with many more nodes than the library uses; the covariance is the explicit
+double sum of the kernel over every pair of (node, lag).
+"""
+
+import numpy as np
+import pytest
+from scipy import linalg
+from scipy.stats import multivariate_normal
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel as C
+
+from gpmultirate.inference import DataSpacePosterior, log_marginal_likelihood
+from gpmultirate.kernels import DC, PK, SS, TC, observe
+from gpmultirate.observations import SampledConvolution, TimedConvolution
+from gpmultirate.observations.timed import check_sample_times
+
+P = 7
+N = 24
+TIMES = np.array([3.3, 6.05, 8.5, 11.0, 13.71, 17.2, 20.95])
+KERNELS = {
+    "DC": C(1.5) * DC(alpha=0.75, beta=0.6),
+    "DC-negative": DC(alpha=0.8, beta=-0.5),
+    "TC": TC(alpha=0.7),
+    "SS": C(3.0) * SS(alpha=0.8),
+    "PK": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6),
+    "sum": C(1.0) * DC(alpha=0.7, beta=0.4) + PK(alpha=0.85, omega=0.9),
+    "RBF": C(0.5) * RBF(length_scale=1.5),
+}
+
+
+def _input():
+    return np.random.default_rng(3).standard_normal(N)
+
+
+def _nodes(times, exposure, latency, n):
+    """Per reading: instants and weights of its window (Gauss-Legendre, split at the ticks)."""
+    xi, w = np.polynomial.legendre.leggauss(n)
+    out = []
+    for t in times:
+        end = t - latency
+        if exposure == 0:
+            out.append((np.array([end]), np.array([1.0])))
+            continue
+        start = end - exposure
+        edges = [start] + [k for k in range(int(np.ceil(start)), int(np.ceil(end))) if start < k < end]
+        edges.append(end)
+        instants, weights = [], []
+        for a, b in zip(edges[:-1], edges[1:]):
+            instants.append(a + (b - a) * (xi + 1) / 2)
+            weights.append(w * (b - a) / 2 / exposure)
+        out.append((np.concatenate(instants), np.concatenate(weights)))
+    return out
+
+
+def _functionals(u, times, exposure, latency, n):
+    """Each reading as ``sum_q c_q g(x_q)``: lags ``x`` and coefficients ``c`` (lags < P)."""
+    out = []
+    for instants, weights in _nodes(times, exposure, latency, n):
+        lags, coefs = [], []
+        for s, w in zip(instants, weights):
+            for j in range(N):
+                if 0 <= s - j < P:
+                    lags.append(s - j)
+                    coefs.append(w * u[j])
+        out.append((np.array(lags), np.array(coefs)))
+    return out
+
+
+def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None):
+    """The covariance of the readings (and with ``g(at)``) by explicit double sums."""
+    funcs = _functionals(u, times, exposure, latency, n)
+    M = len(funcs)
+    S = np.empty((M, M))
+    for a in range(M):
+        for b in range(M):
+            K = kernel(funcs[a][0][:, None], funcs[b][0][:, None])
+            S[a, b] = funcs[a][1] @ K @ funcs[b][1]
+    if at is None:
+        return S
+    cross = np.column_stack([kernel(at[:, None], x[:, None]) @ c for x, c in funcs])
+    return S, cross
+
+
+def _data(S, noise):
+    rng = np.random.default_rng(7)
+    return linalg.cholesky(S + noise * np.eye(S.shape[0]), lower=True) @ rng.standard_normal(S.shape[0])
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_covariance_matches_dense_sums_without_exposure(name):
+    kernel, u = KERNELS[name], _input()
+    op = TimedConvolution(u, TIMES, order=P, latency=0.4)
+    S = observe(kernel, op).covariance()
+    reference = _dense_reference(kernel, u, TIMES, latency=0.4)
+    assert np.allclose(S, reference, rtol=1e-6, atol=1e-9 * np.abs(reference).max())
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_covariance_matches_fine_quadrature_with_exposure(name):
+    kernel, u = KERNELS[name], _input()
+    op = TimedConvolution(u, TIMES, order=P, exposure=0.6, latency=0.3)
+    S = observe(kernel, op).covariance()
+    reference = _dense_reference(kernel, u, TIMES, 0.6, 0.3, n=96)
+    assert np.max(np.abs(S - reference)) <= 1e-4 * np.abs(reference).max()
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_posterior_and_evidence_match_dense(name):
+    kernel, u = KERNELS[name], _input()
+    lags = np.array([0.0, 0.35, 1.5, 2.9, 4.25, 6.5])
+    for exposure, tol in ((0.0, 1e-6), (0.5, 1e-4)):
+        op = TimedConvolution(u, TIMES, order=P, exposure=exposure, latency=0.2)
+        S, cross = _dense_reference(kernel, u, TIMES, exposure, 0.2, n=96, at=lags)
+        noise = 1e-3 * np.trace(S) / S.shape[0]
+        y = _data(S, noise)
+        Ky = S + noise * np.eye(S.shape[0])
+        mean_ref = cross @ linalg.solve(Ky, y)
+        var_ref = np.diag(kernel(lags[:, None]) - cross @ linalg.solve(Ky, cross.T))
+        evidence_ref = multivariate_normal(np.zeros(y.shape[0]), Ky).logpdf(y)
+        post = DataSpacePosterior(op, kernel, noise, y)
+        mean, var = post.at_lags(op, kernel, lags[:, None], full_cov=False)
+        scale = np.abs(mean_ref).max()
+        assert np.max(np.abs(mean - mean_ref)) <= tol * scale
+        assert np.allclose(np.sqrt(var), np.sqrt(var_ref), rtol=tol, atol=tol * np.sqrt(var_ref).max())
+        value = log_marginal_likelihood(op, kernel, noise, y, False, False)
+        assert abs(value - evidence_ref) <= tol * abs(evidence_ref)
+        assert abs(post.log_marginal_likelihood - evidence_ref) <= tol * abs(evidence_ref)
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+@pytest.mark.parametrize("exposure", [0.0, 0.7])
+def test_gradient_matches_finite_differences(name, exposure):
+    kernel, u = KERNELS[name], _input()
+    op = TimedConvolution(u, TIMES, order=P, exposure=exposure, latency=0.1)
+    S = observe(kernel, op).covariance()
+    noise = 1e-2 * np.trace(S) / S.shape[0]
+    y = _data(S, noise)
+    value, grad = log_marginal_likelihood(op, kernel, noise, y, True, True)
+    theta = np.append(kernel.theta, np.log(noise))
+    step = 1e-6
+    for j in range(theta.shape[0]):
+        moved = []
+        for sign in (1, -1):
+            t = theta.copy()
+            t[j] += sign * step
+            moved.append(log_marginal_likelihood(
+                op, kernel.clone_with_theta(t[:-1]), np.exp(t[-1]), y, False, False))
+        numeric = (moved[0] - moved[1]) / (2 * step)
+        assert np.isclose(grad[j], numeric, rtol=1e-5, atol=1e-6 * abs(value))
+
+
+def test_on_the_ticks_equals_the_sampled_convolution():
+    u = _input()
+    kernel = KERNELS["sum"]
+    timed = TimedConvolution(u, [2.0, 5.0, 9.0, 14.0, 20.0], order=P)
+    ticks = SampledConvolution(u, [2, 5, 9, 14, 20], order=P)
+    assert np.allclose(observe(kernel, timed).covariance(), observe(kernel, ticks).covariance())
+    assert np.allclose(timed.cross_covariance(kernel, timed.lags),
+                       kernel(ticks.lags) @ ticks.matrix.T)
+
+
+def test_records_stack_shares_the_response():
+    u, kernel = _input(), KERNELS["DC"]
+    first = TimedConvolution(u[:12], [2.5, 7.25], order=P)
+    second = TimedConvolution(u[12:], [1.5, 9.75], order=P, exposure=0.0)
+    stacked = TimedConvolution.stack([first, second])
+    S = observe(kernel, stacked).covariance()
+    # the records' readings as one experiment: explicit sums over both inputs
+    funcs = _functionals(u[:12].tolist() + [0.0] * 12, [2.5, 7.25], 0, 0, 1)
+    funcs += _functionals(u[12:].tolist() + [0.0] * 12, [1.5, 9.75], 0, 0, 1)
+    reference = np.array([[c1 @ kernel(x1[:, None], x2[:, None]) @ c2 for x2, c2 in funcs]
+                          for x1, c1 in funcs])
+    assert np.allclose(S, reference, rtol=1e-10)
+    assert stacked.n_outputs == 4 and len(stacked.records) == 2
+
+
+def test_quadrature_error_falls_with_nodes():
+    u, kernel = _input(), KERNELS["DC"]
+    reference = _dense_reference(kernel, u, TIMES, 0.8, 0.0, n=256)
+    errors = []
+    for nodes in (4, 16):
+        op = TimedConvolution(u, TIMES, order=P, exposure=0.8, nodes=nodes)
+        S = observe(kernel, op).covariance()
+        errors.append(np.max(np.abs(S - reference)) / np.abs(reference).max())
+    assert errors[1] < 1e-5
+    assert errors[1] < errors[0]
+
+
+def test_checks_name_the_argument():
+    u = _input()
+    with pytest.raises(ValueError, match="strictly increasing"):
+        check_sample_times([1.0, 1.0], N)
+    with pytest.raises(ValueError, match=r"sample_times must lie in \[0, 24\)"):
+        TimedConvolution(u, [1.0, 24.0], order=P)
+    with pytest.raises(ValueError, match="exposure"):
+        TimedConvolution(u, [1.0, 2.0], order=P, exposure=-1.0)
+    with pytest.raises(ValueError, match="latency"):
+        TimedConvolution(u, [1.0, 2.0], order=P, latency=float("nan"))
+    with pytest.raises(TypeError, match="no regressor"):
+        TimedConvolution(u, [1.0, 2.0], order=P).matrix
+
+
+def test_discard_keeps_late_windows_only():
+    u = _input()
+    op = TimedConvolution(u, [2.5, 6.5, 9.5], order=P, exposure=0.5,
+                          initial_conditions="discard")
+    assert op.used.tolist() == [False, True, True]
+    assert np.array_equal(op.sample_times, [6.5, 9.5])
