@@ -129,3 +129,10 @@ def test_checks():
         gm.FIRGaussianProcess(order=P).fit(u, y, sample_times=times[::-1])
     model = gm.FIRGaussianProcess(exposure=0.5)
     assert model.get_params()["exposure"] == 0.5
+
+
+def test_saving_a_model_between_the_ticks_is_refused(tmp_path):
+    u, y, _, times = _data()
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P).fit(u, y, sample_times=times)
+    with pytest.raises(ValueError, match="cannot be saved yet"):
+        gm.save_model(model, tmp_path / "model.npz")
