@@ -52,7 +52,7 @@ from scipy import linalg, sparse
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
 from gpmultirate.kernels.lag import PK
-from gpmultirate.kernels.offsets import offset_structure, supports_offsets
+from gpmultirate.kernels.offsets import offset_structure, supports_offsets, times_lower
 from gpmultirate.kernels.structure import (
     ConstantTerm, ObservedTerm, ScaledTerm, SumTerm, split_constant,
 )
@@ -475,8 +475,8 @@ class TimedConvolution(Observation):
         piece_u = rows[self._row_id[first_point]][:, whole].T  # (n, pieces)
         d = frac[:, None]
         exact = 0.0
-        for A, f, h in found.lower:
-            A00 = float(np.real(A[0, 0]))
+        for p_r, q_r, _, f, h in found.lower:
+            A00 = float(np.real(p_r[0] * q_r[0]))
             for low, high, after in ((start[None, :], np.minimum(stop[None, :], d), False),
                                      (np.maximum(start[None, :], d), stop[None, :], True)):
                 half = 0.5 * np.maximum(high - low, 0.0)
@@ -618,12 +618,11 @@ class ShiftScaledTimedTerm(_TimedTerm):
         P = obs.order
         found = offset_structure(self.kernel, values, P)
         d = obs._offsets
-        lower = np.tril(np.ones((P, P), dtype=bool), -1)
         S = 0.0
-        for A, f, h in found.lower:
+        for p, q, c, f, h in found.lower:
             X = obs.weighted_rows(f(d))
             Y = obs.weighted_rows(h(d))
-            part = (X @ np.where(lower, A, 0.0)) @ Y.T
+            part = times_lower(X, p, q, c) @ Y.T
             S = S + part + part.T
         rows = obs.unique_rows()
         scale = found.scale ** np.arange(P, dtype=float)
@@ -656,8 +655,8 @@ class ShiftScaledTimedTerm(_TimedTerm):
             a1, b1 = np.broadcast_arrays(a1, b1, start[None, :])[:2]
             a2, b2 = np.broadcast_arrays(start[None, :], stop[None, :], a1)[:2]
             value = 0.0
-            for A, f, h in found.lower:
-                value = value + A[0, 0] * (
+            for p_r, q_r, _, f, h in found.lower:
+                value = value + p_r[0] * q_r[0] * (
                     _ordered_integral(f, h, a1, b1, a2, b2, xi, w)
                     + _ordered_integral(f, h, a2, b2, a1, b1, xi, w)
                 )
@@ -676,12 +675,11 @@ class ShiftScaledTimedTerm(_TimedTerm):
         found = offset_structure(self.kernel, self._values(), P)
         d = obs._offsets
         zero = np.zeros(1)
-        lower = np.tril(np.ones((P, P), dtype=bool), -1)
         out = 0.0
-        for A, f, h in found.lower:
-            A = np.where(lower, A, 0.0)
-            out = out + obs.weighted_rows(f(d)) @ A * float(np.real(h(zero)[0]))
-            out = out + float(np.real(f(zero)[0])) * obs.weighted_rows(h(d)) @ A.T
+        for p, q, c, f, h in found.lower:
+            out = out + times_lower(obs.weighted_rows(f(d)), p, q, c) * float(np.real(h(zero)[0]))
+            out = out + float(np.real(f(zero)[0])) * times_lower(
+                obs.weighted_rows(h(d)), p, q, c, transpose=True)
         scale = found.scale ** np.arange(P, dtype=float)
         out = out + obs.weighted_rows(found.base(d, zero)[:, 0]) * scale
         return np.real(out)
