@@ -470,6 +470,13 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The number of folds of ``"cross_validation"`` (and of the held-out
         check after evidence tuning): contiguous blocks of slow samples of
         each record.
+    exposure : float, default=0.0
+        For readings at their own instants (``fit(..., sample_times=t)``):
+        each reading is the mean output over the ``exposure`` before its
+        instant, in fast sample periods (:doc:`/cameras`).
+    latency : float, default=0.0
+        For readings at their own instants: the reading stamped ``t`` shows
+        the output at ``t - latency`` (fast sample periods).
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
