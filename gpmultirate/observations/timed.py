@@ -20,7 +20,8 @@ the filters of DC) do not apply.  The covariance of the readings is formed by
 the kernel's terms below:
 
 * TC, DC and SS by their semiseparable structure between integer lags
-  (:mod:`gpmultirate.kernels.offsets`): ``O(M P^2 + M^2 P)``, as on the ticks;
+  (:mod:`gpmultirate.kernels.offsets`): ``O(M P + M^2 P)``, the products
+  with the pieces being first-order recursions;
 * PK and constants, of rank two and one at any lag, by their bases;
 * sums and constant multiples through the walker's own terms;
 * any other kernel densely, from the kernel at the real lags, grouped by
