@@ -48,7 +48,8 @@ def _nodes(times, exposure, latency, n):
             out.append((np.array([end]), np.array([1.0])))
             continue
         start = end - exposure
-        edges = [start] + [k for k in range(int(np.ceil(start)), int(np.ceil(end))) if start < k < end]
+        ticks = range(int(np.ceil(start)), int(np.ceil(end)))
+        edges = [start] + [k for k in ticks if start < k < end]
         edges.append(end)
         instants, weights = [], []
         for a, b in zip(edges[:-1], edges[1:]):
@@ -89,7 +90,8 @@ def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None)
 
 def _data(S, noise):
     rng = np.random.default_rng(7)
-    return linalg.cholesky(S + noise * np.eye(S.shape[0]), lower=True) @ rng.standard_normal(S.shape[0])
+    root = linalg.cholesky(S + noise * np.eye(S.shape[0]), lower=True)
+    return root @ rng.standard_normal(S.shape[0])
 
 
 @pytest.mark.parametrize("name", list(KERNELS))
@@ -304,7 +306,8 @@ def test_prediction_at_the_ticks_is_predict():
         gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_times=times),
     ):
         mean, std = model.predict(u, return_std=True)
-        at_ticks, at_std = model.predict(u, sample_times=np.arange(N_FIT, dtype=float), return_std=True)
+        every = np.arange(N_FIT, dtype=float)
+        at_ticks, at_std = model.predict(u, sample_times=every, return_std=True)
         assert np.allclose(at_ticks, mean, rtol=1e-6, atol=1e-7 * np.abs(mean).max())
         assert np.allclose(at_std, std, rtol=1e-5, atol=1e-6 * std.max())
 

@@ -352,7 +352,7 @@ class TimedConvolution(Observation):
         raise TypeError("a TimedConvolution has no regressor on the integer lags")
 
     def unique_rows(self) -> np.ndarray:
-        """The regressor rows of the distinct ``(record, tick)`` of the points, ``(R, n_inputs P)``."""
+        """The regressor rows of the points' distinct ``(record, tick)``: ``(R, n_inputs P)``."""
         if self._rows is None:
             records, ticks = self._unique
             P = self.order
@@ -687,7 +687,7 @@ class ShiftScaledTimedTerm(_TimedTerm):
 
 
 class LowRankTimedTerm(_TimedTerm):
-    """PK or a constant through timed readings: ``S = U D U^T`` with ``U`` the readings of the basis."""
+    """PK or a constant through timed readings: ``S = U D U^T``, ``U`` the basis's readings."""
 
     def _factors(self, values):
         obs = self.observation
