@@ -20,7 +20,7 @@ from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.multioutput import MultiOutputFIR
 from gpmultirate.observed import ObservedKernel
-from gpmultirate.observations import DownsampledConvolution, SampledConvolution
+from gpmultirate.observations import DownsampledConvolution, SampledConvolution, TimedConvolution
 from gpmultirate.persistence import load_model, save_model
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "OrderWarning",
     "ObservedKernel",
     "SampledConvolution",
+    "TimedConvolution",
     "__version__",
     "goodness_of_fit",
     "fit_percent",

@@ -52,6 +52,13 @@ from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER, auto_orders
+from gpmultirate.observations.timed import (
+    TimedConvolution,
+    check_duration,
+    build_timed_experiment,
+    on_the_ticks,
+    predict_readings,
+)
 from gpmultirate.resonances import slowest_decay
 from gpmultirate.responses import (
     FrequencyResponse,
@@ -65,6 +72,7 @@ from gpmultirate.validation import (
     check_level,
     check_positive,
     check_rng,
+    check_sample_indices,
     check_signal,
 )
 
@@ -125,7 +133,7 @@ class _FIRModelMixin:
             for k in range(x.shape[1])
         ])
 
-    def predict(self, u, return_std: bool = False):
+    def predict(self, u, return_std: bool = False, sample_times=None):
         """Fast-rate output of the model for input ``u``.
 
         ``y(n) = sum_k sum_i g_k(i) u_k(n - i)`` for ``n = 0..len(u)-1``,
@@ -141,6 +149,12 @@ class _FIRModelMixin:
             Also return the posterior standard deviation of the noise-free
             output (``sqrt(diag(T Sigma T^T))`` with ``T`` the convolution
             matrix of ``u`` and ``Sigma`` the coefficient covariance).
+        sample_times : array-like of float, or a list of them, optional
+            Instead of the output at the fast ticks, the sensor's readings
+            stamped at these instants (in fast sample periods, strictly
+            increasing in ``[0, len(u))``), with the model's exposure and
+            latency (:doc:`/cameras`); the standard deviation is that of the
+            noise-free reading.
 
         Returns
         -------
@@ -149,8 +163,14 @@ class _FIRModelMixin:
         """
         check_is_fitted(self, "coef_")
         if is_record_list(u):
-            return [self.predict(u_r, return_std) for u_r in u]
+            if sample_times is None:
+                return [self.predict(u_r, return_std) for u_r in u]
+            if not is_record_list(sample_times) or len(sample_times) != len(u):
+                raise ValueError("sample_times must be a list with one entry per record of u")
+            return [self.predict(u_r, return_std, t) for u_r, t in zip(u, sample_times)]
         x = self._check_prediction_input(u)
+        if sample_times is not None:
+            return self._predict_readings(x, sample_times, return_std)
         n = x.shape[0]
         periodic = self.initial_conditions == "periodic"
         coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
@@ -167,6 +187,22 @@ class _FIRModelMixin:
             else:
                 mean[rows] = A @ self.posterior_.coef
         return (mean, np.sqrt(var)) if return_std else mean
+
+    def _predict_readings(self, x, sample_times, return_std):
+        """Readings at ``sample_times``: here only on the fast ticks (no model between them)."""
+        ticks = on_the_ticks(sample_times, 0.0, 0.0)
+        if ticks is None:
+            raise ValueError(
+                f"{type(self).__name__} has no model between the integer lags: sample_times "
+                "must be on the fast ticks (integers); use FIRGaussianProcess for instants "
+                "between them"
+            )
+        ticks = check_sample_indices(ticks, x.shape[0], "sample_times")
+        A = self._fast_rows(x, ticks)
+        if not return_std:
+            return A @ self.posterior_.coef
+        mean, var = self.posterior_.linear_map(A)
+        return mean, np.sqrt(var)
 
     def score(self, u, y_fast) -> float:
         """Goodness of fit in percent (eq. 20) of ``predict(u)`` against ``y_fast``.
@@ -523,6 +559,13 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The number of folds of ``"cross_validation"`` (and of the held-out
         check after evidence tuning): contiguous blocks of slow samples of
         each record.
+    exposure : float, default=0.0
+        For readings at their own instants (``fit(..., sample_times=t)``):
+        each reading is the mean output over the ``exposure`` before its
+        instant, in fast sample periods (:doc:`/cameras`).
+    latency : float, default=0.0
+        For readings at their own instants: the reading stamped ``t`` shows
+        the output at ``t - latency`` (fast sample periods).
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -643,6 +686,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         normalize: bool = True,
         tuning: str = "evidence",
         cv: int = 5,
+        exposure: float = 0.0,
+        latency: float = 0.0,
     ):
         self.kernel = kernel
         self.factor = factor
@@ -659,9 +704,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.normalize = normalize
         self.tuning = tuning
         self.cv = cv
+        self.exposure = exposure
+        self.latency = latency
 
     # ------------------------------------------------------------------ fit
-    def fit(self, u, y_slow, sample_indices=None) -> "FIRGaussianProcess":
+    def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "FIRGaussianProcess":
         """Condition the prior on slow data, tuning hyperparameters if asked.
 
         Parameters
@@ -675,12 +722,19 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         sample_indices : array-like of int, or a list of them, optional
             The fast-sample index of each slow sample, strictly increasing
             in ``0..N-1``; ``factor`` and ``offset`` are then ignored.
+        sample_times : array-like of float, or a list of them, optional
+            The stamp of each reading in fast sample periods (real,
+            strictly increasing, in ``[0, N)``), for readings off the fast
+            ticks, with the model's ``exposure`` and ``latency`` (see
+            :doc:`/cameras`); exclusive with ``sample_indices``.
 
         Returns
         -------
         self
         """
         settings = self._check_params()
+        sample_indices = _timed_samples(self, sample_indices, sample_times)
+        timed = isinstance(sample_indices, _TimedSamples)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
         data = (u, y_slow, sample_indices)
@@ -708,6 +762,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self._adopt(fitted)
         if rule is not None:
             self.order_selection_ = rule.table
+        if timed:  # the checks below read the fast-sample index of every reading
+            return self
         if settings.criterion == "evidence" and self.optimizer is not None:
             with blas_threads_for(fitted.experiment.observation):
                 self._check_shorter_orders(data, fitted.experiment, settings)
@@ -840,11 +896,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                          max_resonances, normalize, self.optimizer is not None)
 
     def _experiment(self, data, order):
-        u, y_slow, sample_indices = data
-        return build_experiment(
-            u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
-            order=order, initial_conditions=self.initial_conditions,
-        )
+        return _experiment(self, *data, order)
 
     def _adopt(self, fitted: _Fit) -> None:
         """Take the learned state of a fit at one order as the estimator's."""
@@ -1061,6 +1113,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             return self._shaped(mean), second
         return self._shaped(mean), self._shaped(np.sqrt(second))
 
+    def _predict_readings(self, x, sample_times, return_std):
+        """The sensor's readings at ``sample_times`` (exposure and latency applied)."""
+        readings = TimedConvolution(
+            x, sample_times, self._order, self.exposure, self.latency, self.initial_conditions)
+        with blas_threads_for(readings):
+            mean, var = predict_readings(
+                self.posterior_, self._evidence.data, self.kernel_, readings)
+        return (mean, np.sqrt(var)) if return_std else mean
+
     def _points(self, lags) -> np.ndarray:
         """The kernel inputs of the lags: a column, or ``(input, lag)`` pairs input-major."""
         lags = np.arange(self._order, dtype=float) if lags is None else check_lags(lags, "lags")
@@ -1125,7 +1186,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.initial_conditions = initial_conditions
         self.sample_time = sample_time
 
-    def fit(self, u, y_slow, sample_indices=None) -> "LeastSquaresFIR":
+    def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "LeastSquaresFIR":
         """Solve the least-squares problem of eq. (10)-(11).
 
         Parameters
@@ -1135,6 +1196,9 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             ``NaN`` marks a sample that was not measured.
         sample_indices : array-like of int, or a list of them, optional
             As for :meth:`FIRGaussianProcess.fit`.
+        sample_times : array-like, or a list of them, optional
+            Only on the fast ticks (integers): least squares has no model
+            between the integer lags; exclusive with ``sample_indices``.
 
         Returns
         -------
@@ -1146,6 +1210,16 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             If ``n_inputs * order >= M`` (the used slow samples) or the
             regressor is rank deficient.
         """
+        if sample_times is not None:
+            if sample_indices is not None:
+                raise ValueError("give sample_indices or sample_times, not both")
+            sample_indices = on_the_ticks(sample_times, 0.0, 0.0)
+            if sample_indices is None:
+                raise ValueError(
+                    "LeastSquaresFIR has no model between the integer lags: sample_times must "
+                    "be on the fast ticks (integers); use FIRGaussianProcess for readings "
+                    "between them"
+                )
         if self.order is None:
             raise ValueError("order must be given: an integer below the number of slow samples")
         check_positive(self.sample_time, "sample_time")
@@ -1233,6 +1307,53 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if return_cov:
             return self._shaped(mean), cov
         return self._shaped(mean), self._shaped(np.sqrt(np.maximum(np.diag(cov), 0.0)))
+
+
+# ----------------------------------------------------- readings at their own instants
+class _TimedSamples(list):
+    """``[sample_times]`` of a fit whose readings are not all fast samples."""
+
+
+def _timed_samples(model, sample_indices, sample_times):
+    """What ``fit`` passes on as ``sample_indices``: the indices, or the timed samples.
+
+    Readings on the fast ticks (no exposure, ``t - latency`` integers) are
+    the fast samples of those indices, with every fast path of the ticks.
+    """
+    exposure = check_duration(model.exposure, "exposure")
+    latency = check_duration(model.latency, "latency")
+    if sample_times is None:
+        if exposure or latency:
+            raise ValueError(
+                "exposure and latency apply to readings at their own instants: give "
+                "sample_times (in fast sample periods)"
+            )
+        return sample_indices
+    if sample_indices is not None:
+        raise ValueError("give sample_indices or sample_times, not both")
+    ticks = on_the_ticks(sample_times, exposure, latency)
+    if ticks is not None:
+        return ticks
+    auto = isinstance(model.kernel, str) and model.kernel == "auto"
+    if auto or model.tuning == "cross_validation":
+        raise ValueError(
+            "readings between the fast ticks take kernel='auto' and "
+            "tuning='cross_validation' not yet: give a kernel and tune by the evidence"
+        )
+    return _TimedSamples([sample_times])
+
+
+def _experiment(model, u, y_slow, sample_indices, order):
+    """The experiment of a fit: on the fast ticks, or the readings at their own instants."""
+    if isinstance(sample_indices, _TimedSamples):
+        return build_timed_experiment(
+            u, y_slow, sample_indices[0], order=order, exposure=model.exposure,
+            latency=model.latency, initial_conditions=model.initial_conditions,
+        )
+    return build_experiment(
+        u, y_slow, sample_indices, factor=model.factor, offset=model.offset,
+        order=order, initial_conditions=model.initial_conditions,
+    )
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:

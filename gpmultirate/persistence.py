@@ -293,6 +293,11 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         )
     check_is_fitted(model, "coef_")
     operator = model.observation_
+    if not hasattr(operator.records[0], "sample_indices"):
+        raise ValueError(
+            "a model fitted to readings between the fast ticks (sample_times) cannot be "
+            "saved yet: the model file stores fast-sample indices"
+        )
     if isinstance(operator, DownsampledConvolution):  # the layout of version 1
         version = 1
         fitted: dict[str, Any] = {

@@ -21,6 +21,7 @@ OUTPUTS = {
     "robot_arm_real_data.py": ["robot_arm_real_data.png"],
     "cd_player_arm.py": ["cd_player_arm.png"],
     "dropped_frames.py": ["dropped_frames.png"],
+    "camera_frames.py": ["camera_frames.png"],
     "reduced_model.py": ["reduced_model.png"],
     "paper_simulation.py": ["paper_study_gof.png", "paper_example_bode.png", "paper_systems_frf.png",
                             "paper_study.json"],
@@ -35,6 +36,7 @@ KEY_OUTPUT = {
     "robot_arm_real_data.py": "validation GoF",
     "cd_player_arm.py": "two-input fit",
     "dropped_frames.py": "dropped frames",
+    "camera_frames.py": "own instants, exact (tuned)",
     "reduced_model.py": "closed loop stable on the true system: True",
     "paper_simulation.py": "| P |",
 }

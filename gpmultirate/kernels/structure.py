@@ -664,6 +664,9 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
     >>> [role.kind for role in term.roles()]
     ['amplitude', 'decay', 'correlation', 'decay', 'frequency', 'amplitude', 'amplitude']
     """
+    if observation is not None and hasattr(observation, "observe_kernel"):
+        # readings that are no matrix on the integer lags walk the kernel themselves
+        return observation.observe_kernel(kernel, path)
     if isinstance(kernel, Sum):
         return SumTerm(
             kernel,

@@ -22,6 +22,7 @@ from gpmultirate.observations.sampled import (
     SampledConvolution,
     check_initial_conditions,
 )
+from gpmultirate.observations.timed import TimedConvolution
 
 __all__ = [
     "INITIAL_CONDITIONS",
@@ -32,6 +33,7 @@ __all__ = [
     "RecordStack",
     "ReducedObservation",
     "SampledConvolution",
+    "TimedConvolution",
     "UniformSampling",
     "build_experiment",
     "check_initial_conditions",

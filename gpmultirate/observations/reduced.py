@@ -60,7 +60,8 @@ def reduce_observation(observation: Observation, y: np.ndarray):
     >>> type(data).__name__, z.shape
     ('ReducedObservation', (4,))
     """
-    if observation.n_discarded > 0 or observation.n_outputs <= observation.n_coefficients:
+    if (observation.n_discarded > 0 or observation.n_outputs <= observation.n_coefficients
+            or not getattr(observation, "reducible", True)):
         return observation, y
     reduction = ReducedObservation(observation, y)
     return reduction, reduction.z

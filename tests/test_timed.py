@@ -1,0 +1,402 @@
+"""Slow samples at their own instants: every number against a brute-force dense computation.
+
+The reference readings are built here from the model alone: the output at
+real time ``t`` is ``sum_j u[j] g(t - j)``; a reading with exposure is the
+window average, by Gauss-Legendre quadrature on the pieces between ticks
+with many more nodes than the library uses; the covariance is the explicit
+double sum of the kernel over every pair of (node, lag).
+"""
+
+import numpy as np
+import pytest
+from scipy import linalg
+from scipy.stats import multivariate_normal
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel as C
+
+import gpmultirate as gm
+
+from gpmultirate.inference import DataSpacePosterior, log_marginal_likelihood
+from gpmultirate.kernels import DC, PK, SS, TC, observe
+from gpmultirate.observations import SampledConvolution, TimedConvolution
+from gpmultirate.observations.timed import check_sample_times
+
+P = 7
+N = 24
+TIMES = np.array([3.3, 6.05, 8.5, 11.0, 13.71, 17.2, 20.95])
+KERNELS = {
+    "DC": C(1.5) * DC(alpha=0.75, beta=0.6),
+    "DC-negative": DC(alpha=0.8, beta=-0.5),
+    "TC": TC(alpha=0.7),
+    "SS": C(3.0) * SS(alpha=0.8),
+    "PK": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6),
+    "sum": C(1.0) * DC(alpha=0.7, beta=0.4) + PK(alpha=0.85, omega=0.9),
+    "RBF": C(0.5) * RBF(length_scale=1.5),
+}
+
+
+def _input():
+    return np.random.default_rng(3).standard_normal(N)
+
+
+def _nodes(times, exposure, latency, n):
+    """Per reading: instants and weights of its window (Gauss-Legendre, split at the ticks)."""
+    xi, w = np.polynomial.legendre.leggauss(n)
+    out = []
+    for t in times:
+        end = t - latency
+        if exposure == 0:
+            out.append((np.array([end]), np.array([1.0])))
+            continue
+        start = end - exposure
+        ticks = range(int(np.ceil(start)), int(np.ceil(end)))
+        edges = [start] + [k for k in ticks if start < k < end]
+        edges.append(end)
+        instants, weights = [], []
+        for a, b in zip(edges[:-1], edges[1:]):
+            instants.append(a + (b - a) * (xi + 1) / 2)
+            weights.append(w * (b - a) / 2 / exposure)
+        out.append((np.concatenate(instants), np.concatenate(weights)))
+    return out
+
+
+def _functionals(u, times, exposure, latency, n):
+    """Each reading as ``sum_q c_q g(x_q)``: lags ``x`` and coefficients ``c`` (lags < P)."""
+    out = []
+    for instants, weights in _nodes(times, exposure, latency, n):
+        lags, coefs = [], []
+        for s, w in zip(instants, weights):
+            for j in range(N):
+                if 0 <= s - j < P:
+                    lags.append(s - j)
+                    coefs.append(w * u[j])
+        out.append((np.array(lags), np.array(coefs)))
+    return out
+
+
+def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None):
+    """The covariance of the readings (and with ``g(at)``) by explicit double sums."""
+    funcs = _functionals(u, times, exposure, latency, n)
+    M = len(funcs)
+    S = np.empty((M, M))
+    for a in range(M):
+        for b in range(M):
+            K = kernel(funcs[a][0][:, None], funcs[b][0][:, None])
+            S[a, b] = funcs[a][1] @ K @ funcs[b][1]
+    if at is None:
+        return S
+    cross = np.column_stack([kernel(at[:, None], x[:, None]) @ c for x, c in funcs])
+    return S, cross
+
+
+def _data(S, noise):
+    rng = np.random.default_rng(7)
+    root = linalg.cholesky(S + noise * np.eye(S.shape[0]), lower=True)
+    return root @ rng.standard_normal(S.shape[0])
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_covariance_matches_dense_sums_without_exposure(name):
+    kernel, u = KERNELS[name], _input()
+    op = TimedConvolution(u, TIMES, order=P, latency=0.4)
+    S = observe(kernel, op).covariance()
+    reference = _dense_reference(kernel, u, TIMES, latency=0.4)
+    assert np.allclose(S, reference, rtol=1e-6, atol=1e-9 * np.abs(reference).max())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_covariance_matches_fine_quadrature_with_exposure(name):
+    kernel, u = KERNELS[name], _input()
+    op = TimedConvolution(u, TIMES, order=P, exposure=0.6, latency=0.3)
+    S = observe(kernel, op).covariance()
+    reference = _dense_reference(kernel, u, TIMES, 0.6, 0.3, n=96)
+    assert np.max(np.abs(S - reference)) <= 1e-4 * np.abs(reference).max()
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_posterior_and_evidence_match_dense(name):
+    _check_posterior(name, 0.0, 1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(KERNELS))
+def test_posterior_and_evidence_match_dense_with_exposure(name):
+    _check_posterior(name, 0.5, 1e-4)
+
+
+def test_posterior_with_exposure_matches_dense_sum():
+    _check_posterior("sum", 0.5, 1e-4, n=64, times=TIMES[:4])
+
+
+def _check_posterior(name, exposure, tol, n=96, times=TIMES):
+    kernel, u = KERNELS[name], _input()
+    lags = np.array([0.0, 0.35, 1.5, 2.9, 4.25, 6.5])
+    op = TimedConvolution(u, times, order=P, exposure=exposure, latency=0.2)
+    S, cross = _dense_reference(kernel, u, times, exposure, 0.2, n=n, at=lags)
+    noise = 1e-3 * np.trace(S) / S.shape[0]
+    y = _data(S, noise)
+    Ky = S + noise * np.eye(S.shape[0])
+    mean_ref = cross @ linalg.solve(Ky, y)
+    var_ref = np.diag(kernel(lags[:, None]) - cross @ linalg.solve(Ky, cross.T))
+    evidence_ref = multivariate_normal(np.zeros(y.shape[0]), Ky).logpdf(y)
+    post = DataSpacePosterior(op, kernel, noise, y)
+    mean, var = post.at_lags(op, kernel, lags[:, None], full_cov=False)
+    scale = np.abs(mean_ref).max()
+    assert np.max(np.abs(mean - mean_ref)) <= tol * scale
+    assert np.allclose(np.sqrt(var), np.sqrt(var_ref), rtol=tol, atol=tol * np.sqrt(var_ref).max())
+    value = log_marginal_likelihood(op, kernel, noise, y, False, False)
+    assert abs(value - evidence_ref) <= tol * abs(evidence_ref)
+    assert abs(post.log_marginal_likelihood - evidence_ref) <= tol * abs(evidence_ref)
+
+
+@pytest.mark.parametrize("name", list(KERNELS))
+@pytest.mark.parametrize("exposure", [
+    0.0, pytest.param(0.7, marks=pytest.mark.slow),
+])
+def test_gradient_matches_finite_differences(name, exposure):
+    if name == "RBF" and exposure:
+        pytest.skip("the dense route under exposure is covered by test_dense_gradient_exposure")
+    _check_gradient(name, exposure)
+
+
+def test_gradient_with_exposure_matches_finite_differences():
+    _check_gradient("sum", 0.7)
+
+
+def _check_gradient(name, exposure):
+    kernel, u = KERNELS[name], _input()
+    op = TimedConvolution(u, TIMES, order=P, exposure=exposure, latency=0.1)
+    S = observe(kernel, op).covariance()
+    noise = 1e-2 * np.trace(S) / S.shape[0]
+    y = _data(S, noise)
+    value, grad = log_marginal_likelihood(op, kernel, noise, y, True, True)
+    theta = np.append(kernel.theta, np.log(noise))
+    step = 1e-6
+    for j in range(theta.shape[0]):
+        moved = []
+        for sign in (1, -1):
+            t = theta.copy()
+            t[j] += sign * step
+            moved.append(log_marginal_likelihood(
+                op, kernel.clone_with_theta(t[:-1]), np.exp(t[-1]), y, False, False))
+        numeric = (moved[0] - moved[1]) / (2 * step)
+        assert np.isclose(grad[j], numeric, rtol=1e-5, atol=1e-6 * abs(value))
+
+
+def test_on_the_ticks_equals_the_sampled_convolution():
+    u = _input()
+    kernel = KERNELS["sum"]
+    timed = TimedConvolution(u, [2.0, 5.0, 9.0, 14.0, 20.0], order=P)
+    ticks = SampledConvolution(u, [2, 5, 9, 14, 20], order=P)
+    assert np.allclose(observe(kernel, timed).covariance(), observe(kernel, ticks).covariance())
+    assert np.allclose(timed.cross_covariance(kernel, timed.lags),
+                       kernel(ticks.lags) @ ticks.matrix.T)
+
+
+def test_records_stack_shares_the_response():
+    u, kernel = _input(), KERNELS["DC"]
+    first = TimedConvolution(u[:12], [2.5, 7.25], order=P)
+    second = TimedConvolution(u[12:], [1.5, 9.75], order=P, exposure=0.0)
+    stacked = TimedConvolution.stack([first, second])
+    S = observe(kernel, stacked).covariance()
+    # the records' readings as one experiment: explicit sums over both inputs
+    funcs = _functionals(u[:12].tolist() + [0.0] * 12, [2.5, 7.25], 0, 0, 1)
+    funcs += _functionals(u[12:].tolist() + [0.0] * 12, [1.5, 9.75], 0, 0, 1)
+    reference = np.array([[c1 @ kernel(x1[:, None], x2[:, None]) @ c2 for x2, c2 in funcs]
+                          for x1, c1 in funcs])
+    assert np.allclose(S, reference, rtol=1e-10)
+    assert stacked.n_outputs == 4 and len(stacked.records) == 2
+
+
+def test_structured_exposure_is_exact_at_any_node_count():
+    # the kink of TC/DC/SS is integrated exactly: 8 and 16 nodes agree to rounding
+    u = _input()
+    for name in ("DC", "DC-negative", "TC", "SS", "PK"):
+        found = []
+        for nodes in (8, 16):
+            op = TimedConvolution(u, TIMES, order=P, exposure=0.8, latency=0.2, nodes=nodes)
+            found.append(observe(KERNELS[name], op).covariance())
+            found.append(op.cross_covariance(KERNELS[name], np.array([0.3, 2.5, 5.75])))
+        assert np.allclose(found[0], found[2], rtol=1e-10, atol=1e-12)
+        assert np.allclose(found[1], found[3], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_dense_route_quadrature_error_below_1e4():
+    # the dense route integrates by the points: smooth kernels converge fast
+    u, kernel = _input(), KERNELS["RBF"]
+    times = TIMES[:4]
+    reference = _dense_reference(kernel, u, times, 0.8, 0.0, n=64)
+    op = TimedConvolution(u, times, order=P, exposure=0.8)
+    S = observe(kernel, op).covariance()
+    assert np.max(np.abs(S - reference)) <= 1e-8 * np.abs(reference).max()
+
+
+def test_checks_name_the_argument():
+    u = _input()
+    with pytest.raises(ValueError, match="strictly increasing"):
+        check_sample_times([1.0, 1.0], N)
+    with pytest.raises(ValueError, match=r"sample_times must lie in \[0, 24\)"):
+        TimedConvolution(u, [1.0, 24.0], order=P)
+    with pytest.raises(ValueError, match="exposure"):
+        TimedConvolution(u, [1.0, 2.0], order=P, exposure=-1.0)
+    with pytest.raises(ValueError, match="latency"):
+        TimedConvolution(u, [1.0, 2.0], order=P, latency=float("nan"))
+    with pytest.raises(TypeError, match="no regressor"):
+        TimedConvolution(u, [1.0, 2.0], order=P).matrix
+
+
+def test_discard_keeps_late_windows_only():
+    u = _input()
+    op = TimedConvolution(u, [2.5, 6.5, 9.5], order=P, exposure=0.5,
+                          initial_conditions="discard")
+    assert op.used.tolist() == [False, True, True]
+    assert np.array_equal(op.sample_times, [6.5, 9.5])
+
+
+@pytest.mark.slow
+def test_dense_gradient_exposure():
+    kernel, u = KERNELS["RBF"], _input()
+    op = TimedConvolution(u, TIMES[:4], order=P, exposure=0.7, nodes=4)
+    S = observe(kernel, op).covariance()
+    noise = 1e-2 * np.trace(S) / S.shape[0]
+    y = _data(S, noise)
+    _, grad = log_marginal_likelihood(op, kernel, noise, y, True, False)
+    for j in range(kernel.theta.shape[0]):
+        values = []
+        for sign in (1, -1):
+            t = kernel.theta.copy()
+            t[j] += sign * 1e-6
+            values.append(log_marginal_likelihood(op, kernel.clone_with_theta(t), noise, y,
+                                                  False, False))
+        assert np.isclose(grad[j], (values[0] - values[1]) / 2e-6, rtol=1e-5)
+
+
+# ------------------------------------------------------------- the estimators
+N_FIT, F_FIT, P_FIT = 90, 3, 12
+
+
+def _fit_data(seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(N_FIT)
+    g = 0.8 ** np.arange(P_FIT) * np.cos(0.6 * np.arange(P_FIT))
+    ticks = np.arange(0, N_FIT, F_FIT)
+    y = np.convolve(u, g)[:N_FIT][ticks] + 1e-2 * rng.standard_normal(ticks.shape[0])
+    times = ticks + rng.uniform(0, 1, ticks.shape[0])
+    return u, y, ticks, times
+
+
+def test_times_on_the_ticks_give_the_fit_of_the_indices():
+    u, y, ticks, _ = _fit_data()
+    a = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_indices=ticks)
+    b = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_times=ticks * 1.0)
+    assert np.allclose(a.coef_, b.coef_)
+    assert np.isclose(a.log_marginal_likelihood_value_, b.log_marginal_likelihood_value_)
+    # a latency of whole periods: the stamps are late by it
+    c = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT, latency=2.0).fit(
+        u, y[:-1], sample_times=ticks[:-1] + 2.0)
+    d = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y[:-1], sample_indices=ticks[:-1])
+    assert np.allclose(c.coef_, d.coef_)
+
+
+def test_prediction_at_the_ticks_is_predict():
+    u, y, ticks, times = _fit_data()
+    for model in (
+        gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_indices=ticks),
+        gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_times=times),
+    ):
+        mean, std = model.predict(u, return_std=True)
+        every = np.arange(N_FIT, dtype=float)
+        at_ticks, at_std = model.predict(u, sample_times=every, return_std=True)
+        assert np.allclose(at_ticks, mean, rtol=1e-6, atol=1e-7 * np.abs(mean).max())
+        assert np.allclose(at_std, std, rtol=1e-5, atol=1e-6 * std.max())
+
+
+def test_readings_predicted_as_a_dense_gaussian_conditional():
+    _check_readings(0.0, 1e-6, 1)
+
+
+@pytest.mark.slow
+def test_readings_with_exposure_predicted_as_a_dense_gaussian_conditional():
+    _check_readings(0.4, 1e-4, 96)
+
+
+def _check_readings(exposure, tol, n):
+    # fixed hyperparameters: the readings' mean and std are S (S + g I)^{-1} y and its variance
+    u, y, ticks, times = _fit_data(1)
+    kernel = C(0.8) * DC(0.75, 0.7)
+    noise = 1e-3
+    # the record of the reference: N = 24 fast samples, order P = 7
+    u, y, times = u[:24], y[:7], times[:7]
+    model = gm.FIRGaussianProcess(kernel, order=7, noise_level=noise, optimizer=None,
+                                  normalize=False, exposure=exposure, latency=0.3)
+    model.fit(u, y, sample_times=times)
+    new = np.array([5.5, 17.25, 22.0])
+    both = np.concatenate([times, new])
+    both_u = u
+    S_all = _dense_reference(kernel, both_u, np.sort(both), exposure, 0.3, n=n)
+    order = np.argsort(both)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.shape[0])
+    S_all = S_all[np.ix_(rank, rank)]
+    M = times.shape[0]
+    Ky = S_all[:M, :M] + noise * np.eye(M)
+    mean_ref = S_all[M:, :M] @ linalg.solve(Ky, y)
+    var_ref = np.diag(S_all[M:, M:] - S_all[M:, :M] @ linalg.solve(Ky, S_all[:M, M:]))
+    mean, std = model.predict(u, sample_times=new, return_std=True)
+    assert np.allclose(mean, mean_ref, rtol=tol, atol=tol * np.abs(mean_ref).max())
+    assert np.allclose(std, np.sqrt(var_ref), rtol=tol)
+
+
+def test_records_and_missing_readings():
+    u, y, _, times = _fit_data()
+    y = y.copy()
+    y[4] = np.nan
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(
+        [u[:45], u[45:]], [y[:15], y[15:]], sample_times=[times[:15], times[15:] - 45])
+    assert model.y_slow_.shape == (29,)
+    assert isinstance(model.operator_, gm.TimedConvolution)
+
+
+@pytest.mark.slow
+def test_two_inputs():
+    # several inputs take the dense route (a kernel over (input, lag) pairs)
+    u, y, _, times = _fit_data()
+    u2 = np.column_stack([u, np.roll(u, 7)])
+    model = gm.FIRGaussianProcess(order=6).fit(u2[:45], y[:15],
+                                                sample_times=times[:15])
+    assert model.coef_.shape == (2, 6)
+
+
+def test_least_squares_on_the_ticks_only():
+    u, y, ticks, times = _fit_data()
+    a = gm.LeastSquaresFIR(order=P_FIT).fit(u, y, sample_indices=ticks)
+    b = gm.LeastSquaresFIR(order=P_FIT).fit(u, y, sample_times=ticks * 1.0)
+    assert np.allclose(a.coef_, b.coef_)
+    with pytest.raises(ValueError, match="no model between the integer lags"):
+        gm.LeastSquaresFIR(order=P_FIT).fit(u, y, sample_times=times)
+    with pytest.raises(ValueError, match="no model between the integer lags"):
+        a.predict(u, sample_times=[1.5])
+
+
+def test_checks():
+    u, y, ticks, times = _fit_data()
+    with pytest.raises(ValueError, match="not both"):
+        gm.FIRGaussianProcess(order=P_FIT).fit(u, y, sample_indices=ticks, sample_times=times)
+    with pytest.raises(ValueError, match="give sample_times"):
+        gm.FIRGaussianProcess(order=P_FIT, exposure=0.5).fit(u, y, sample_indices=ticks)
+    with pytest.raises(ValueError, match="exposure must be a non-negative"):
+        gm.FIRGaussianProcess(order=P_FIT, exposure=-0.5).fit(u, y, sample_times=times)
+    with pytest.raises(ValueError, match="kernel='auto'"):
+        gm.FIRGaussianProcess("auto", order=P_FIT).fit(u, y, sample_times=times)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        gm.FIRGaussianProcess(order=P_FIT).fit(u, y, sample_times=times[::-1])
+    model = gm.FIRGaussianProcess(exposure=0.5)
+    assert model.get_params()["exposure"] == 0.5
+
+
+def test_saving_a_model_between_the_ticks_is_refused(tmp_path):
+    u, y, _, times = _fit_data()
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_times=times)
+    with pytest.raises(ValueError, match="cannot be saved yet"):
+        gm.save_model(model, tmp_path / "model.npz")
