@@ -355,7 +355,7 @@ def test_records_and_missing_readings():
     model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(
         [u[:45], u[45:]], [y[:15], y[15:]], sample_times=[times[:15], times[15:] - 45])
     assert model.y_slow_.shape == (29,)
-    assert isinstance(model.operator_, gm.TimedConvolution)
+    assert isinstance(model.observation_, gm.TimedConvolution)
 
 
 @pytest.mark.slow
