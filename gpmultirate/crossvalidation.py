@@ -26,14 +26,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg
 
-from gpmultirate.inference import (
-    LogEvidence,
-    inverse_from_cholesky,
-    log_gaussian,
-    robust_cholesky,
-)
-from gpmultirate.kernels import observe
+from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian, robust_cholesky
+from gpmultirate.inference import LogEvidence
 from gpmultirate.validation import check_int
+
+#: the bounds that mark a noise level as a free hyperparameter where only that matters
+_FREE = (0.0, np.inf)
 
 __all__ = [
     "CrossValidation",
@@ -85,17 +83,12 @@ def _fold_factors(A, alpha, folds):
     return factors
 
 
-def _data_precision(operator, kernel, noise_level, y, eval_gradient):
-    term = observe(kernel, operator)
-    if eval_gradient:
-        S, contract = term.covariance_with_contractor()
-    else:
-        S, contract = term.covariance(), None
-    Ky = S.copy()  # the contractor may hold S itself (the derivative of an amplitude)
-    Ky[np.diag_indices_from(Ky)] += noise_level
-    L, _ = robust_cholesky(Ky)
-    A = inverse_from_cholesky(L)
-    return A, A @ y, contract
+def _data_precision(operator, kernel, noise, y, eval_gradient):
+    """``A = Ky^{-1}``, ``a = A y`` and the data covariance (dense: every sample is used)."""
+    covariance = DenseCovariance.of(kernel, operator, noise,
+                                    "contraction" if eval_gradient else None)
+    A = covariance.inverse()
+    return A, A @ y, covariance
 
 
 def log_predictive_likelihood(
@@ -121,7 +114,8 @@ def log_predictive_likelihood(
     -------
     float, or (float, ndarray) with ``eval_gradient``
     """
-    A, alpha, contract = _data_precision(operator, kernel, noise_level, y, eval_gradient)
+    noise = WhiteNoise(noise_level, _FREE if noise_free else "fixed")
+    A, alpha, covariance = _data_precision(operator, kernel, noise, y, eval_gradient)
     factors = _fold_factors(A, alpha, folds)
     value = 0.0
     for B, (L_B, r_B) in zip(folds, factors):
@@ -140,9 +134,9 @@ def log_predictive_likelihood(
     v = A @ q
     W = -0.5 * (A @ middle @ A)
     W += 0.5 * (np.outer(alpha, v) + np.outer(v, alpha))
-    grad = contract(W)
+    grad = covariance.contract(W)
     if noise_free:
-        grad = np.append(grad, np.trace(W) * noise_level)
+        grad = np.append(grad, noise.contract(W))
     return value, grad
 
 
@@ -155,7 +149,7 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
         For sample ``m`` in fold ``k``: the predictive mean and variance of
         ``y[m]`` given the samples outside fold ``k`` (noise included).
     """
-    A, alpha, _ = _data_precision(operator, kernel, noise_level, y, False)
+    A, alpha, _ = _data_precision(operator, kernel, WhiteNoise(noise_level), y, False)
     mean = np.empty_like(y)
     variance = np.empty_like(y)
     for B, (L_B, r_B) in zip(folds, _fold_factors(A, alpha, folds)):

@@ -56,7 +56,8 @@ from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import tuning
 from gpmultirate.exceptions import NumericalWarning
-from gpmultirate.inference import LOG_2PI, LogEvidence, blas_threads_for, robust_cholesky
+from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian
+from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
     PK,
     input_kernels,
@@ -260,13 +261,11 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         alphas = np.exp(-2.0 * np.asarray(_SCAN_DECAYS) / P)
     omegas = np.asarray(omegas, dtype=float)
     alphas = np.asarray(alphas, dtype=float)
-    S = observe(kernel, observation).covariance().copy()
-    S[np.diag_indices_from(S)] += noise_level
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
-        L, _ = robust_cholesky(S)
-    w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
-    white = linalg.solve_triangular(L, Phi, lower=True, check_finite=False)  # L^{-1} Phi
+        covariance = DenseCovariance.of(kernel, observation, WhiteNoise(noise_level))
+    w = covariance.whiten(y)
+    white = covariance.whiten(Phi)  # L^{-1} Phi
     if amplitudes is None:
         # the size of an impulse response that explains the data's power
         power_u = float(np.mean(Phi**2)) * P or 1.0
@@ -605,8 +604,9 @@ class _ResonantModel:
             v = linalg.solve_triangular(chol, DW.T @ y, lower=True, check_finite=False)
             quad -= v @ v
             log_det += 2.0 * np.log(np.diag(chol)).sum()
-        rest, rest_grad, _ = self.evidence.data.discarded_log_likelihood(float(gamma))
-        value = float(-0.5 * (quad + log_det + y.shape[0] * LOG_2PI) + rest)
+        remainder = WhiteNoise(float(gamma)).remainder(self.evidence.data)
+        rest, rest_grad, _ = remainder.log_likelihood()
+        value = log_gaussian(quad, log_det, y.shape[0]) + rest
         if not eval_gradient:
             return value
         if r_terms:
