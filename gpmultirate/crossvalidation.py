@@ -27,7 +27,7 @@ import numpy as np
 from scipy import linalg
 
 from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian, robust_cholesky
-from gpmultirate.inference import LogEvidence
+from gpmultirate.inference import LogEvidence, TuningObjective
 from gpmultirate.validation import check_int
 
 #: the bounds that mark a noise level as a free hyperparameter where only that matters
@@ -160,15 +160,18 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
     return mean, variance
 
 
-class CrossValidation(LogEvidence):
+class CrossValidation(TuningObjective):
     """The cross-validated log predictive likelihood as a function of ``theta``.
 
     The objective :func:`~gpmultirate.tuning.maximize` works on when a fit
     is tuned with ``tuning="cross_validation"``: the same ``theta``, bounds
-    and roles as :class:`~gpmultirate.inference.LogEvidence` (whose cheap
-    evidence-based start, scale prefit and resonance grid it keeps), but
-    evaluated on all slow samples in data space, with the folds of
-    :func:`contiguous_folds`.
+    and roles as :class:`~gpmultirate.inference.LogEvidence` (a
+    :class:`~gpmultirate.inference.TuningObjective` as well), evaluated on
+    all slow samples in data space, with the folds of
+    :func:`contiguous_folds`.  It holds the evidence of the same data
+    (:attr:`evidence`), whose cheap start tuning keeps: the scale prefit,
+    the scale groups and the resonance grid answer from it.  It offers no
+    Fisher information (``has_fisher`` is false).
 
     Parameters
     ----------
@@ -178,6 +181,12 @@ class CrossValidation(LogEvidence):
     noise_level : float
     noise_bounds : pair of floats or "fixed"
     n_folds : int, default=5
+
+    Attributes
+    ----------
+    evidence : LogEvidence
+        The evidence of the same data at the same start.
+    folds : list of ndarray of int
 
     Examples
     --------
@@ -197,8 +206,9 @@ class CrossValidation(LogEvidence):
     has_fisher = False
 
     def __init__(self, observation, y, kernel, noise_level, noise_bounds, n_folds: int = 5):
-        super().__init__(observation, y, kernel, noise_level, noise_bounds)
+        super().__init__(kernel, noise_level, noise_bounds)
         # the evidence-based start works on the reduced data; the folds need every sample
+        self.evidence = LogEvidence(observation, y, kernel, noise_level, noise_bounds)
         self.observation, self.y = observation, y
         self.folds = contiguous_folds([r.n_outputs for r in observation.records], n_folds)
 
@@ -210,8 +220,57 @@ class CrossValidation(LogEvidence):
             self.noise_is_free,
         )
 
-    def with_fisher(self, theta):
-        raise NotImplementedError("the cross-validation objective has no Fisher information")
+    def moved_to(self, kernel, noise_level: float) -> "CrossValidation":
+        moved = super().moved_to(kernel, noise_level)
+        moved.evidence = self.evidence.moved_to(kernel, noise_level)
+        return moved
+
+    def reusing_kernel(self) -> "CrossValidation":
+        reusing = super().reusing_kernel()
+        reusing.evidence = self.evidence.moved_to(self.kernel, self.noise_level)
+        reusing.evidence._work = reusing._work  # one working kernel; evaluations never overlap
+        return reusing
+
+    # the evidence's answers, for tuning's evidence-based start
+    @property
+    def data(self):
+        """The (reduced) observation of the evidence."""
+        return self.evidence.data
+
+    @property
+    def z(self):
+        """The (reduced) outputs of the evidence."""
+        return self.evidence.z
+
+    @property
+    def n_outputs(self) -> int:
+        """Outputs of the evidence's (reduced) data."""
+        return self.evidence.n_outputs
+
+    @property
+    def by_precision(self) -> bool:
+        """Whether the evidence goes through the prior's tridiagonal precision."""
+        return self.evidence.by_precision
+
+    def remainder(self):
+        """The evidence's :class:`~gpmultirate.covariance.Remainder`."""
+        return self.evidence.remainder()
+
+    def covariance(self) -> np.ndarray:
+        """``S`` of the evidence's data at the initial kernel."""
+        return self.evidence.covariance()
+
+    def scale_groups(self, theta):
+        """The evidence's scale groups at ``theta``."""
+        return self.evidence.scale_groups(theta)
+
+    def along(self, theta, index: int, values):
+        """The evidence for each value of ``theta[index]`` (the resonance grid), or None."""
+        return self.evidence.along(theta, index, values)
+
+    def posterior(self, kernel, noise_level: float):
+        """The posterior of the coefficients for ``kernel`` and ``noise_level``."""
+        return self.evidence.posterior(kernel, noise_level)
 
     def amplitude_couplings(self):
         """No couplings: the optimizer keeps plain coordinates for cross-validation.

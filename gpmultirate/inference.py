@@ -54,6 +54,7 @@ __all__ = [
     "LogEvidence",
     "ParameterSpacePosterior",
     "PrecisionPosterior",
+    "TuningObjective",
     "blas_threads_for",
     "gaussian_samples",
     "inverse_from_cholesky",
@@ -433,7 +434,118 @@ def resonance_grid_log_marginal_likelihood(
     return np.array([update.log_likelihood(y) for update in rest.plus_low_rank(U, weights)])
 
 
-class LogEvidence:
+class TuningObjective:
+    """What every objective of tuning shares: the kernel, the noise model and ``theta``.
+
+    ``theta`` is the kernel's ``theta`` followed by the noise model's (the
+    log noise level when it is tuned); :func:`~gpmultirate.tuning.maximize`
+    treats every subclass alike: :class:`LogEvidence` and
+    :class:`~gpmultirate.crossvalidation.CrossValidation`.  Subclasses are
+    callable, ``objective(theta, eval_gradient=False)``, and say whether
+    they offer :meth:`LogEvidence.with_fisher` (``has_fisher``).
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        The kernel at the initial hyperparameters (not modified).
+    noise_level : float
+        The noise variance; the initial value when it is tuned.
+    noise_bounds : pair of floats or "fixed"
+    """
+
+    #: whether ``with_fisher`` is available (Fisher scoring may be used)
+    has_fisher = False
+
+    def __init__(self, kernel, noise_level: float, noise_bounds):
+        self.kernel = kernel
+        self.noise = WhiteNoise(noise_level, noise_bounds)
+        self._work = None
+
+    @property
+    def noise_level(self) -> float:
+        """The (initial) noise variance."""
+        return self.noise.level
+
+    @property
+    def noise_bounds(self):
+        """The bounds of the noise variance, or ``"fixed"``."""
+        return self.noise.noise_bounds
+
+    @property
+    def noise_is_free(self) -> bool:
+        """Whether the noise model's ``theta`` (``log(noise_level)``) ends ``theta``."""
+        return self.noise.is_free
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The initial ``theta``: the kernel's and, if tuned, ``log(noise_level)``."""
+        theta = self.kernel.theta
+        return np.append(theta, self.noise.theta) if self.noise_is_free else theta
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Bounds of ``theta`` (the kernel's ``bounds``, log noise bounds), of shape ``(n, 2)``."""
+        bounds = self.kernel.bounds.reshape(-1, 2)
+        if self.noise_is_free:
+            bounds = np.vstack([bounds, self.noise.bounds])
+        return bounds
+
+    def roles(self) -> list:
+        """One :class:`~gpmultirate.kernels.Role` per kernel entry of ``theta``."""
+        return observe(self.kernel).roles()
+
+    def scale_positions(self):
+        """``[(position, power)]`` of the amplitudes that scale the whole kernel, or None."""
+        term = observe(self.kernel)
+        positions = term.scale_roles()
+        if positions is None:
+            return None
+        roles = term.roles()
+        return [(i, roles[i].power) for i in positions]
+
+    def amplitude_couplings(self):
+        """Correlations and the amplitudes scaling their terms, as positions in ``theta``.
+
+        ``[(correlation, amplitude, power)]`` with the amplitude's power (see
+        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`).
+        """
+        term = observe(self.kernel)
+        roles = term.roles()
+        return [(j, a, roles[a].power) for j, a in term.amplitude_couplings()]
+
+    def split(self, theta, into=None):
+        """The kernel and noise level of ``theta``.
+
+        With ``into`` (a kernel of the same structure) its ``theta`` is set
+        in place instead of cloning.
+        """
+        n_kernel = self.kernel.theta.shape[0]
+        if into is None:
+            kernel = self.kernel.clone_with_theta(theta[:n_kernel])
+        else:
+            into.theta = theta[:n_kernel]
+            kernel = into
+        return kernel, self.noise.with_theta(theta[n_kernel:]).level
+
+    def moved_to(self, kernel, noise_level: float) -> "TuningObjective":
+        """The same objective, on the same data, started at ``kernel`` and ``noise_level``."""
+        moved = type(self).__new__(type(self))
+        moved.__dict__.update(self.__dict__)
+        moved.kernel, moved.noise = kernel, WhiteNoise(noise_level, self.noise.noise_bounds)
+        return moved
+
+    def reusing_kernel(self) -> "TuningObjective":
+        """A copy whose evaluations set the hyperparameters of one working kernel in place.
+
+        An optimizer evaluates hundreds of points, and a deep copy of the
+        kernel per point is a large part of a small problem's cost.
+        """
+        reusing = self.moved_to(self.kernel, self.noise_level)
+        reusing._work = clone(self.kernel)
+        return reusing
+
+
+class LogEvidence(TuningObjective):
     """The log marginal likelihood of the data as a function of ``theta``.
 
     The objective that tuning maximizes: ``theta`` is the kernel's ``theta``
@@ -474,71 +586,16 @@ class LogEvidence:
     (4,)
     """
 
-    #: whether :meth:`with_fisher` is available (Fisher scoring may be used)
     has_fisher = True
 
     def __init__(self, observation, y, kernel, noise_level: float, noise_bounds):
+        super().__init__(kernel, noise_level, noise_bounds)
         self.data, self.z = reduce_observation(observation, y)
-        self.kernel = kernel
-        self.noise = WhiteNoise(noise_level, noise_bounds)
-        self._work = None
-
-    @property
-    def noise_level(self) -> float:
-        """The (initial) noise variance."""
-        return self.noise.level
-
-    @property
-    def noise_bounds(self):
-        """The bounds of the noise variance, or ``"fixed"``."""
-        return self.noise.noise_bounds
-
-    @property
-    def noise_is_free(self) -> bool:
-        """Whether the noise model's ``theta`` (``log(noise_level)``) ends ``theta``."""
-        return self.noise.is_free
 
     @property
     def n_outputs(self) -> int:
         """Outputs of the (reduced) data: the size of every data-space matrix."""
         return self.data.n_outputs
-
-    @property
-    def theta(self) -> np.ndarray:
-        """The initial ``theta``: the kernel's and, if tuned, ``log(noise_level)``."""
-        theta = self.kernel.theta
-        return np.append(theta, self.noise.theta) if self.noise_is_free else theta
-
-    @property
-    def bounds(self) -> np.ndarray:
-        """Bounds of ``theta`` (the kernel's ``bounds``, log noise bounds), of shape ``(n, 2)``."""
-        bounds = self.kernel.bounds.reshape(-1, 2)
-        if self.noise_is_free:
-            bounds = np.vstack([bounds, self.noise.bounds])
-        return bounds
-
-    def roles(self) -> list:
-        """One :class:`~gpmultirate.kernels.Role` per kernel entry of ``theta``."""
-        return observe(self.kernel).roles()
-
-    def scale_positions(self):
-        """``[(position, power)]`` of the amplitudes that scale the whole kernel, or None."""
-        term = observe(self.kernel)
-        positions = term.scale_roles()
-        if positions is None:
-            return None
-        roles = term.roles()
-        return [(i, roles[i].power) for i in positions]
-
-    def amplitude_couplings(self):
-        """Correlations and the amplitudes scaling their terms, as positions in ``theta``.
-
-        ``[(correlation, amplitude, power)]`` with the amplitude's power (see
-        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`).
-        """
-        term = observe(self.kernel)
-        roles = term.roles()
-        return [(j, a, roles[a].power) for j, a in term.amplitude_couplings()]
 
     def scale_groups(self, theta):
         """``[(positions, powers, S_part)]`` of independently scaled parts of ``S`` at ``theta``, or None."""
@@ -549,37 +606,6 @@ class LogEvidence:
             return None
         roles = tree.roles()
         return [(positions, [roles[i].power for i in positions], S) for positions, S in groups]
-
-    def split(self, theta, into=None):
-        """The kernel and noise level of ``theta``.
-
-        With ``into`` (a kernel of the same structure) its ``theta`` is set
-        in place instead of cloning.
-        """
-        n_kernel = self.kernel.theta.shape[0]
-        if into is None:
-            kernel = self.kernel.clone_with_theta(theta[:n_kernel])
-        else:
-            into.theta = theta[:n_kernel]
-            kernel = into
-        return kernel, self.noise.with_theta(theta[n_kernel:]).level
-
-    def moved_to(self, kernel, noise_level: float) -> "LogEvidence":
-        """The same objective, on the same (reduced) data, started at ``kernel`` and ``noise_level``."""
-        moved = type(self).__new__(type(self))
-        moved.__dict__.update(self.__dict__)
-        moved.kernel, moved.noise = kernel, WhiteNoise(noise_level, self.noise.noise_bounds)
-        return moved
-
-    def reusing_kernel(self) -> "LogEvidence":
-        """A copy whose evaluations set the hyperparameters of one working kernel in place.
-
-        An optimizer evaluates hundreds of points, and a deep copy of the
-        kernel per point is a large part of a small problem's cost.
-        """
-        reusing = self.moved_to(self.kernel, self.noise_level)
-        reusing._work = clone(self.kernel)
-        return reusing
 
     @property
     def by_precision(self) -> bool:
