@@ -519,13 +519,18 @@ class TuningObjective:
         With ``into`` (a kernel of the same structure) its ``theta`` is set
         in place instead of cloning.
         """
+        kernel, noise = self.split_models(theta, into)
+        return kernel, noise.level
+
+    def split_models(self, theta, into=None):
+        """The kernel and the noise model of ``theta`` (``into`` as in :meth:`split`)."""
         n_kernel = self.kernel.theta.shape[0]
         if into is None:
             kernel = self.kernel.clone_with_theta(theta[:n_kernel])
         else:
             into.theta = theta[:n_kernel]
             kernel = into
-        return kernel, self.noise.with_theta(theta[n_kernel:]).level
+        return kernel, self.noise.with_theta(theta[n_kernel:])
 
     def moved_to(self, kernel, noise_level: float) -> "TuningObjective":
         """The same objective, on the same data, started at ``kernel`` and ``noise_level``."""
@@ -624,8 +629,7 @@ class LogEvidence(TuningObjective):
 
     def data_covariance(self, theta, derivatives: str | None = None):
         """The :class:`~gpmultirate.covariance.DataCovariance` of the (reduced) data at ``theta``."""
-        kernel, _ = self.split(theta, into=self._work)
-        noise = self.noise.with_theta(theta[self.kernel.theta.shape[0]:])
+        kernel, noise = self.split_models(theta, into=self._work)
         return data_covariance(kernel, self.data, noise, derivatives)
 
     def covariance(self) -> np.ndarray:
