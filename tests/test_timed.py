@@ -15,7 +15,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel as C
 
 import gpmultirate as gm
 
-from gpmultirate.inference import DataSpacePosterior, log_marginal_likelihood
+from gpmultirate.inference import DataSpacePosterior, log_marginal_likelihood, posterior
 from gpmultirate.kernels import DC, PK, SS, TC, observe
 from gpmultirate.observations import SampledConvolution, TimedConvolution
 from gpmultirate.observations.timed import check_sample_times
@@ -139,8 +139,9 @@ def _check_posterior(name, exposure, tol, n=96, times=TIMES):
     mean_ref = cross @ linalg.solve(Ky, y)
     var_ref = np.diag(kernel(lags[:, None]) - cross @ linalg.solve(Ky, cross.T))
     evidence_ref = multivariate_normal(np.zeros(y.shape[0]), Ky).logpdf(y)
-    post = DataSpacePosterior(op, kernel, noise, y)
-    mean, var = post.at_lags(op, kernel, lags[:, None], full_cov=False)
+    post = posterior(op, kernel, noise, y)
+    assert isinstance(post, DataSpacePosterior)
+    mean, var = post.at_lags(lags[:, None], full_cov=False)
     scale = np.abs(mean_ref).max()
     assert np.max(np.abs(mean - mean_ref)) <= tol * scale
     assert np.allclose(np.sqrt(var), np.sqrt(var_ref), rtol=tol, atol=tol * np.sqrt(var_ref).max())
