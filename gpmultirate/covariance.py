@@ -41,7 +41,7 @@ import warnings
 import numpy as np
 from scipy import linalg
 
-from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.exceptions import NotPositiveDefinite, NumericalWarning
 from gpmultirate.kernels import observe
 
 __all__ = [
@@ -535,10 +535,6 @@ class WoodburyCovariance(DataCovariance):
         v = np.linalg.solve(self.G, self.B.T @ w)
         half_log_det = np.log(np.diag(self.base.L)).sum()
         return w @ w - v @ v, 2.0 * (half_log_det + np.log(np.diag(self.G)).sum())
-
-
-class NotPositiveDefinite(linalg.LinAlgError):
-    """The posterior precision of the precision route is not numerically positive definite."""
 
 
 class PrecisionCovariance(DataCovariance):

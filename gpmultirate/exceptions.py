@@ -10,6 +10,8 @@ catches every refusal of the library.
 
 from __future__ import annotations
 
+from numpy.linalg import LinAlgError
+
 __all__ = [
     "DataFileError",
     "HeldOutWarning",
@@ -17,6 +19,7 @@ __all__ = [
     "JournalError",
     "MemoryLimitError",
     "ModelFileError",
+    "NotPositiveDefinite",
     "NumericalWarning",
     "OrderWarning",
 ]
@@ -128,4 +131,12 @@ class OrderWarning(UserWarning):
     >>> from gpmultirate.exceptions import OrderWarning
     >>> issubclass(OrderWarning, UserWarning)
     True
+    """
+
+
+class NotPositiveDefinite(LinAlgError):
+    """A posterior precision is not numerically positive definite.
+
+    Raised inside :mod:`gpmultirate.covariance` by the precision route, which
+    then falls back to the dense route; a :class:`numpy.linalg.LinAlgError`.
     """
