@@ -24,7 +24,7 @@ from sklearn.base import BaseEstimator, clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate import tuning
+from gpmultirate import tuning, units
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds, held_out_predictions
 from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError
 from gpmultirate.memory import check_fit_memory
@@ -60,6 +60,7 @@ from gpmultirate.validation import (
     check_level,
     check_positive,
     check_rng,
+    check_sample_time,
     check_signal,
 )
 
@@ -135,7 +136,19 @@ class _FIRModelMixin:
         x = self._check_prediction_input(u)
         n = x.shape[0]
         periodic = self.initial_conditions == "periodic"
-        coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
+        posterior, scale = units.split(self.posterior_)
+        if scale is not None:  # in the units of the normalized fit, scaled at the end
+            x = np.ldexp(x, -scale.input_exponents[None, :])
+            out = self._predict_normalized(x, posterior, return_std)
+            if return_std:
+                return tuple(np.ldexp(v, scale.output_exponent) for v in out)
+            return np.ldexp(out, scale.output_exponent)
+        return self._predict_normalized(x, posterior, return_std)
+
+    def _predict_normalized(self, x, posterior, return_std):
+        n = x.shape[0]
+        periodic = self.initial_conditions == "periodic"
+        coef = posterior.coef.reshape(self.n_inputs_, -1)
         if not return_std and not periodic:
             return sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
         # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
@@ -145,9 +158,9 @@ class _FIRModelMixin:
             rows = np.arange(start, min(start + block, n))
             A = self._fast_rows(x, rows)
             if return_std:
-                mean[rows], var[rows] = self.posterior_.linear_map(A)
+                mean[rows], var[rows] = posterior.linear_map(A)
             else:
-                mean[rows] = A @ self.posterior_.coef
+                mean[rows] = A @ posterior.coef
         return (mean, np.sqrt(var)) if return_std else mean
 
     def score(self, u, y_fast) -> float:
@@ -215,7 +228,7 @@ class _FIRModelMixin:
         if sample_time is None:
             sample_time = self.sample_time
         if freqs is None:
-            sample_time = check_positive(sample_time, "sample_time")
+            sample_time = check_sample_time(sample_time)
             freqs = default_frequencies(self.operator_.n_samples, sample_time)
         freqs, sample_time = check_frequencies(freqs, sample_time)
         P = self._order
@@ -224,10 +237,11 @@ class _FIRModelMixin:
         A = np.zeros((E.shape[0], self.n_inputs_ * P), dtype=complex)
         A[:, k * P : (k + 1) * P] = E
         re, im = np.ascontiguousarray(A.real), np.ascontiguousarray(A.imag)
-        var_re, var_im, cov = self.posterior_.pair_variances(re, im)
-        return FrequencyResponse.from_gaussian(
+        posterior, scale = units.split(self.posterior_)
+        var_re, var_im, cov = posterior.pair_variances(re, im)
+        frf = FrequencyResponse.from_gaussian(
             freqs,
-            A @ self.posterior_.coef,
+            A @ posterior.coef,
             var_re,
             var_im,
             cov,
@@ -235,6 +249,26 @@ class _FIRModelMixin:
             sample_time=sample_time,
             factor=self.operator_.slow_factor,
         )
+        if scale is None:
+            return frf
+        return units.scale_frequency_response(frf, int(scale.gain_exponents[k]))
+
+    def _scaled_impulse_response(self, lags, return_std, return_cov):
+        """:meth:`impulse_response` from the normalized posterior, in the data's units."""
+        kind = "cov" if return_cov else ("std" if return_std else None)
+        mean, second, exponents = self._impulse_response_normalized(lags, kind)
+        if exponents is not None:
+            if kind is None:
+                mean = np.ldexp(mean, exponents)
+            else:
+                mean, second = units.scaled_moments(mean, second, exponents, kind)
+        elif kind == "std":
+            second = np.sqrt(second)
+        if kind is None:
+            return self._shaped(mean)
+        if kind == "cov":
+            return self._shaped(mean), second
+        return self._shaped(mean), self._shaped(second)
 
     def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
         """Draw impulse responses from the posterior (for least squares, the estimate's distribution).
@@ -251,8 +285,10 @@ class _FIRModelMixin:
         ndarray of shape (n, n_samples), or (n_inputs, n, n_samples) for several inputs
         """
         n_samples = check_int(n_samples, "n_samples", low=1)
-        mean, cov = self.impulse_response(lags, return_cov=True)
-        draws = gaussian_samples(mean.reshape(-1), cov, n_samples, check_rng(random_state))
+        mean, cov, exponents = self._impulse_response_normalized(lags, "cov")
+        draws = gaussian_samples(mean, cov, n_samples, check_rng(random_state))
+        if exponents is not None:  # drawn in normalized units, each row scaled
+            draws = np.ldexp(draws, exponents[:, None])
         if self.n_inputs_ > 1:
             return draws.reshape(self.n_inputs_, -1, n_samples)
         return draws
@@ -594,12 +630,20 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         candidates = _order_candidates(self.order)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
+        # the fit works on the data divided by powers of two (exact), then rescales
+        data_u, data_y = u, y_slow
+        u, y_slow, self._scale = units.normalize(u, y_slow)
         if candidates is not None:
-            return self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
-        experiment = self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
-        if criterion == "evidence" and self.optimizer is not None:
-            with blas_threads_for(experiment.observation):
-                self._check_shorter_orders(u, y_slow, sample_indices, experiment, n_folds)
+            self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
+        else:
+            experiment = self._fit_order(u, y_slow, sample_indices, self.order, criterion, n_folds)
+            if criterion == "evidence" and self.optimizer is not None:
+                with blas_threads_for(experiment.observation):
+                    self._check_shorter_orders(u, y_slow, sample_indices, experiment, n_folds)
+        units.rescale_gaussian_process(self, self._scale, lambda: build_experiment(
+            data_u, data_y, sample_indices, factor=self.factor, offset=self.offset,
+            order=self.operator_.order, initial_conditions=self.initial_conditions,
+        ))
         return self
 
     def _fit_order(self, u, y_slow, sample_indices, order, criterion, n_folds):
@@ -617,7 +661,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             )
         n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
         check_rng(self.random_state)
-        check_positive(self.sample_time, "sample_time")
+        check_sample_time(self.sample_time)
         noise = check_positive(self.noise_level, "noise_level")
         auto = isinstance(self.kernel, str) and self.kernel == "auto"
         if isinstance(self.kernel, str) and not auto:
@@ -628,10 +672,20 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         # the kernel and the noise level are used exactly as given
         normalize = bool(self.normalize) and self.optimizer is not None
         kernel = _initial_kernel(None if auto else self.kernel, experiment, normalize)
+        noise_bounds = self._resolve_noise_bounds(y, normalize)
+        if not normalize:
+            # given in the data's units: the fit works in the normalized units of units.normalize
+            given = not auto and self.kernel is not None
+            explicit = not isinstance(self.noise_level_bounds, str) or (
+                self.noise_level_bounds == "fixed")
+            converted, noise, bounds = units.to_normalized(
+                kernel if given else None, noise, noise_bounds if explicit else "fixed",
+                getattr(self, "_scale", None))
+            kernel = converted if given else kernel
+            noise_bounds = bounds if explicit else noise_bounds
         # refuse now what would be killed for lack of memory halfway
         n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
         check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1)
-        noise_bounds = self._resolve_noise_bounds(y, normalize)
         if normalize:
             noise *= float(np.mean(y**2)) or 1.0  # given in normalized units
         if self.optimizer is not None and not isinstance(noise_bounds, str):
@@ -689,6 +743,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         fits, caught = [], []
         for order in candidates:
             model = clone(self)
+            model._scale = getattr(self, "_scale", None)
             with warnings.catch_warnings(record=True) as record:
                 warnings.simplefilter("always")
                 model._fit_order(u, y_slow, sample_indices, order, criterion, n_folds)
@@ -826,7 +881,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         n_expected = evidence.theta.shape[0]
         if theta.shape[0] != n_expected:
             raise ValueError(f"theta must have {n_expected} entries; got {theta.shape[0]}")
-        return evidence(theta, eval_gradient=eval_gradient)
+        theta, shift = units.evidence_theta(self, theta)
+        if eval_gradient:
+            value, gradient = evidence(theta, eval_gradient=True)
+            return value + shift, gradient
+        return evidence(theta) + shift
 
     # ----------------------------------------------------------- posterior
     def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
@@ -855,14 +914,24 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         check_is_fitted(self, "coef_")
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
+        return self._scaled_impulse_response(lags, return_std, return_cov)
+
+    def _impulse_response_normalized(self, lags, kind):
+        """Flat mean, variance (``kind="std"``) or covariance (``"cov"``) or None, and the
+        exponents that carry them into the data's units (None: already there)."""
+        check_is_fitted(self, "coef_")
         X = self._points(lags)
-        data = self._evidence.data
-        if not (return_std or return_cov):
-            return self._shaped(self.posterior_.mean_at_lags(data, self.kernel_, X))
-        mean, second = self.posterior_.at_lags(data, self.kernel_, X, full_cov=return_cov)
-        if return_cov:
-            return self._shaped(mean), second
-        return self._shaped(mean), self._shaped(np.sqrt(second))
+        data, kernel = self._evidence.data, self._evidence.kernel
+        posterior, scale = units.split(self.posterior_)
+        exponents = None
+        if scale is not None:
+            gains = scale.gain_exponents
+            exponents = gains[X[:, 0].astype(int)] if self.n_inputs_ > 1 else np.full(
+                X.shape[0], int(gains[0]))
+        if kind is None:
+            return posterior.mean_at_lags(data, kernel, X), None, exponents
+        mean, second = posterior.at_lags(data, kernel, X, full_cov=kind == "cov")
+        return mean, second, exponents
 
     def _points(self, lags) -> np.ndarray:
         """The kernel inputs of the lags: a column, or ``(input, lag)`` pairs input-major."""
@@ -951,7 +1020,9 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         """
         if self.order is None:
             raise ValueError("order must be given: an integer below the number of slow samples")
-        check_positive(self.sample_time, "sample_time")
+        check_sample_time(self.sample_time)
+        data_u, data_y = u, y_slow
+        u, y_slow, scale = units.normalize(u, y_slow)  # exact powers of two, rescaled below
         experiment = build_experiment(
             u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
             order=self.order, initial_conditions=self.initial_conditions,
@@ -993,6 +1064,10 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.noise_variance_ = noise_variance
         self.coef_covariance_ = noise_variance * (root @ root.T)
         self.posterior_ = GaussianCoefficients(coef, self.coef_covariance_, np.zeros((0, P)))
+        units.rescale_least_squares(self, scale, lambda: build_experiment(
+            data_u, data_y, sample_indices, factor=self.factor, offset=self.offset,
+            order=self.order, initial_conditions=self.initial_conditions,
+        ))
         return self
 
     def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
@@ -1017,6 +1092,11 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         check_is_fitted(self, "coef_")
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
+        return self._scaled_impulse_response(lags, return_std, return_cov)
+
+    def _impulse_response_normalized(self, lags, kind):
+        """Flat mean, variance or covariance (as ``kind``), and the exponents to the data's units."""
+        check_is_fitted(self, "coef_")
         order = self._order
         if lags is None:
             index = np.arange(order)
@@ -1029,13 +1109,16 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 )
         # the input-major positions of the lags of every input
         index = (np.arange(self.n_inputs_)[:, None] * order + index[None, :]).reshape(-1)
-        mean = self.posterior_.coef[index]
-        if not (return_std or return_cov):
-            return self._shaped(mean)
-        cov = self.coef_covariance_[np.ix_(index, index)]
-        if return_cov:
-            return self._shaped(mean), cov
-        return self._shaped(mean), self._shaped(np.sqrt(np.maximum(np.diag(cov), 0.0)))
+        posterior, scale = units.split(self.posterior_)
+        exponents = None if scale is None else scale.coefficient_exponents(order)[index]
+        covariance = self.coef_covariance_ if scale is None else posterior.K
+        mean = posterior.coef[index]
+        if kind is None:
+            return mean, None, exponents
+        cov = covariance[np.ix_(index, index)]
+        if kind == "cov":
+            return mean, cov, exponents
+        return mean, np.maximum(np.diag(cov), 0.0), exponents
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:
