@@ -632,7 +632,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
         # the fit works on the data divided by powers of two (exact), then rescales
         data_u, data_y = u, y_slow
-        u, y_slow, self._scale = units.normalize(u, y_slow)
+        u, y_slow, scale = units.normalize(u, y_slow)
+        self._scale = scale
         if candidates is not None:
             self._fit_order_selection(u, y_slow, sample_indices, candidates, criterion)
         else:
@@ -724,7 +725,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         # kept for log_marginal_likelihood(theta) and the posterior at real lags
         self._evidence = evidence.moved_to(kernel, noise)
         if self.optimizer_result_ is not None:
-            tuning.warn_at_bounds(self._evidence)
+            tuning.warn_at_bounds(units.evidence_in_data_units(self._evidence, getattr(self, "_scale", None)))
         self.kernel_ = kernel
         self.noise_level_ = noise
         self.coef_ = self._shaped(self.posterior_.coef)
@@ -797,7 +798,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         data_space = n_samples < operator.n_coefficients or (
             default_order and n_samples == operator.n_coefficients)
         if (self.initial_conditions == "discard" or not data_space
-                or n_samples > MAX_CHECKED_SAMPLES or order < 2 * MIN_CHECKED_ORDER):
+                or n_samples > MAX_CHECKED_SAMPLES or order < 2 * MIN_CHECKED_ORDER
+                or np.ptp(y) == 0):  # the fit in percent of a constant output is undefined
             return
         try:
             folds = contiguous_folds([r.n_outputs for r in operator.records], n_folds)
@@ -1122,13 +1124,17 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:
-    """True when ``u`` is constant on every block of ``factor`` samples, for some alignment."""
+    """True when ``u`` is held constant on every block of ``factor`` samples, for some
+    alignment, at values that change between blocks."""
     if factor < 2 or u.shape[0] < 2 * factor:
         return False
     for shift in range(factor):
         head = u[shift:]
         n_blocks = head.shape[0] // factor
         blocks = head[: n_blocks * factor].reshape(n_blocks, factor)
-        if np.allclose(blocks, blocks[:, :1], rtol=1e-12, atol=1e-14 * np.max(np.abs(u))):
+        # held values that change from block to block: an input that is zero (or constant)
+        # after a few samples, such as an impulse, is not zero-order hold
+        if np.allclose(blocks, blocks[:, :1], rtol=1e-12, atol=1e-14 * np.max(np.abs(u))) and (
+                np.ptp(blocks[:, 0]) > 1e-14 * np.max(np.abs(u))):
             return True
     return False

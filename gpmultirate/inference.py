@@ -34,6 +34,7 @@ from threadpoolctl import ThreadpoolController
 
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.kernels import observe
+from gpmultirate.kernels.structure import cross_kernel
 from gpmultirate.observations import reduce_observation
 
 __all__ = [
@@ -326,11 +327,11 @@ class ParameterSpacePosterior(_FactoredCoefficients):
 
     def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return kernel(X, operator.lags) @ (self.inv_root @ self.z)
+        return cross_kernel(kernel, X, operator.lags) @ (self.inv_root @ self.z)
 
     def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
         """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged."""
-        J = kernel(X, operator.lags) @ self.inv_root
+        J = cross_kernel(kernel, X, operator.lags) @ self.inv_root
         mean = J @ self.z
         JS = J @ linalg.solve_triangular(self.R, np.eye(self.R.shape[0]), check_finite=False)
         if full_cov:
@@ -409,7 +410,7 @@ class PrecisionPosterior(_FactoredCoefficients):
 
     def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return kernel(X, operator.lags) @ self.precision.times(self.coef)
+        return cross_kernel(kernel, X, operator.lags) @ self.precision.times(self.coef)
 
     def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
         """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged.
@@ -417,7 +418,7 @@ class PrecisionPosterior(_FactoredCoefficients):
         With ``J = k(X, lags) K^{-1}`` (``K^{-1}`` tridiagonal): mean ``J mu``,
         covariance ``k(X, X) - J k(lags, X) + J Sigma J^T``.
         """
-        cross = kernel(X, operator.lags)
+        cross = cross_kernel(kernel, X, operator.lags)
         J = self.precision.times(cross.T).T
         mean = J @ self.coef
         JS = self.times_root(J)

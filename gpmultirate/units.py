@@ -22,7 +22,7 @@ Examples
 >>> u = np.array([3.0, -1.0, 2.0])
 >>> u_n, y_n, scale = normalize(u, np.array([1e200, 2e200]))
 >>> u_n, scale.input_exponents, scale.output_exponent
-(array([ 0.75, -0.25,  0.5 ]), array([2]), 665)
+(array([ 0.75, -0.25,  0.5 ]), array([2]), 666)
 >>> float(np.ldexp(y_n[1], scale.output_exponent)) == 2e200
 True
 """
@@ -36,7 +36,12 @@ import warnings
 import numpy as np
 
 from gpmultirate.exceptions import NumericalWarning
-from gpmultirate.inference import GaussianCoefficients
+from gpmultirate.inference import (
+    DataSpacePosterior,
+    GaussianCoefficients,
+    ParameterSpacePosterior,
+    PrecisionPosterior,
+)
 
 __all__ = ["DataScale", "ScaledCoefficients", "normalize"]
 
@@ -90,7 +95,10 @@ class DataScale:
                 return None
             parts.append(rescaled(part, factor))
         out = like_inputs(parts, kernel)
-        theta, bounds = out.theta, out.bounds
+        try:
+            theta, bounds = out.theta, out.bounds
+        except ValueError:  # a value the fit's own checks refuse, with their message
+            return out
         if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(bounds))
                 and np.all(np.exp(bounds) >= _TINY) and np.all(np.exp(theta) >= _TINY)):
             return None
@@ -157,9 +165,9 @@ def normalize(u, y_slow):
         If ``u`` or ``y_slow`` is subnormal (its largest magnitude below
         ``2.2e-308``), or an input of ``u`` is zero at every sample.
     """
-    from gpmultirate.observations.experiment import is_record_pair
+    from gpmultirate.observations.experiment import records_of
 
-    several = is_record_pair(u, y_slow)
+    several = records_of(u, y_slow)
     us = list(u) if several else [u]
     ys = list(y_slow) if several else [y_slow]
     u_arrays = [_as_float(x) for x in us]
@@ -216,7 +224,7 @@ class ScaledCoefficients(GaussianCoefficients):
         self.normalized = normalized
         self.scale = scale
         self.exponents = scale.coefficient_exponents(order)
-        super().__init__(np.ldexp(normalized.coef, self.exponents), None, None)
+        GaussianCoefficients.__init__(self, np.ldexp(normalized.coef, self.exponents), None, None)
         self.log_marginal_likelihood = getattr(normalized, "log_marginal_likelihood", None)
 
     def _columns(self, A):
@@ -234,6 +242,37 @@ class ScaledCoefficients(GaussianCoefficients):
         e = self.exponents
         with np.errstate(over="ignore"):
             return np.ldexp(self.normalized.covariance(), e[:, None] + e[None, :])
+
+    def times_root(self, A: np.ndarray) -> np.ndarray:
+        raise NotImplementedError("use linear_map or pair_variances")
+
+    def mean_at_lags(self, operator, kernel, X):
+        raise NotImplementedError("use the estimator's impulse_response (real lags, any units)")
+
+    def at_lags(self, operator, kernel, X, full_cov):
+        raise NotImplementedError("use the estimator's impulse_response (real lags, any units)")
+
+
+class _ScaledDataSpace(ScaledCoefficients, DataSpacePosterior):
+    """A :class:`ScaledCoefficients` of a :class:`~gpmultirate.inference.DataSpacePosterior`."""
+
+
+class _ScaledParameterSpace(ScaledCoefficients, ParameterSpacePosterior):
+    """A :class:`ScaledCoefficients` of a :class:`~gpmultirate.inference.ParameterSpacePosterior`."""
+
+
+class _ScaledPrecision(ScaledCoefficients, PrecisionPosterior):
+    """A :class:`ScaledCoefficients` of a :class:`~gpmultirate.inference.PrecisionPosterior`."""
+
+
+def scaled(normalized, scale: DataScale, order: int) -> ScaledCoefficients:
+    """``normalized`` in the data's units, still an instance of its route's class."""
+    for route, cls in ((PrecisionPosterior, _ScaledPrecision),
+                       (ParameterSpacePosterior, _ScaledParameterSpace),
+                       (DataSpacePosterior, _ScaledDataSpace)):
+        if isinstance(normalized, route):
+            return cls(normalized, scale, order)
+    return ScaledCoefficients(normalized, scale, order)
 
 
 def split(posterior):
@@ -304,7 +343,7 @@ def rescale_gaussian_process(model, scale: DataScale, rebuild) -> None:
     if scale.identity:
         return
     order = model.operator_.order
-    model.posterior_ = ScaledCoefficients(model.posterior_, scale, order)
+    model.posterior_ = scaled(model.posterior_, scale, order)
     model.coef_ = model._shaped(model.posterior_.coef)
     M = model.y_slow_.shape[0]
     shift = scale.log_density_shift(M)
@@ -366,6 +405,24 @@ def rescale_least_squares(model, scale: DataScale, rebuild) -> None:
     else:
         model.posterior_ = scaled
     model.operator_ = rebuild().observation
+
+
+def evidence_in_data_units(evidence, scale):
+    """The normalized ``evidence`` at its kernel and noise level in the data's units, for the
+    messages that name their values (the normalized one where they are not representable)."""
+    if scale is None or scale.identity:
+        return evidence
+    kernel = scale.kernel(evidence.kernel)
+    noise = scale.variance(evidence.noise_level)
+    bounds = evidence.noise_bounds
+    if not isinstance(bounds, str):
+        bounds = tuple(scale.variance(b) for b in bounds)
+    values = (noise,) + (() if isinstance(bounds, str) else bounds)
+    if kernel is None or not all(_TINY <= v < np.inf for v in values):
+        return evidence
+    moved = evidence.moved_to(kernel, noise)
+    moved.noise_bounds = bounds
+    return moved
 
 
 def evidence_theta(model, theta):

@@ -249,3 +249,4 @@ def check_sample_time(value, name: str = "sample_time") -> float:
             f"{1 / np.finfo(float).tiny:.3g}; got {value!r}"
         )
     return value
+

@@ -69,6 +69,18 @@ def is_record_pair(u, y_slow) -> bool:
     return is_record_list(u) and is_record_list(y_slow)
 
 
+def records_of(u, y_slow) -> bool:
+    """:func:`is_record_pair`, refusing records of ``u`` (a list of numpy arrays) whose
+    ``y_slow`` is one array: reading them as one array would be a silent mistake."""
+    several_records = is_record_pair(u, y_slow)
+    if not several_records and is_record_list(u) and all(isinstance(e, np.ndarray) for e in u):
+        raise ValueError(
+            f"y_slow must be a list with one entry per record of u ({len(u)}); "
+            f"got {type(y_slow).__name__}"
+        )
+    return several_records
+
+
 def check_records(u, name: str = "u", several_records: bool | None = None):
     """``(inputs, several_records)``: each record's input as ``(N, n_inputs)``, and whether
     ``u`` was a list of records.  A single input given as a column ``(N, 1)`` is one input.
@@ -134,12 +146,7 @@ def build_experiment(
     >>> experiment.observation.sample_indices, experiment.y
     (array([0, 6]), array([1., 3.]))
     """
-    several_records = is_record_pair(u, y_slow)
-    if not several_records and is_record_list(u) and all(isinstance(e, np.ndarray) for e in u):
-        raise ValueError(
-            f"y_slow must be a list with one entry per record of u ({len(u)}); "
-            f"got {type(y_slow).__name__}"
-        )
+    several_records = records_of(u, y_slow)
     inputs, several_records = check_records(u, several_records=several_records)
     if several_records:
         if not is_record_list(y_slow) or len(y_slow) != len(inputs):
