@@ -512,7 +512,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The tuned (or given) noise variance.
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
-        (scikit-learn's sign and constants: higher is better).
+        (scikit-learn's sign and constants: higher is better), a density of
+        ``y_slow`` in its own units.
+    input_scale_ : ndarray of shape (n_inputs,)
+        The power of two each input was divided by for the fit.
+    output_scale_ : float
+        The power of two ``y_slow`` was divided by for the fit.
+    hyperparameter_units_ : {"data", "normalized"}
+        The units of ``kernel_``, ``noise_level_`` and
+        ``noise_level_bounds_`` (see *Units* in :meth:`fit`).
     operator_ : Observation
         The observation operator of the training data: a
         :class:`~gpmultirate.DownsampledConvolution` in the paper's case, a
@@ -624,6 +632,29 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Returns
         -------
         self
+
+        Notes
+        -----
+        Lists: ``u`` and ``y_slow`` are several records only when both are
+        lists (or tuples) of arrays; otherwise each is one array-like, as in
+        scikit-learn (``u2.tolist()`` is the array ``u2``, and
+        ``y[:, None].tolist()`` the column ``y[:, None]``).
+
+        Units: the fit divides each input and the output by exact powers of
+        two of their largest magnitude (``gpmultirate.units``), so any
+        finite data in ``[1e-300, 1e300]`` fit alike, and a fit of
+        ``u * 2**i``, ``y_slow * 2**j`` is the fit of ``u``, ``y_slow`` with
+        every result scaled by ``2**(j - i)`` (outputs by ``2**j``) bit for
+        bit.  ``input_scale_`` and ``output_scale_`` hold the powers.  All
+        results are in the data's units; ``kernel_`` and ``noise_level_`` too
+        unless an amplitude or the noise variance is outside the float range
+        there (for instance ``u`` of size ``1e-300`` and ``y_slow`` of size
+        1, an amplitude near ``1e600``): they then stay in the normalized
+        units, ``hyperparameter_units_`` is ``"normalized"`` and a
+        :class:`~gpmultirate.NumericalWarning` says so.  ``optimizer_result_``
+        is the optimizer's run on the normalized data.  Data whose largest
+        magnitude is subnormal (below ``2.2e-308``), or an input that is zero
+        at every sample, are refused with a ``ValueError`` naming them.
         """
         criterion = _check_tuning(self.tuning)
         n_folds = check_int(self.cv, "cv", low=2)
@@ -1013,6 +1044,16 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Returns
         -------
         self
+
+        Notes
+        -----
+        Lists and units as for :meth:`FIRGaussianProcess.fit`: records only
+        when ``u`` and ``y_slow`` both are lists of arrays, and the data
+        divided by exact powers of two before the least-squares problem is
+        formed.  ``noise_variance_`` and ``coef_covariance_`` are ``inf``
+        where they exceed the float range in the data's units; the standard
+        deviations of :meth:`impulse_response` and :meth:`predict` are formed
+        before scaling and stay finite.
 
         Raises
         ------
