@@ -651,7 +651,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         there (for instance ``u`` of size ``1e-300`` and ``y_slow`` of size
         1, an amplitude near ``1e600``): they then stay in the normalized
         units, ``hyperparameter_units_`` is ``"normalized"`` and a
-        :class:`~gpmultirate.NumericalWarning` says so.  ``optimizer_result_``
+        :class:`~gpmultirate.NumericalWarning` says so (such a model's file
+        is refused when loaded: its hyperparameters cannot be stored in the
+        data's units).  ``optimizer_result_``
         is the optimizer's run on the normalized data.  Data whose largest
         magnitude is subnormal (below ``2.2e-308``), or an input that is zero
         at every sample, are refused with a ``ValueError`` naming them.
