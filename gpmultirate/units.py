@@ -93,7 +93,7 @@ class DataScale:
                 continue
             if not _TINY <= factor < np.inf:
                 return None
-            parts.append(rescaled(part, factor))
+            parts.append(_rescaled(part, factor, rescaled))
         out = like_inputs(parts, kernel)
         try:
             theta, bounds = out.theta, out.bounds
@@ -113,6 +113,27 @@ class DataScale:
     def log_density_shift(self, n_samples: int) -> float:
         """What converts a log density of ``n_samples`` normalized outputs to the data's units."""
         return -n_samples * self.output_exponent * math.log(2.0)
+
+
+def _rescaled(kernel, factor: float, rescaled):
+    """``rescaled(kernel, factor)``, folding the factor into a fixed constant in front.
+
+    A kernel with no amplitude that scales it whole is wrapped as
+    ``ConstantKernel(factor, "fixed") * kernel``; a kernel already so wrapped
+    has its constant multiplied (exact for powers of two), so that going to
+    the normalized units and back (a model file loaded) gives the same kernel.
+    """
+    from sklearn.base import clone
+    from sklearn.gaussian_process.kernels import ConstantKernel, Product
+
+    if (isinstance(kernel, Product) and isinstance(kernel.k1, ConstantKernel)
+            and isinstance(kernel.k1.constant_value_bounds, str)
+            and kernel.k1.constant_value_bounds == "fixed"):
+        value = kernel.k1.constant_value * factor
+        if value == 1.0:
+            return clone(kernel.k2)
+        return ConstantKernel(value, "fixed") * clone(kernel.k2)
+    return rescaled(kernel, factor)
 
 
 IDENTITY = DataScale(np.zeros(1, dtype=int), 0)
