@@ -794,8 +794,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         1, an amplitude near ``1e600``): they then stay in the normalized
         units, ``hyperparameter_units_`` is ``"normalized"`` and a
         :class:`~gpmultirate.NumericalWarning` says so (such a model's file
-        is refused when loaded: its hyperparameters cannot be stored in the
-        data's units).  ``optimizer_result_``
+        stores them in the normalized units with the powers of two, and
+        :func:`~gpmultirate.load_model` fits it again in those units; the
+        fit report gives the noise in the data's units).  ``optimizer_result_``
         is the optimizer's run on the normalized data.  Data whose largest
         magnitude is subnormal (below ``2.2e-308``), or an input that is zero
         at every sample, are refused with a ``ValueError`` naming them.
@@ -1000,8 +1001,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             settings.noise_level,
             self.noise_level_bounds, settings.normalize, settings.tuned,
         )
-        if not settings.normalize:
+        if not settings.normalize and not getattr(self, "_prior_in_normalized_units", False):
             # given in the data's units: the fit works in the units of units.normalize
+            # (a model file of hyperparameter_units_="normalized" gives them in those units)
             given = not isinstance(self.kernel, str) and self.kernel is not None
             explicit = not isinstance(self.noise_level_bounds, str) or (
                 self.noise_level_bounds == "fixed")
