@@ -577,7 +577,7 @@ def _fit(parser, args) -> int:
     summary = report.to_dict()
     line = (f"order {summary['model']['order']}, log evidence "
             f"{summary['model']['log_evidence']:.6g}, noise std "
-            f"{math.sqrt(summary['model']['noise_level']):.4g}")
+            f"{report.noise_std:.4g}")
     if "validation" in summary:
         line += f", validation GoF {summary['validation']['gof_percent']:.2f} %"
     print(line)

@@ -26,7 +26,7 @@ from sklearn.base import BaseEstimator
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate import orders, tuning
+from gpmultirate import orders, tuning, units
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
 from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, OrderWarning
@@ -73,6 +73,7 @@ from gpmultirate.validation import (
     check_positive,
     check_rng,
     check_sample_indices,
+    check_sample_time,
     check_signal,
 )
 
@@ -171,9 +172,19 @@ class _FIRModelMixin:
         x = self._check_prediction_input(u)
         if sample_times is not None:
             return self._predict_readings(x, sample_times, return_std)
+        posterior, scale = units.split(self.posterior_)
+        if scale is not None:  # in the units of the normalized fit, scaled at the end
+            x = np.ldexp(x, -scale.input_exponents[None, :])
+            out = self._predict_normalized(x, posterior, return_std)
+            if return_std:
+                return tuple(np.ldexp(v, scale.output_exponent) for v in out)
+            return np.ldexp(out, scale.output_exponent)
+        return self._predict_normalized(x, posterior, return_std)
+
+    def _predict_normalized(self, x, posterior, return_std):
         n = x.shape[0]
         periodic = self.initial_conditions == "periodic"
-        coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
+        coef = posterior.coef.reshape(self.n_inputs_, -1)
         if not return_std and not periodic:
             return sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
         # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
@@ -183,9 +194,9 @@ class _FIRModelMixin:
             rows = np.arange(start, min(start + block, n))
             A = self._fast_rows(x, rows)
             if return_std:
-                mean[rows], var[rows] = self.posterior_.linear_map(A)
+                mean[rows], var[rows] = posterior.linear_map(A)
             else:
-                mean[rows] = A @ self.posterior_.coef
+                mean[rows] = A @ posterior.coef
         return (mean, np.sqrt(var)) if return_std else mean
 
     def _predict_readings(self, x, sample_times, return_std):
@@ -269,7 +280,7 @@ class _FIRModelMixin:
         if sample_time is None:
             sample_time = self.sample_time
         if freqs is None:
-            sample_time = check_positive(sample_time, "sample_time")
+            sample_time = check_sample_time(sample_time)
             freqs = default_frequencies(self.observation_.n_samples, sample_time)
         freqs, sample_time = check_frequencies(freqs, sample_time)
         P = self._order
@@ -278,10 +289,11 @@ class _FIRModelMixin:
         A = np.zeros((E.shape[0], self.n_inputs_ * P), dtype=complex)
         A[:, k * P : (k + 1) * P] = E
         re, im = np.ascontiguousarray(A.real), np.ascontiguousarray(A.imag)
-        var_re, var_im, cov = self.posterior_.pair_variances(re, im)
-        return FrequencyResponse.from_gaussian(
+        posterior, scale = units.split(self.posterior_)
+        var_re, var_im, cov = posterior.pair_variances(re, im)
+        frf = FrequencyResponse.from_gaussian(
             freqs,
-            A @ self.posterior_.coef,
+            A @ posterior.coef,
             var_re,
             var_im,
             cov,
@@ -289,6 +301,26 @@ class _FIRModelMixin:
             sample_time=sample_time,
             factor=self.observation_.slow_factor,
         )
+        if scale is None:
+            return frf
+        return units.scale_frequency_response(frf, int(scale.gain_exponents[k]))
+
+    def _scaled_impulse_response(self, lags, return_std, return_cov):
+        """:meth:`impulse_response` from the normalized posterior, in the data's units."""
+        kind = "cov" if return_cov else ("std" if return_std else None)
+        mean, second, exponents = self._impulse_response_normalized(lags, kind)
+        if exponents is not None:
+            if kind is None:
+                mean = np.ldexp(mean, exponents)
+            else:
+                mean, second = units.scaled_moments(mean, second, exponents, kind)
+        elif kind == "std":
+            second = np.sqrt(second)
+        if kind is None:
+            return self._shaped(mean)
+        if kind == "cov":
+            return self._shaped(mean), second
+        return self._shaped(mean), self._shaped(second)
 
     def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
         """Draw impulse responses from the posterior (for least squares, the estimate's distribution).
@@ -305,8 +337,10 @@ class _FIRModelMixin:
         ndarray of shape (n, n_samples), or (n_inputs, n, n_samples) for several inputs
         """
         n_samples = check_int(n_samples, "n_samples", low=1)
-        mean, cov = self.impulse_response(lags, return_cov=True)
-        draws = gaussian_samples(mean.reshape(-1), cov, n_samples, check_rng(random_state))
+        mean, cov, exponents = self._impulse_response_normalized(lags, "cov")
+        draws = gaussian_samples(mean, cov, n_samples, check_rng(random_state))
+        if exponents is not None:  # drawn in normalized units, each row scaled
+            draws = np.ldexp(draws, exponents[:, None])
         if self.n_inputs_ > 1:
             return draws.reshape(self.n_inputs_, -1, n_samples)
         return draws
@@ -455,6 +489,7 @@ class _Settings:
     max_resonances: int
     normalize: bool
     tuned: bool
+    scale: object = None  # the DataScale of the data (units.normalize), set by fit
 
 
 @dataclass
@@ -608,7 +643,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The tuned (or given) noise variance.
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
-        (scikit-learn's sign and constants: higher is better).
+        (scikit-learn's sign and constants: higher is better), a density of
+        ``y_slow`` in its own units.
+    input_scale_ : ndarray of shape (n_inputs,)
+        The power of two each input was divided by for the fit.
+    output_scale_ : float
+        The power of two ``y_slow`` was divided by for the fit.
+    hyperparameter_units_ : {"data", "normalized"}
+        The units of ``kernel_``, ``noise_level_`` and
+        ``noise_level_bounds_`` (see *Units* in :meth:`fit`).
     observation_ : Observation
         The observation operator of the training data: a
         :class:`~gpmultirate.DownsampledConvolution` in the paper's case, a
@@ -731,13 +774,49 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Returns
         -------
         self
+
+        Notes
+        -----
+        Lists: ``u`` and ``y_slow`` are several records only when both are
+        lists (or tuples) of arrays; otherwise each is one array-like, as in
+        scikit-learn (``u2.tolist()`` is the array ``u2``, and
+        ``y[:, None].tolist()`` the column ``y[:, None]``).
+
+        Units: the fit divides each input and the output by exact powers of
+        two of their largest magnitude (``gpmultirate.units``), so any
+        finite data in ``[1e-300, 1e300]`` fit alike, and a fit of
+        ``u * 2**i``, ``y_slow * 2**j`` is the fit of ``u``, ``y_slow`` with
+        every result scaled by ``2**(j - i)`` (outputs by ``2**j``) bit for
+        bit.  ``input_scale_`` and ``output_scale_`` hold the powers.  All
+        results are in the data's units; ``kernel_`` and ``noise_level_`` too
+        unless an amplitude or the noise variance is outside the float range
+        there (for instance ``u`` of size ``1e-300`` and ``y_slow`` of size
+        1, an amplitude near ``1e600``): they then stay in the normalized
+        units, ``hyperparameter_units_`` is ``"normalized"`` and a
+        :class:`~gpmultirate.NumericalWarning` says so (such a model's file
+        stores them in the normalized units with the powers of two, and
+        :func:`~gpmultirate.load_model` fits it again in those units; the
+        fit report gives the noise in the data's units).  ``optimizer_result_``
+        is the optimizer's run on the normalized data.  Data whose largest
+        magnitude is subnormal (below ``2.2e-308``), or an input that is zero
+        at every sample, are refused with a ``ValueError`` naming them.
         """
         settings = self._check_params()
         sample_indices = _timed_samples(self, sample_indices, sample_times)
         timed = isinstance(sample_indices, _TimedSamples)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
-        data = (u, y_slow, sample_indices)
+        # the fit works on the data divided by powers of two (exact), then rescales once
+        given = (u, y_slow, sample_indices)
+        u, y_slow, scale = units.normalize(u, y_slow)
+        settings = replace(settings, scale=scale)
+        self._fit_normalized((u, y_slow, sample_indices), settings, timed)
+        units.rescale_gaussian_process(
+            self, scale, lambda: self._experiment(given, self.observation_.order))
+        return self
+
+    def _fit_normalized(self, data, settings: _Settings, timed: bool) -> None:
+        """The fit on the normalized data, with the order checks."""
         if settings.candidates is not None:
             candidates = settings.candidates
             if candidates == "auto":
@@ -747,7 +826,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             )
             self._adopt(selection.fit)
             self.order_selection_ = selection.table
-            return self
+            return
         order, fitted, rule = self.order, None, None
         if order is None:
             rule = self._default_order(data, settings)
@@ -763,7 +842,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if rule is not None:
             self.order_selection_ = rule.table
         if timed:  # the checks below read the fast-sample index of every reading
-            return self
+            return
         if settings.criterion == "evidence" and self.optimizer is not None:
             with blas_threads_for(fitted.experiment.observation):
                 self._check_shorter_orders(data, fitted.experiment, settings)
@@ -880,7 +959,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             )
         n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
         check_rng(self.random_state)
-        check_positive(self.sample_time, "sample_time")
+        check_sample_time(self.sample_time)
         noise = check_positive(self.noise_level, "noise_level")
         if not (isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto"):
             check_bounds(self.noise_level_bounds, "noise_level_bounds")
@@ -922,6 +1001,17 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             settings.noise_level,
             self.noise_level_bounds, settings.normalize, settings.tuned,
         )
+        if not settings.normalize and not getattr(self, "_prior_in_normalized_units", False):
+            # given in the data's units: the fit works in the units of units.normalize
+            # (a model file of hyperparameter_units_="normalized" gives them in those units)
+            given = not isinstance(self.kernel, str) and self.kernel is not None
+            explicit = not isinstance(self.noise_level_bounds, str) or (
+                self.noise_level_bounds == "fixed")
+            converted, noise, bounds = units.to_normalized(
+                kernel if given else None, noise, noise_bounds if explicit else "fixed",
+                settings.scale)
+            kernel = converted if given else kernel
+            noise_bounds = bounds if explicit else noise_bounds
         # refuse now what would be killed for lack of memory halfway
         n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
         check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1,
@@ -958,7 +1048,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 cv_value = float(moved(moved.theta))
         moved_evidence = evidence.moved_to(kernel, noise)
         if optimizer_result is not None:
-            tuning.warn_at_bounds(moved_evidence)
+            tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))
         coef = posterior.coef
         return _Fit(
             experiment=experiment,
@@ -1006,7 +1096,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         data_space = n_samples < operator.n_coefficients or (
             default_order and n_samples == operator.n_coefficients)
         if (self.initial_conditions == "discard" or not data_space
-                or n_samples > MAX_CHECKED_SAMPLES or order < 2 * MIN_CHECKED_ORDER):
+                or n_samples > MAX_CHECKED_SAMPLES or order < 2 * MIN_CHECKED_ORDER
+                or np.ptp(y) == 0):  # the fit in percent of a constant output is undefined
             return
         try:
             folds = contiguous_folds([r.n_outputs for r in operator.records], n_folds)
@@ -1075,7 +1166,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         n_expected = evidence.theta.shape[0]
         if theta.shape[0] != n_expected:
             raise ValueError(f"theta must have {n_expected} entries; got {theta.shape[0]}")
-        return evidence(theta, eval_gradient=eval_gradient)
+        theta, shift = units.evidence_theta(self, theta)
+        if eval_gradient:
+            value, gradient = evidence(theta, eval_gradient=True)
+            return value + shift, gradient
+        return evidence(theta) + shift
 
     # ----------------------------------------------------------- posterior
     def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
@@ -1104,22 +1199,41 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         check_is_fitted(self, "coef_")
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
+        return self._scaled_impulse_response(lags, return_std, return_cov)
+
+    def _impulse_response_normalized(self, lags, kind):
+        """Flat mean, variance (``kind="std"``) or covariance (``"cov"``) or None, and the
+        exponents that carry them into the data's units (None: already there)."""
+        check_is_fitted(self, "coef_")
         X = self._points(lags)
-        if not (return_std or return_cov):
-            return self._shaped(self.posterior_.mean_at_lags(X))
-        mean, second = self.posterior_.at_lags(X, full_cov=return_cov)
-        if return_cov:
-            return self._shaped(mean), second
-        return self._shaped(mean), self._shaped(np.sqrt(second))
+        posterior, scale = units.split(self.posterior_)
+        exponents = None
+        if scale is not None:
+            gains = scale.gain_exponents
+            exponents = gains[X[:, 0].astype(int)] if self.n_inputs_ > 1 else np.full(
+                X.shape[0], int(gains[0]))
+        if kind is None:
+            return posterior.mean_at_lags(X), None, exponents
+        mean, second = posterior.at_lags(X, full_cov=kind == "cov")
+        return mean, second, exponents
 
     def _predict_readings(self, x, sample_times, return_std):
         """The sensor's readings at ``sample_times`` (exposure and latency applied)."""
+        posterior, scale = units.split(self.posterior_)
+        kernel = self.kernel_
+        if scale is not None:  # in the units of the normalized fit, scaled at the end
+            x = np.ldexp(x, -scale.input_exponents[None, :])
+            kernel = self._evidence.kernel
         readings = TimedConvolution(
             x, sample_times, self._order, self.exposure, self.latency, self.initial_conditions)
         with blas_threads_for(readings):
-            mean, var = predict_readings(
-                self.posterior_, self._evidence.data, self.kernel_, readings)
-        return (mean, np.sqrt(var)) if return_std else mean
+            mean, var = predict_readings(posterior, self._evidence.data, kernel, readings)
+        out = (mean, np.sqrt(var)) if return_std else mean
+        if scale is None:
+            return out
+        if return_std:
+            return tuple(np.ldexp(v, scale.output_exponent) for v in out)
+        return np.ldexp(out, scale.output_exponent)
 
     def _points(self, lags) -> np.ndarray:
         """The kernel inputs of the lags: a column, or ``(input, lag)`` pairs input-major."""
@@ -1203,6 +1317,16 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         -------
         self
 
+        Notes
+        -----
+        Lists and units as for :meth:`FIRGaussianProcess.fit`: records only
+        when ``u`` and ``y_slow`` both are lists of arrays, and the data
+        divided by exact powers of two before the least-squares problem is
+        formed.  ``noise_variance_`` and ``coef_covariance_`` are ``inf``
+        where they exceed the float range in the data's units; the standard
+        deviations of :meth:`impulse_response` and :meth:`predict` are formed
+        before scaling and stay finite.
+
         Raises
         ------
         IdentifiabilityError
@@ -1221,7 +1345,9 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 )
         if self.order is None:
             raise ValueError("order must be given: an integer below the number of slow samples")
-        check_positive(self.sample_time, "sample_time")
+        check_sample_time(self.sample_time)
+        data_u, data_y = u, y_slow
+        u, y_slow, scale = units.normalize(u, y_slow)  # exact powers of two, rescaled below
         experiment = build_experiment(
             u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
             order=self.order, initial_conditions=self.initial_conditions,
@@ -1263,6 +1389,10 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.noise_variance_ = noise_variance
         self.coef_covariance_ = noise_variance * (root @ root.T)
         self.posterior_ = GaussianCoefficients(coef, self.coef_covariance_, np.zeros((0, P)))
+        units.rescale_least_squares(self, scale, lambda: build_experiment(
+            data_u, data_y, sample_indices, factor=self.factor, offset=self.offset,
+            order=self.order, initial_conditions=self.initial_conditions,
+        ))
         return self
 
     def impulse_response(self, lags=None, return_std: bool = False, return_cov: bool = False):
@@ -1287,6 +1417,11 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         check_is_fitted(self, "coef_")
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
+        return self._scaled_impulse_response(lags, return_std, return_cov)
+
+    def _impulse_response_normalized(self, lags, kind):
+        """Flat mean, variance or covariance (as ``kind``), and the exponents to the data's units."""
+        check_is_fitted(self, "coef_")
         order = self._order
         if lags is None:
             index = np.arange(order)
@@ -1299,13 +1434,16 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 )
         # the input-major positions of the lags of every input
         index = (np.arange(self.n_inputs_)[:, None] * order + index[None, :]).reshape(-1)
-        mean = self.posterior_.coef[index]
-        if not (return_std or return_cov):
-            return self._shaped(mean)
-        cov = self.coef_covariance_[np.ix_(index, index)]
-        if return_cov:
-            return self._shaped(mean), cov
-        return self._shaped(mean), self._shaped(np.sqrt(np.maximum(np.diag(cov), 0.0)))
+        posterior, scale = units.split(self.posterior_)
+        exponents = None if scale is None else scale.coefficient_exponents(order)[index]
+        covariance = self.coef_covariance_ if scale is None else posterior.K
+        mean = posterior.coef[index]
+        if kind is None:
+            return mean, None, exponents
+        cov = covariance[np.ix_(index, index)]
+        if kind == "cov":
+            return mean, cov, exponents
+        return mean, np.maximum(np.diag(cov), 0.0), exponents
 
 
 # ----------------------------------------------------- readings at their own instants
@@ -1356,13 +1494,17 @@ def _experiment(model, u, y_slow, sample_indices, order):
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:
-    """True when ``u`` is constant on every block of ``factor`` samples, for some alignment."""
+    """True when ``u`` is held constant on every block of ``factor`` samples, for some
+    alignment, at values that change between blocks."""
     if factor < 2 or u.shape[0] < 2 * factor:
         return False
     for shift in range(factor):
         head = u[shift:]
         n_blocks = head.shape[0] // factor
         blocks = head[: n_blocks * factor].reshape(n_blocks, factor)
-        if np.allclose(blocks, blocks[:, :1], rtol=1e-12, atol=1e-14 * np.max(np.abs(u))):
+        # held values that change from block to block: an input that is zero (or constant)
+        # after a few samples, such as an impulse, is not zero-order hold
+        if np.allclose(blocks, blocks[:, :1], rtol=1e-12, atol=1e-14 * np.max(np.abs(u))) and (
+                np.ptp(blocks[:, 0]) > 1e-14 * np.max(np.abs(u))):
             return True
     return False

@@ -47,6 +47,7 @@ from gpmultirate.covariance import (
     takes_precision_route,
 )
 from gpmultirate.kernels import observe
+from gpmultirate.kernels.structure import cross_kernel
 from gpmultirate.observations import reduce_observation
 
 __all__ = [
@@ -302,12 +303,12 @@ class ParameterSpacePosterior(_FactoredCoefficients):
 
     def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return self.kernel(X, self.observation.lags) @ (self.inv_root @ self.z)
+        return cross_kernel(self.kernel, X, self.observation.lags) @ (self.inv_root @ self.z)
 
     def at_lags(self, X: np.ndarray, full_cov: bool = False):
         """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged."""
         kernel = self.kernel
-        J = kernel(X, self.observation.lags) @ self.inv_root
+        J = cross_kernel(kernel, X, self.observation.lags) @ self.inv_root
         mean = J @ self.z
         JS = J @ linalg.solve_triangular(self.R, np.eye(self.R.shape[0]), check_finite=False)
         if full_cov:
@@ -366,7 +367,7 @@ class PrecisionPosterior(_FactoredCoefficients):
 
     def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return self.kernel(X, self.observation.lags) @ self.precision.times(self.coef)
+        return cross_kernel(self.kernel, X, self.observation.lags) @ self.precision.times(self.coef)
 
     def at_lags(self, X: np.ndarray, full_cov: bool = False):
         """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged.
@@ -375,7 +376,7 @@ class PrecisionPosterior(_FactoredCoefficients):
         covariance ``k(X, X) - J k(lags, X) + J Sigma J^T``.
         """
         kernel = self.kernel
-        cross = kernel(X, self.observation.lags)
+        cross = cross_kernel(kernel, X, self.observation.lags)
         J = self.precision.times(cross.T).T
         mean = J @ self.coef
         JS = self.times_root(J)

@@ -96,7 +96,7 @@ from sklearn.gaussian_process.kernels import (
 )
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate.exceptions import ModelFileError
+from gpmultirate.exceptions import ModelFileError, NumericalWarning
 from gpmultirate.inference import GaussianCoefficients, one_blas_thread
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
@@ -337,6 +337,14 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
             ),
             optimizer_result_=None if result is None else _encode_optimizer_result(result),
         )
+        if getattr(model, "hyperparameter_units_", "data") == "normalized":
+            # kernel_, noise_level_ and its bounds are in the units of the data divided by
+            # these powers of two (beyond the float range in the data's units)
+            fitted.update(
+                hyperparameter_units_="normalized",
+                input_scale_exponents=[int(e) for e in np.frexp(model.input_scale_)[1] - 1],
+                output_scale_exponent=int(np.frexp(model.output_scale_)[1] - 1),
+            )
         if hasattr(model, "cv_log_predictive_likelihood_"):
             fitted["cv_log_predictive_likelihood_"] = _encode(
                 model.cv_log_predictive_likelihood_, "cv_log_predictive_likelihood_")
@@ -905,7 +913,7 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
         noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
         order=order, **_stored_noise_bounds(fitted),
     )
-    model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
+    model = _fit_stored(arguments, fitted, us, ys, sample_indices=indices)
     if model.observation_.order != order:
         raise ModelFileError(
             f"inconsistent model file: order is {order!r} in the header "
@@ -919,6 +927,49 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
     _restore_optimizer_result(model, fitted)
     _restore_resonances(model, fitted)
     _restore_tuning_results(model, fitted)
+    return model
+
+
+def _fit_stored(arguments: dict, fitted: dict, u, y_slow, **kwargs) -> FIRGaussianProcess:
+    """The stored model fitted again at its stored hyperparameters.
+
+    These are in the data's units, or (``hyperparameter_units_`` stored as
+    ``"normalized"``) in the units of the data divided by the stored powers
+    of two, which the fit of the stored data finds again.
+    """
+    model = FIRGaussianProcess(**arguments)
+    kind = fitted.get("hyperparameter_units_", "data")
+    if kind == "data":
+        return model.fit(u, y_slow, **kwargs)
+    if kind != "normalized":
+        raise ModelFileError(
+            f"header entry 'hyperparameter_units_' must be 'data' or 'normalized'; got {kind!r}")
+    inputs = fitted.get("input_scale_exponents")
+    output = fitted.get("output_scale_exponent")
+    if not (isinstance(inputs, list) and inputs
+            and all(isinstance(e, int) and not isinstance(e, bool) for e in inputs)
+            and isinstance(output, int) and not isinstance(output, bool)):
+        raise ModelFileError(
+            "a model file with hyperparameters in normalized units must hold the integer "
+            f"entries 'input_scale_exponents' and 'output_scale_exponent'; got {inputs!r} "
+            f"and {output!r}"
+        )
+    model._prior_in_normalized_units = True
+    try:
+        with warnings.catch_warnings():
+            # the stored model had it too: its hyperparameters stay in normalized units
+            warnings.filterwarnings("ignore", message="kernel_ and noise_level_ are in "
+                                    "normalized units", category=NumericalWarning)
+            model.fit(u, y_slow, **kwargs)
+    finally:
+        del model._prior_in_normalized_units
+    found = [int(e) for e in np.frexp(model.input_scale_)[1] - 1]
+    if found != inputs or int(np.frexp(model.output_scale_)[1] - 1) != output:
+        raise ModelFileError(
+            "inconsistent model file: the stored data are not in the units of its normalized "
+            f"hyperparameters (powers of two {inputs} and {output}, the data's "
+            f"{found} and {int(np.frexp(model.output_scale_)[1] - 1)})"
+        )
     return model
 
 
@@ -979,7 +1030,7 @@ def _load_gaussian_process(header: dict, arrays: dict, classes) -> FIRGaussianPr
         order=_integer(fitted, "order"),
         **_stored_noise_bounds(fitted),
     )
-    model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
+    model = _fit_stored(refit, fitted, arrays["u"], arrays["y_slow"])
     _check_layout(model.observation_, fitted)
     _warn_if_not_reproduced(
         model.coef_, arrays["coef"],

@@ -68,8 +68,11 @@ class FitReport:
     model : dict
         The estimator, ``order``, ``n_inputs``, ``initial_conditions``,
         ``kernel`` (its text), ``hyperparameters`` (name to value),
-        ``tuning``, ``log_evidence``, ``noise_level`` (a variance), and
-        ``cv_log_predictive`` after cross-validation.
+        ``tuning``, ``log_evidence``, ``noise_level`` (a variance, in the
+        data's units), ``cv_log_predictive`` after cross-validation, and for
+        a model whose kernel stays in normalized units
+        ``hyperparameter_units`` ``"normalized"`` and ``noise_std`` (in the
+        data's units, finite where the variance is beyond the float range).
     notes, warnings : tuple of str
         Remarks on the fit, and the warnings it raised.
     resonances : list or None
@@ -129,6 +132,12 @@ class FitReport:
                 out[name] = getattr(self, name)
         return _plain(out)
 
+    @property
+    def noise_std(self) -> float:
+        """The noise standard deviation in the data's units (also for normalized hyperparameters)."""
+        std = self.model.get("noise_std")
+        return math.sqrt(self.model["noise_level"]) if std is None else float(std)
+
     def to_json(self) -> str:
         """The report as indented JSON text, ending with a newline."""
         return json.dumps(self.to_dict(), indent=2) + "\n"
@@ -153,6 +162,19 @@ def _cell_text(value) -> str:
     return f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
+def _noise_line(model: dict) -> str:
+    """The noise line of the Markdown page, in the data's units."""
+    variance, std = model["noise_level"], model.get("noise_std")
+    if std is None:  # the square root of the variance
+        std = math.sqrt(variance)
+    shown = "beyond the float range" if variance is None else f"{variance:.6g}"
+    line = f"- noise level (variance): {shown} (std {std:.6g})"
+    if model.get("hyperparameter_units") == "normalized":
+        line += ("; the hyperparameters below are in normalized units (u divided by "
+                 "input_scale_, y_slow by output_scale_)")
+    return line
+
+
 def _markdown(summary: dict) -> str:
     data, model = summary["data"], summary["model"]
     lines = ["# gpmultirate fit", "",
@@ -164,8 +186,7 @@ def _markdown(summary: dict) -> str:
              f"conditions {model['initial_conditions']}",
              f"- kernel: `{model['kernel']}`",
              f"- log evidence: {model['log_evidence']:.6g}",
-             f"- noise level (variance): {model['noise_level']:.6g} "
-             f"(std {math.sqrt(model['noise_level']):.6g})", "",
+             _noise_line(model), "",
              "## Hyperparameters", "", "| name | value |", "|---|---|"]
     lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
     resonances = summary.get("resonances")
@@ -207,6 +228,28 @@ def _hyperparameters(kernel) -> dict:
     params = kernel.get_params(deep=True)
     return {hyper.name: _plain(params[hyper.name]) for hyper in kernel.hyperparameters
             if params.get(hyper.name) is not None}
+
+
+def _noise_in_data_units(model) -> dict:
+    """``noise_level`` (a variance) in the data's units, and ``noise_std`` where it is not
+    the square root of that (normalized hyperparameters).
+
+    A model whose hyperparameters stay in normalized units
+    (``hyperparameter_units_ == "normalized"``: ``y_slow`` divided by
+    ``output_scale_``) has them scaled here: the standard deviation is
+    ``sqrt(noise_level_) * output_scale_`` (finite wherever it is
+    representable), the variance its square (``inf`` or 0 where that is
+    beyond the float range); the kernel's hyperparameters are reported as
+    they are, with ``hyperparameter_units`` ``"normalized"``.
+    """
+    noise = float(model.noise_level_)
+    if getattr(model, "hyperparameter_units_", "data") != "normalized":
+        return {"noise_level": noise}
+    exponent = int(np.frexp(model.output_scale_)[1] - 1)
+    with np.errstate(over="ignore", under="ignore"):
+        std = float(np.ldexp(math.sqrt(noise), exponent))
+        variance = float(np.ldexp(noise, 2 * exponent))
+    return {"noise_level": variance, "noise_std": std, "hyperparameter_units": "normalized"}
 
 
 def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,
@@ -285,8 +328,8 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
     summary.update({"kernel": str(model.kernel_),
                     "hyperparameters": _hyperparameters(model.kernel_),
                     "tuning": model.tuning,
-                    "log_evidence": float(model.log_marginal_likelihood_value_),
-                    "noise_level": float(model.noise_level_)})
+                    "log_evidence": float(model.log_marginal_likelihood_value_)})
+    summary.update(_noise_in_data_units(model))
     if hasattr(model, "cv_log_predictive_likelihood_"):
         summary["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
     selection = None

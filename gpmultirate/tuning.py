@@ -225,6 +225,8 @@ def prefit_scale_and_noise(evidence) -> np.ndarray:
         )
         if np.isfinite(result.fun) and (best is None or result.fun < best.fun):
             best = result
+    if best is None:  # no start gave a finite evidence: the optimizer's runs report it
+        return theta
     theta_bounds = evidence.bounds
     if fit_scale:
         log_scale = float(best.x[0])

@@ -158,6 +158,15 @@ def check_sample_indices(indices, n_samples: int, name: str = "sample_indices") 
     if arr.dtype.kind == "f":
         if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
             raise ValueError(f"{name} must hold integers")
+    # the range is checked on the values as given: a cast would wrap 1e20 or 2**64 - 1
+    if np.any(arr < 0) or np.any(arr > n_samples - 1):
+        raise ValueError(
+            f"{name} must lie in 0..{n_samples - 1} (the fast samples of u); "
+            f"got values from {arr.min():.17g} to {arr.max():.17g}"
+            if arr.dtype.kind == "f" else
+            f"{name} must lie in 0..{n_samples - 1} (the fast samples of u); "
+            f"got values from {arr.min()} to {arr.max()}"
+        )
     index = arr.astype(np.int64)
     if index[0] < 0 or index[-1] >= n_samples or np.any(index < 0) or np.any(index >= n_samples):
         raise ValueError(
@@ -179,3 +188,26 @@ def check_n_jobs(n_jobs):
             f"CPUs, as in joblib); got {n_jobs!r}"
         )
     return int(n_jobs)
+
+
+def check_sample_time(value, name: str = "sample_time") -> float:
+    """Return a fast sample time in seconds: finite, positive, with ``1 / value`` a normal float.
+
+    Frequencies are ``1 / sample_time`` times cycles per sample; a sample
+    time below about ``5.6e-309`` makes them infinite.
+
+    Examples
+    --------
+    >>> check_sample_time(0.01)
+    0.01
+    """
+    value = check_positive(value, name)
+    inverse = 1.0 / value
+    if not (np.isfinite(inverse) and inverse >= np.finfo(float).tiny):
+        raise ValueError(
+            f"{name} must be a sample time in seconds whose inverse (the sample rate) is a "
+            f"finite normal float, between {1 / np.finfo(float).max:.3g} and "
+            f"{1 / np.finfo(float).tiny:.3g}; got {value!r}"
+        )
+    return value
+

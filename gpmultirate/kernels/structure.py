@@ -743,3 +743,32 @@ def rescaled(kernel: Kernel, factor: float) -> Kernel:
             changes[role.name + "_bounds"] = (bounds[0] * scale, bounds[1] * scale)
     copy.set_params(**changes)
     return copy
+
+
+def cross_kernel(kernel: Kernel, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``k(X, Y)`` as a function of the lags: ``k(x, x)`` wherever a row of ``X`` equals one of ``Y``.
+
+    scikit-learn's ``WhiteKernel`` (alone or in a sum or product) gives
+    ``k(X, Y) = 0`` whenever ``Y`` is passed, even at equal points, while
+    ``k(X)`` has its variance on the diagonal: the posterior at the integer
+    lags (``coef_``, from ``k(X)``) and at any lag (from ``k(X, Y)``) would
+    then disagree.  Such a kernel (found on a few of the points: ``k(X)``
+    and ``k(X, Y=X)`` differ) gets the diagonal value ``k(x, x)`` at every
+    coinciding pair; any other kernel is evaluated as it is.
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import WhiteKernel
+    >>> cross_kernel(WhiteKernel(2.0), np.array([[0.0], [0.5]]), np.array([[0.0], [1.0]]))
+    array([[2., 0.],
+           [0., 0.]])
+    """
+    K = kernel(X, Y)
+    probe = X[: min(8, X.shape[0])]
+    if probe.shape[0] == 0 or np.array_equal(kernel(probe), kernel(probe, probe.copy())):
+        return K
+    a, b = np.nonzero(np.all(X[:, None, :] == Y[None, :, :], axis=2))
+    if a.size:
+        K = np.array(K, dtype=float)
+        K[a, b] = kernel.diag(X)[a]
+    return K

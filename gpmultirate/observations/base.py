@@ -236,7 +236,9 @@ class Observation:
 
     def cross_covariance(self, kernel, lags) -> np.ndarray:
         """Return ``Cov(g(lags), y) = k(lags, 0..P-1) Phi^T``, shape ``(n, M)``."""
-        return kernel(lags, self.lags) @ self.matrix.T
+        from gpmultirate.kernels.structure import cross_kernel
+
+        return cross_kernel(kernel, lags, self.lags) @ self.matrix.T
 
 
 class ColumnBlock(Observation):

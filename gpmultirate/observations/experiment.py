@@ -23,7 +23,7 @@ from gpmultirate.observations.sampled import (
 )
 from gpmultirate.validation import as_real_array, check_inputs, check_int, check_sample_indices
 
-__all__ = ["Experiment", "build_experiment", "check_records", "is_record_list"]
+__all__ = ["Experiment", "build_experiment", "check_records", "is_record_list", "is_record_pair"]
 
 
 @dataclass
@@ -52,10 +52,41 @@ def is_record_list(x) -> bool:
     )
 
 
-def check_records(u, name: str = "u"):
+def is_record_pair(u, y_slow) -> bool:
+    """Whether ``u`` and ``y_slow`` are records: both lists (or tuples) of arrays.
+
+    Otherwise each is one array-like, as in scikit-learn: ``u2.tolist()`` is
+    the array ``u2``, ``y[:, None].tolist()`` the column ``y[:, None]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> is_record_pair([np.ones(4), np.ones(6)], [np.ones(2), np.ones(3)])
+    True
+    >>> is_record_pair([[1.0, 2.0], [3.0, 4.0]], np.ones(2))
+    False
+    """
+    return is_record_list(u) and is_record_list(y_slow)
+
+
+def records_of(u, y_slow) -> bool:
+    """:func:`is_record_pair`, refusing records of ``u`` (a list of numpy arrays) whose
+    ``y_slow`` is one array: reading them as one array would be a silent mistake."""
+    several_records = is_record_pair(u, y_slow)
+    if not several_records and is_record_list(u) and all(isinstance(e, np.ndarray) for e in u):
+        raise ValueError(
+            f"y_slow must be a list with one entry per record of u ({len(u)}); "
+            f"got {type(y_slow).__name__}"
+        )
+    return several_records
+
+
+def check_records(u, name: str = "u", several_records: bool | None = None):
     """``(inputs, several_records)``: each record's input as ``(N, n_inputs)``, and whether
-    ``u`` was a list of records.  A single input given as a column ``(N, 1)`` is one input."""
-    several_records = is_record_list(u)
+    ``u`` was a list of records.  A single input given as a column ``(N, 1)`` is one input.
+    ``several_records`` overrides the reading of ``u`` alone (:func:`is_record_list`)."""
+    if several_records is None:
+        several_records = is_record_list(u)
     records = list(u) if several_records else [u]
     if not records:
         raise ValueError(f"{name} must hold at least one record; got an empty list")
@@ -115,7 +146,8 @@ def build_experiment(
     >>> experiment.observation.sample_indices, experiment.y
     (array([0, 6]), array([1., 3.]))
     """
-    inputs, several_records = check_records(u)
+    several_records = records_of(u, y_slow)
+    inputs, several_records = check_records(u, several_records=several_records)
     if several_records:
         if not is_record_list(y_slow) or len(y_slow) != len(inputs):
             raise ValueError(
@@ -129,8 +161,6 @@ def build_experiment(
             raise ValueError(
                 f"sample_indices must be a list with one entry per record of u ({len(inputs)})"
             )
-    elif is_record_list(y_slow) and len(y_slow) > 1:
-        raise ValueError("y_slow is a list of records but u is not: give u as a list too")
     ys = list(y_slow) if several_records else [y_slow]
     indices = (
         [None] * len(inputs) if sample_indices is None
