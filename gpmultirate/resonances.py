@@ -55,7 +55,7 @@ from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import tuning
-from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian
+from gpmultirate.covariance import DenseCovariance, SpectralCovariance, WhiteNoise, log_gaussian
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
@@ -537,10 +537,9 @@ class _ResonantModel:
         self.log_scale = 0.0
         self.terms = []  # (input, PK) in the order added
         data = evidence.data
-        s, Q = linalg.eigh(observe(self.base, data).covariance(), check_finite=False)
-        self._s = np.maximum(s, 0.0)
-        self._y = Q.T @ evidence.z
-        self._Q = Q
+        self._spectral = SpectralCovariance(observe(self.base, data).covariance(), evidence.z)
+        self._s = self._spectral.eigenvalues
+        self._y = self._spectral.rotated_y
         self._blocks = {}
         self.value = self._log_evidence(self._pack())
 
@@ -567,7 +566,7 @@ class _ResonantModel:
 
     def _rotated_regressor(self, k):
         if k not in self._blocks:
-            self._blocks[k] = self._Q.T @ self.evidence.data.input_block(k).matrix
+            self._blocks[k] = self._spectral.rotate(self.evidence.data.input_block(k).matrix)
         return self._blocks[k]
 
     def _log_evidence(self, x, eval_gradient: bool = False):
@@ -579,7 +578,7 @@ class _ResonantModel:
         ``dK = dW W^T + W dW^T`` for the parameters of a term.
         """
         c, gamma = np.exp(x[0]), np.exp(x[1])
-        d = c * self._s + gamma
+        d = self._spectral.diagonal(c, gamma)
         inv_d = 1.0 / d
         y = self._y
         quad, log_det = y @ (inv_d * y), np.sum(np.log(d))
@@ -597,7 +596,7 @@ class _ResonantModel:
             raw.append((rotated, rate, s1, s2))
         if r_terms:
             DW = inv_d[:, None] * W
-            chol = np.linalg.cholesky(np.eye(2 * r_terms) + W.T @ DW)
+            chol = self._spectral.capacitance_cholesky(W, DW)
             v = linalg.solve_triangular(chol, DW.T @ y, lower=True, check_finite=False)
             quad -= v @ v
             log_det += 2.0 * np.log(np.diag(chol)).sum()

@@ -36,6 +36,7 @@ import numpy as np
 from scipy import linalg, optimize
 from sklearn.exceptions import ConvergenceWarning
 
+from gpmultirate.covariance import SpectralCovariance
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.validation import check_rng
 
@@ -173,9 +174,9 @@ def prefit_scale_and_noise(evidence) -> np.ndarray:
     if not (fit_scale or fit_noise):
         return theta
     y = evidence.z
-    s, Q = linalg.eigh(evidence.covariance(), check_finite=False)
-    s = np.maximum(s, 0.0)
-    z2 = (Q.T @ y) ** 2
+    spectral = SpectralCovariance(evidence.covariance(), y)
+    s = spectral.eigenvalues
+    z2 = spectral.rotated_y**2
     power = float(np.mean(y**2)) or 1.0
     noise_level = evidence.noise_level
 
@@ -188,7 +189,7 @@ def prefit_scale_and_noise(evidence) -> np.ndarray:
         log_c = x[0] if fit_scale else 0.0
         log_g = x[-1] if fit_noise else np.log(noise_level)
         c, g = np.exp(log_c), np.exp(log_g)
-        d = c * s + g
+        d = spectral.diagonal(c, g)
         value = 0.5 * np.sum(z2 / d + np.log(d)) + 0.5 * (n_rest * log_g + rho2 / g)
         common = 0.5 * (1.0 / d - z2 / d**2)
         grad = []

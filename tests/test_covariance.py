@@ -21,6 +21,7 @@ from gpmultirate.covariance import (
     ParameterSpaceCovariance,
     PrecisionCovariance,
     Remainder,
+    SpectralCovariance,
     WhiteNoise,
     WoodburyCovariance,
     data_covariance,
@@ -255,3 +256,25 @@ def test_posterior_answers_from_what_it_holds():
     close(found_mean, mean)
     close(found_cov, cov, rtol=1e-7)
     close(result.at_lags(X)[1], np.diag(cov), rtol=1e-7)
+
+
+def test_spectral_covariance_matches_the_dense_matrix_for_any_scale_and_noise():
+    rng = np.random.default_rng(11)
+    A = rng.standard_normal((12, 5))
+    S = A @ A.T  # rank 5: eigenvalues at zero are clipped, not negative
+    y = rng.standard_normal(12)
+    W = rng.standard_normal((12, 2))
+    spectral = SpectralCovariance(S, y)
+    assert np.all(spectral.eigenvalues >= 0.0)
+    for scale, noise in [(1.0, 0.1), (3.7, 1e-3), (0.02, 2.0)]:
+        dense = scale * S + noise * np.eye(12)
+        d = spectral.diagonal(scale, noise)
+        np.testing.assert_allclose(np.sum(spectral.rotated_y**2 / d),
+                                   y @ np.linalg.solve(dense, y), rtol=1e-10)
+        np.testing.assert_allclose(np.sum(np.log(d)), np.linalg.slogdet(dense)[1], rtol=1e-10)
+        # a low-rank summand in the rotated coordinates: Woodbury and the determinant lemma
+        V = spectral.rotate(W)
+        chol = spectral.capacitance_cholesky(V, V / d[:, None])
+        updated = dense + W @ W.T
+        log_det = np.sum(np.log(d)) + 2.0 * np.log(np.diag(chol)).sum()
+        np.testing.assert_allclose(log_det, np.linalg.slogdet(updated)[1], rtol=1e-10)
