@@ -26,14 +26,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg
 
-from gpmultirate.inference import (
-    LogEvidence,
-    inverse_from_cholesky,
-    log_gaussian,
-    robust_cholesky,
-)
-from gpmultirate.kernels import observe
+from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian, robust_cholesky
+from gpmultirate.inference import LogEvidence, TuningObjective
 from gpmultirate.validation import check_int
+
+#: the bounds that mark a noise level as a free hyperparameter where only that matters
+_FREE = (0.0, np.inf)
 
 __all__ = [
     "CrossValidation",
@@ -85,17 +83,12 @@ def _fold_factors(A, alpha, folds):
     return factors
 
 
-def _data_precision(operator, kernel, noise_level, y, eval_gradient):
-    term = observe(kernel, operator)
-    if eval_gradient:
-        S, contract = term.covariance_with_contractor()
-    else:
-        S, contract = term.covariance(), None
-    Ky = S.copy()  # the contractor may hold S itself (the derivative of an amplitude)
-    Ky[np.diag_indices_from(Ky)] += noise_level
-    L, _ = robust_cholesky(Ky)
-    A = inverse_from_cholesky(L)
-    return A, A @ y, contract
+def _data_precision(operator, kernel, noise, y, eval_gradient):
+    """``A = Ky^{-1}``, ``a = A y`` and the data covariance (dense: every sample is used)."""
+    covariance = DenseCovariance.of(kernel, operator, noise,
+                                    "contraction" if eval_gradient else None)
+    A = covariance.inverse()
+    return A, A @ y, covariance
 
 
 def log_predictive_likelihood(
@@ -121,7 +114,8 @@ def log_predictive_likelihood(
     -------
     float, or (float, ndarray) with ``eval_gradient``
     """
-    A, alpha, contract = _data_precision(operator, kernel, noise_level, y, eval_gradient)
+    noise = WhiteNoise(noise_level, _FREE if noise_free else "fixed")
+    A, alpha, covariance = _data_precision(operator, kernel, noise, y, eval_gradient)
     factors = _fold_factors(A, alpha, folds)
     value = 0.0
     for B, (L_B, r_B) in zip(folds, factors):
@@ -140,9 +134,9 @@ def log_predictive_likelihood(
     v = A @ q
     W = -0.5 * (A @ middle @ A)
     W += 0.5 * (np.outer(alpha, v) + np.outer(v, alpha))
-    grad = contract(W)
+    grad = covariance.contract(W)
     if noise_free:
-        grad = np.append(grad, np.trace(W) * noise_level)
+        grad = np.append(grad, noise.contract(W))
     return value, grad
 
 
@@ -155,7 +149,7 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
         For sample ``m`` in fold ``k``: the predictive mean and variance of
         ``y[m]`` given the samples outside fold ``k`` (noise included).
     """
-    A, alpha, _ = _data_precision(operator, kernel, noise_level, y, False)
+    A, alpha, _ = _data_precision(operator, kernel, WhiteNoise(noise_level), y, False)
     mean = np.empty_like(y)
     variance = np.empty_like(y)
     for B, (L_B, r_B) in zip(folds, _fold_factors(A, alpha, folds)):
@@ -166,15 +160,18 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
     return mean, variance
 
 
-class CrossValidation(LogEvidence):
+class CrossValidation(TuningObjective):
     """The cross-validated log predictive likelihood as a function of ``theta``.
 
     The objective :func:`~gpmultirate.tuning.maximize` works on when a fit
     is tuned with ``tuning="cross_validation"``: the same ``theta``, bounds
-    and roles as :class:`~gpmultirate.inference.LogEvidence` (whose cheap
-    evidence-based start, scale prefit and resonance grid it keeps), but
-    evaluated on all slow samples in data space, with the folds of
-    :func:`contiguous_folds`.
+    and roles as :class:`~gpmultirate.inference.LogEvidence` (a
+    :class:`~gpmultirate.inference.TuningObjective` as well), evaluated on
+    all slow samples in data space, with the folds of
+    :func:`contiguous_folds`.  It holds the evidence of the same data
+    (:attr:`evidence`), whose cheap start tuning keeps: the scale prefit,
+    the scale groups and the resonance grid answer from it.  It offers no
+    Fisher information (``has_fisher`` is false).
 
     Parameters
     ----------
@@ -184,6 +181,12 @@ class CrossValidation(LogEvidence):
     noise_level : float
     noise_bounds : pair of floats or "fixed"
     n_folds : int, default=5
+
+    Attributes
+    ----------
+    evidence : LogEvidence
+        The evidence of the same data at the same start.
+    folds : list of ndarray of int
 
     Examples
     --------
@@ -203,8 +206,9 @@ class CrossValidation(LogEvidence):
     has_fisher = False
 
     def __init__(self, observation, y, kernel, noise_level, noise_bounds, n_folds: int = 5):
-        super().__init__(observation, y, kernel, noise_level, noise_bounds)
+        super().__init__(kernel, noise_level, noise_bounds)
         # the evidence-based start works on the reduced data; the folds need every sample
+        self.evidence = LogEvidence(observation, y, kernel, noise_level, noise_bounds)
         self.observation, self.y = observation, y
         self.folds = contiguous_folds([r.n_outputs for r in observation.records], n_folds)
 
@@ -216,8 +220,57 @@ class CrossValidation(LogEvidence):
             self.noise_is_free,
         )
 
-    def with_fisher(self, theta):
-        raise NotImplementedError("the cross-validation objective has no Fisher information")
+    def moved_to(self, kernel, noise_level: float) -> "CrossValidation":
+        moved = super().moved_to(kernel, noise_level)
+        moved.evidence = self.evidence.moved_to(kernel, noise_level)
+        return moved
+
+    def reusing_kernel(self) -> "CrossValidation":
+        reusing = super().reusing_kernel()
+        reusing.evidence = self.evidence.moved_to(self.kernel, self.noise_level)
+        reusing.evidence._work = reusing._work  # one working kernel; evaluations never overlap
+        return reusing
+
+    # the evidence's answers, for tuning's evidence-based start
+    @property
+    def data(self):
+        """The (reduced) observation of the evidence."""
+        return self.evidence.data
+
+    @property
+    def z(self):
+        """The (reduced) outputs of the evidence."""
+        return self.evidence.z
+
+    @property
+    def n_outputs(self) -> int:
+        """Outputs of the evidence's (reduced) data."""
+        return self.evidence.n_outputs
+
+    @property
+    def by_precision(self) -> bool:
+        """Whether the evidence goes through the prior's tridiagonal precision."""
+        return self.evidence.by_precision
+
+    def remainder(self):
+        """The evidence's :class:`~gpmultirate.covariance.Remainder`."""
+        return self.evidence.remainder()
+
+    def covariance(self) -> np.ndarray:
+        """``S`` of the evidence's data at the initial kernel."""
+        return self.evidence.covariance()
+
+    def scale_groups(self, theta):
+        """The evidence's scale groups at ``theta``."""
+        return self.evidence.scale_groups(theta)
+
+    def along(self, theta, index: int, values):
+        """The evidence for each value of ``theta[index]`` (the resonance grid), or None."""
+        return self.evidence.along(theta, index, values)
+
+    def posterior(self, kernel, noise_level: float):
+        """The posterior of the coefficients for ``kernel`` and ``noise_level``."""
+        return self.evidence.posterior(kernel, noise_level)
 
     def amplitude_couplings(self):
         """No couplings: the optimizer keeps plain coordinates for cross-validation.

@@ -856,10 +856,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if return_std and return_cov:
             raise ValueError("return_std and return_cov cannot both be True")
         X = self._points(lags)
-        data = self._evidence.data
         if not (return_std or return_cov):
-            return self._shaped(self.posterior_.mean_at_lags(data, self.kernel_, X))
-        mean, second = self.posterior_.at_lags(data, self.kernel_, X, full_cov=return_cov)
+            return self._shaped(self.posterior_.mean_at_lags(X))
+        mean, second = self.posterior_.at_lags(X, full_cov=return_cov)
         if return_cov:
             return self._shaped(mean), second
         return self._shaped(mean), self._shaped(np.sqrt(second))

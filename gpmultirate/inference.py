@@ -13,10 +13,12 @@ its Cholesky factor ``L``:
   ``A = Phi^T (a a^T - Ky^{-1}) Phi`` so that no ``Phi dK Phi^T`` product is
   formed per hyperparameter.
 
-Every route evaluates the Gaussian log density through one function,
-:func:`log_gaussian` (eq. 19, corrected); the structured products come from
-the kernel's terms (:func:`gpmultirate.kernels.observe`) and the
-observation's reduction, never from type tests here.  :class:`LogEvidence`
+The data covariance ``Ky`` is an object
+(:func:`gpmultirate.covariance.data_covariance`): its route (dense,
+low-rank update, DC's precision, parameter space) owns the factor, the
+evidence, its gradient and Fisher information, and the remainder of a reduced
+long record; each posterior here is built from one route's factor and holds
+the observation and the kernel it answers for.  :class:`LogEvidence`
 packages the evidence as a function of ``theta`` (the hyperparameters in their
 tuning coordinates: the log of most, ``artanh`` of DC's ``beta``) for tuning.
 """
@@ -24,7 +26,6 @@ tuning coordinates: the log of most, ``artanh`` of DC's ``beta``) for tuning.
 from __future__ import annotations
 
 import contextlib
-import warnings
 
 import numpy as np
 from scipy import linalg
@@ -32,7 +33,18 @@ from scipy import linalg
 from sklearn.base import clone
 from threadpoolctl import ThreadpoolController
 
-from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.covariance import (
+    LOG_2PI,
+    DenseCovariance,
+    ParameterSpaceCovariance,
+    PrecisionCovariance,
+    WhiteNoise,
+    data_covariance,
+    inverse_from_cholesky,
+    log_gaussian,
+    robust_cholesky,
+    takes_precision_route,
+)
 from gpmultirate.kernels import observe
 from gpmultirate.observations import reduce_observation
 
@@ -42,6 +54,7 @@ __all__ = [
     "LogEvidence",
     "ParameterSpacePosterior",
     "PrecisionPosterior",
+    "TuningObjective",
     "blas_threads_for",
     "gaussian_samples",
     "inverse_from_cholesky",
@@ -52,8 +65,6 @@ __all__ = [
     "posterior",
     "robust_cholesky",
 ]
-
-LOG_2PI = np.log(2.0 * np.pi)
 
 # Below this size the matrices of a fit are too small for threaded BLAS to pay
 # off, and on a busy machine its threads spin against each other: one thread.
@@ -102,23 +113,6 @@ def blas_threads_for(observation):
     return contextlib.nullcontext()
 
 
-def log_gaussian(quadratic: float, log_det: float, n: int) -> float:
-    """``log N(y; 0, Ky)`` from ``y^T Ky^{-1} y``, ``log det Ky`` and ``n = len(y)``.
-
-    The log marginal likelihood of eq. (19) with the noise inside the
-    determinant (see the reading notes):
-    ``-1/2 y^T Ky^{-1} y - 1/2 log det Ky - n/2 log(2 pi)``.
-
-    Examples
-    --------
-    >>> from scipy.stats import multivariate_normal
-    >>> value = log_gaussian(0.5**2 / 2.0, np.log(2.0), 1)
-    >>> bool(np.isclose(value, multivariate_normal(0.0, 2.0).logpdf(0.5)))
-    True
-    """
-    return float(-0.5 * quadratic - 0.5 * log_det - 0.5 * n * LOG_2PI)
-
-
 def gaussian_samples(mean: np.ndarray, cov: np.ndarray, n_samples: int, rng) -> np.ndarray:
     """Draws of ``N(mean, cov)`` as columns, for a positive semidefinite ``cov``.
 
@@ -128,41 +122,6 @@ def gaussian_samples(mean: np.ndarray, cov: np.ndarray, n_samples: int, rng) -> 
     values, vectors = linalg.eigh(cov, check_finite=False)
     root = vectors * np.sqrt(np.maximum(values, 0.0))
     return mean[:, None] + root @ rng.standard_normal((mean.shape[0], n_samples))
-
-
-def robust_cholesky(A: np.ndarray, what: str = "data covariance") -> tuple[np.ndarray, float]:
-    """Lower Cholesky factor of a symmetric matrix, adding jitter if needed.
-
-    Returns the factor and the jitter that was added to the diagonal.  A
-    :class:`~gpmultirate.exceptions.NumericalWarning` is emitted when jitter
-    was needed; a :class:`ValueError` when even large jitter fails.
-    """
-    if not np.all(np.isfinite(A)):
-        raise ValueError(f"the {what} has non-finite entries; check the hyperparameters")
-    try:
-        return linalg.cholesky(A, lower=True, check_finite=False), 0.0
-    except linalg.LinAlgError:
-        pass
-    scale = float(np.mean(np.abs(np.diag(A)))) or 1.0
-    for relative in 10.0 ** np.arange(-12, -3):
-        jitter = relative * scale
-        try:
-            L = linalg.cholesky(
-                A + jitter * np.eye(A.shape[0]), lower=True, check_finite=False
-            )
-        except linalg.LinAlgError:
-            continue
-        warnings.warn(
-            f"the {what} is not numerically positive definite; added {jitter:.2g} "
-            "to its diagonal",
-            NumericalWarning,
-            stacklevel=3,
-        )
-        return L, jitter
-    raise ValueError(
-        f"the {what} is not positive definite even with jitter "
-        f"{1e-4 * scale:.2g}; increase noise_level or check the kernel"
-    )
 
 
 class GaussianCoefficients:
@@ -210,38 +169,38 @@ class GaussianCoefficients:
 class DataSpacePosterior(GaussianCoefficients):
     """Posterior of the FIR coefficients given slow data, in the M x M data space.
 
+    Holds the observation and the kernel, so that it answers the posterior at
+    real lags (:meth:`at_lags`) on its own.
+
     Parameters
     ----------
-    operator : Observation
-    kernel : sklearn Kernel over lags
-    noise_level : float
-        Noise variance ``gamma`` of the slow samples.
+    covariance : DenseCovariance
+        ``Ky = S + gamma I`` of the data (:func:`~gpmultirate.covariance.data_covariance`).
     y : ndarray of shape (M,)
     """
 
-    def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
-        term = observe(kernel, operator)
+    def __init__(self, covariance, y: np.ndarray):
+        term = covariance.term
+        self.observation, self.kernel = covariance.observation, covariance.kernel
         K = term.kernel_matrix()
         PhiK = term.regressor_times_kernel()
-        # the structured S (filters, recursion) rather than the O(M^2 P) PhiK Phi^T
-        Ky = term.covariance().copy()
-        Ky[np.diag_indices_from(Ky)] += noise_level
-        self.L, self.jitter = robust_cholesky(Ky)
-        self.alpha = linalg.cho_solve((self.L, True), y, check_finite=False)
-        B = linalg.solve_triangular(self.L, PhiK, lower=True, check_finite=False)
+        self.L, self.jitter = covariance.L, covariance.jitter
+        self.alpha = covariance.solve(y)
+        B = covariance.whiten(PhiK)
         # eq. (15): K Phi^T (Phi K Phi^T + gamma I)^{-1} y
         super().__init__(PhiK.T @ self.alpha, K, B)
         self.log_marginal_likelihood = log_gaussian(
             y @ self.alpha, 2.0 * np.log(np.diag(self.L)).sum(), y.shape[0]
         )
 
-    def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
+    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return operator.cross_covariance(kernel, X) @ self.alpha
+        return self.observation.cross_covariance(self.kernel, X) @ self.alpha
 
-    def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
+    def at_lags(self, X: np.ndarray, full_cov: bool = False):
         """Posterior mean and variance (or covariance) of ``g`` at the kernel inputs ``X``."""
-        cross = operator.cross_covariance(kernel, X)
+        kernel = self.kernel
+        cross = self.observation.cross_covariance(kernel, X)
         mean = cross @ self.alpha
         V = linalg.solve_triangular(self.L, cross.T, lower=True, check_finite=False)
         if full_cov:
@@ -287,36 +246,27 @@ class ParameterSpacePosterior(_FactoredCoefficients):
 
         min_z ||y - Phi F z||^2 / gamma + ||z||^2,
 
-    which is solved by a QR factorisation of ``[Phi F / sqrt(gamma); I]``:
-    its accuracy is that of least squares, not of the ``M x M`` matrix
+    which is solved by a QR factorisation of ``[Phi F / sqrt(gamma); I]``
+    (:class:`~gpmultirate.covariance.ParameterSpaceCovariance`): its accuracy
+    is that of least squares, not of the ``M x M`` matrix
     ``Phi K Phi^T + gamma I``, whose condition number grows as ``1/gamma``
-    when ``M > P``.  The evidence follows from the same factor:
-    ``y^T Ky^{-1} y`` is the minimum above and
-    ``log det Ky = M log gamma + log det(R^T R)``.
+    when ``M > P``.  The evidence follows from the same factor.
+
+    Parameters
+    ----------
+    covariance : ParameterSpaceCovariance
+    y : ndarray of shape (M,)
     """
 
-    def __init__(self, operator, kernel, noise_level: float, y: np.ndarray):
-        Phi = operator.matrix
-        K = operator.kernel_matrix(kernel)
-        values, vectors = linalg.eigh(0.5 * (K + K.T), check_finite=False)
-        keep = values > max(values.max(), 0.0) * 1e-14
-        if not np.any(keep):
-            raise ValueError("the kernel matrix is zero at lags 0..order-1")
-        self.inv_root = vectors[:, keep] / np.sqrt(values[keep])  # F^{+T}
-        F = vectors[:, keep] * np.sqrt(values[keep])
-        root_noise = np.sqrt(noise_level)
-        rank = F.shape[1]
-        stacked = np.vstack([Phi @ F / root_noise, np.eye(rank)])
-        Q, R = linalg.qr(stacked, mode="economic", check_finite=False)
-        z = linalg.solve_triangular(R, Q[: y.shape[0]].T @ (y / root_noise), check_finite=False)
-        self.z = z
-        self.R = R
-        residual = y - Phi @ (F @ z)
-        quad = residual @ residual / noise_level + z @ z
-        log_det = y.shape[0] * np.log(noise_level) + 2.0 * np.log(np.abs(np.diag(R))).sum()
-        self.log_marginal_likelihood = log_gaussian(quad, log_det, y.shape[0])
-        self.factor = linalg.solve_triangular(R, F.T, trans="T", check_finite=False).T
-        super().__init__(F @ z, K, None)
+    def __init__(self, covariance, y: np.ndarray):
+        self.observation, self.kernel = covariance.observation, covariance.kernel
+        self.inv_root = covariance.inv_root
+        self.z = covariance.whitened_coefficients(y)
+        self.R = covariance.R
+        self.log_marginal_likelihood = covariance.log_likelihood(y)
+        F = covariance.F
+        self.factor = linalg.solve_triangular(self.R, F.T, trans="T", check_finite=False).T
+        super().__init__(F @ self.z, covariance.K, None)
 
     def times_root(self, A: np.ndarray) -> np.ndarray:
         return A @ self.factor
@@ -324,13 +274,14 @@ class ParameterSpacePosterior(_FactoredCoefficients):
     def covariance(self) -> np.ndarray:
         return self.factor @ self.factor.T
 
-    def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
+    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return kernel(X, operator.lags) @ (self.inv_root @ self.z)
+        return self.kernel(X, self.observation.lags) @ (self.inv_root @ self.z)
 
-    def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
+    def at_lags(self, X: np.ndarray, full_cov: bool = False):
         """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged."""
-        J = kernel(X, operator.lags) @ self.inv_root
+        kernel = self.kernel
+        J = kernel(X, self.observation.lags) @ self.inv_root
         mean = J @ self.z
         JS = J @ linalg.solve_triangular(self.R, np.eye(self.R.shape[0]), check_finite=False)
         if full_cov:
@@ -346,23 +297,17 @@ class PrecisionPosterior(_FactoredCoefficients):
     For a prior whose precision ``Q = K^{-1}`` is tridiagonal (DC, a
     constant times DC: :mod:`gpmultirate.kernels.precision`), the posterior
     precision of the reduced observation ``C = Q + Phi^T Phi / gamma`` is
-    factored once, ``C = L L^T`` (:func:`_solve_by_precision`, shared with
-    the evidence): the mean is ``mu = C^{-1} Phi^T y / gamma``, eq. (15),
-    and the covariance ``Sigma = C^{-1} = S S^T`` with ``S = L^{-T}``,
-    applied by triangular solves.  One Cholesky factorization replaces the
-    two ``eigh`` and the QR of :class:`ParameterSpacePosterior`.  Built by
-    :meth:`attempt`, which gives None where that route does not apply.
+    factored once, ``C = L L^T``
+    (:class:`~gpmultirate.covariance.PrecisionCovariance`, shared with the
+    evidence): the mean is ``mu = C^{-1} Phi^T y / gamma``, eq. (15), and
+    the covariance ``Sigma = C^{-1} = S S^T`` with ``S = L^{-T}``, applied by
+    triangular solves.  One Cholesky factorization replaces the two ``eigh``
+    and the QR of :class:`ParameterSpacePosterior`.
 
     Parameters
     ----------
-    coef : ndarray of shape (P,)
-        The posterior mean ``mu``.
-    L : ndarray of shape (P, P)
-        Lower Cholesky factor of ``C``.
-    precision : TridiagonalPrecision
-        ``Q = K^{-1}``.
-    log_marginal_likelihood : float
-        The evidence of the (reduced) observation.
+    covariance : PrecisionCovariance
+    y : ndarray of shape (P,)
 
     Examples
     --------
@@ -377,28 +322,14 @@ class PrecisionPosterior(_FactoredCoefficients):
     'PrecisionPosterior'
     """
 
-    def __init__(self, coef, L, precision, log_marginal_likelihood: float):
+    def __init__(self, covariance, y: np.ndarray):
+        self.observation, self.kernel = covariance.observation, covariance.kernel
+        mu, _ = covariance.posterior_mean(y)
         # every use of the covariance goes through L: no P x P prior matrix is kept
-        super().__init__(coef, None, None)
-        self.L = L
-        self.precision = precision
-        self.log_marginal_likelihood = log_marginal_likelihood
-
-    @classmethod
-    def attempt(cls, operator, kernel, noise_level: float, y: np.ndarray):
-        """The posterior of a square or reduced observation through ``K^{-1}``, or None.
-
-        None when the kernel's term offers no precision
-        (:meth:`~gpmultirate.kernels.ObservedTerm.precision`) or ``C`` is not
-        numerically positive definite.
-        """
-        precision = _square_precision(observe(kernel, operator), operator)
-        found = None if precision is None else _solve_by_precision(
-            operator, precision, noise_level, y)
-        if found is None:
-            return None
-        L, mu, _, value = found
-        return cls(mu, L, precision, value)
+        super().__init__(mu, None, None)
+        self.L = covariance.L
+        self.precision = covariance.precision
+        self.log_marginal_likelihood = covariance.log_likelihood(y)
 
     def times_root(self, A: np.ndarray) -> np.ndarray:
         # A L^{-T} = (L^{-1} A^T)^T
@@ -407,17 +338,18 @@ class PrecisionPosterior(_FactoredCoefficients):
     def covariance(self) -> np.ndarray:
         return inverse_from_cholesky(self.L)
 
-    def mean_at_lags(self, operator, kernel, X: np.ndarray) -> np.ndarray:
+    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return kernel(X, operator.lags) @ self.precision.times(self.coef)
+        return self.kernel(X, self.observation.lags) @ self.precision.times(self.coef)
 
-    def at_lags(self, operator, kernel, X: np.ndarray, full_cov: bool):
+    def at_lags(self, X: np.ndarray, full_cov: bool = False):
         """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged.
 
         With ``J = k(X, lags) K^{-1}`` (``K^{-1}`` tridiagonal): mean ``J mu``,
         covariance ``k(X, X) - J k(lags, X) + J Sigma J^T``.
         """
-        cross = kernel(X, operator.lags)
+        kernel = self.kernel
+        cross = kernel(X, self.observation.lags)
         J = self.precision.times(cross.T).T
         mean = J @ self.coef
         JS = self.times_root(J)
@@ -428,6 +360,14 @@ class PrecisionPosterior(_FactoredCoefficients):
         return mean, np.maximum(var, 0.0)
 
 
+#: the posterior each route of the data covariance gives
+_POSTERIORS = {
+    DenseCovariance: DataSpacePosterior,
+    PrecisionCovariance: PrecisionPosterior,
+    ParameterSpaceCovariance: ParameterSpacePosterior,
+}
+
+
 def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
     """The posterior in whichever space is smaller: data (``M <= P``) or parameters.
 
@@ -436,16 +376,12 @@ def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCo
     ``Phi``), whose least-squares form gives the same posterior; ``operator``
     may be such a reduction already (``y`` is then its ``z``).  The posterior
     of the reduction is :class:`PrecisionPosterior` where the prior has a
-    tridiagonal precision, else :class:`ParameterSpacePosterior`.
+    tridiagonal precision, else :class:`ParameterSpacePosterior`: the route
+    of :func:`~gpmultirate.covariance.data_covariance` decides.
     """
     data, z = reduce_observation(operator, y)
-    if data.n_discarded == 0:
-        return DataSpacePosterior(data, kernel, noise_level, z)
-    result = PrecisionPosterior.attempt(data, kernel, noise_level, z)
-    if result is None:
-        result = ParameterSpacePosterior(data, kernel, noise_level, z)
-    result.log_marginal_likelihood += data.discarded_log_likelihood(noise_level)[0]
-    return result
+    covariance = data_covariance(kernel, data, WhiteNoise(noise_level), space="posterior")
+    return _POSTERIORS[type(covariance)](covariance, z)
 
 
 def log_marginal_likelihood(
@@ -456,130 +392,10 @@ def log_marginal_likelihood(
     The gradient has the kernel's ``theta`` first and, when ``noise_free`` is
     true, the derivative with respect to ``log(noise_level)`` last.
     """
-    term = observe(kernel, operator)
-    precision = _square_precision(term, operator)
-    if precision is not None:
-        found = _log_marginal_likelihood_by_precision(
-            operator, precision, noise_level, y, eval_gradient, noise_free
-        )
-        if found is not None:
-            return found
-    if eval_gradient:
-        S, contract = term.covariance_with_contractor()
-    else:
-        S = term.covariance()
-    Ky = S.copy()
-    Ky[np.diag_indices_from(Ky)] += noise_level
-    L, _ = robust_cholesky(Ky)
-    alpha = linalg.cho_solve((L, True), y, check_finite=False)
-    rest_value, rest_grad, _ = operator.discarded_log_likelihood(noise_level)
-    value = log_gaussian(y @ alpha, 2.0 * np.log(np.diag(L)).sum(), y.shape[0]) + rest_value
+    noise = WhiteNoise(noise_level, (0.0, np.inf) if noise_free else "fixed")
     if not eval_gradient:
-        return value
-    W = inverse_from_cholesky(L)
-    W *= -1.0
-    W = linalg.blas.dger(1.0, alpha, alpha, a=W, overwrite_a=True)  # + alpha alpha^T
-    grad = 0.5 * contract(W)
-    if noise_free:
-        grad = np.append(grad, 0.5 * np.trace(W) * noise_level + rest_grad)
-    return value, grad
-
-
-def _square_precision(term, operator):
-    """The prior's tridiagonal precision where the evidence and posterior go through it.
-
-    Square (or reduced, ``M = P``) data and a term that offers one
-    (:meth:`~gpmultirate.kernels.ObservedTerm.precision`); None otherwise.
-    """
-    if operator.n_outputs != operator.n_coefficients:
-        return None
-    return term.precision()
-
-
-def _solve_by_precision(operator, precision, noise_level, y):
-    """The posterior precision's Cholesky factor, the posterior mean and the evidence, or None.
-
-    For a square (or reduced, ``M = P``) observation and a tridiagonal
-    ``Q = K^{-1}``, with ``A = Phi^T Phi`` and ``C = Q + A / gamma`` (the
-    posterior precision), ``mu = C^{-1} Phi^T y / gamma`` (eq. 15 by the
-    matrix inversion lemma) and
-
-    * ``y^T Ky^{-1} y = |y - Phi mu|^2 / gamma + mu^T Q mu``;
-    * ``log det Ky = M log gamma + log det K + log det C`` (``M = P``).
-
-    Returns ``(L, mu, |y - Phi mu|^2, log N(y; 0, Ky))`` with ``C = L L^T``,
-    or None when ``C`` is not numerically positive definite.
-    """
-    A, _ = operator.gram()  # kept by the observation: the same in every evaluation
-    b = operator.rmatvec(y)
-    C = A / noise_level
-    P = C.shape[0]
-    C.flat[:: P + 1] += precision.diagonal
-    C.flat[1 :: P + 1] += precision.off_diagonal
-    C.flat[P :: P + 1] += precision.off_diagonal
-    try:
-        L = linalg.cholesky(C, lower=True, overwrite_a=True, check_finite=False)
-    except linalg.LinAlgError:
-        return None
-    mu = linalg.cho_solve((L, True), b / noise_level, check_finite=False)
-    residual = y - operator.matvec(mu)
-    squares = float(residual @ residual)
-    quadratic = squares / noise_level + float(mu @ precision.times(mu))
-    log_det = (P * np.log(noise_level) + precision.log_det_covariance
-               + 2.0 * np.log(np.diag(L)).sum())
-    return L, mu, squares, log_gaussian(quadratic, log_det, P)
-
-
-def _log_marginal_likelihood_by_precision(operator, precision, noise_level, y, eval_gradient,
-                                          noise_free):
-    """The evidence of a square (or reduced) observation through a tridiagonal ``K^{-1}``.
-
-    With ``Q = K^{-1}`` and ``Sigma = C^{-1}`` (:func:`_solve_by_precision`):
-
-    * ``d/d theta_j = -1/2 (mu^T dQ_j mu + tr(Sigma dQ_j) + d log det K / d theta_j)``;
-    * ``d/d log gamma = 1/2 |y - Phi mu|^2 / gamma - 1/2 tr(Sigma Q)``.
-
-    ``dQ_j`` and ``Q`` are tridiagonal, so only the tridiagonal band of
-    ``Sigma`` is needed: a Cholesky factorisation and a triangular inverse,
-    about a quarter of the flops of the data-space route.  None when ``C``
-    is not numerically positive definite (the data-space route then answers).
-    """
-    found = _solve_by_precision(operator, precision, noise_level, y)
-    if found is None:
-        return None
-    L, mu, squares, value = found
-    rest_value, rest_grad, _ = operator.discarded_log_likelihood(noise_level)
-    value += rest_value
-    if not eval_gradient:
-        return value
-    inverse, info = linalg.lapack.dtrtri(L, lower=1)
-    if info != 0:
-        return None
-    # the band of Sigma = L^{-T} L^{-1}, and of Sigma + mu mu^T
-    sigma_diagonal = np.einsum("ki,ki->i", inverse, inverse)
-    sigma_off = np.einsum("ki,ki->i", inverse[:, :-1], inverse[:, 1:])
-    band_diagonal = sigma_diagonal + mu * mu
-    band_off = sigma_off + mu[:-1] * mu[1:]
-    grad = np.array([
-        -0.5 * (d @ band_diagonal + 2.0 * (o @ band_off) + log_det_j)
-        for (d, o), log_det_j in zip(precision.derivatives, precision.log_det_gradient)
-    ])
-    if noise_free:
-        trace = precision.diagonal @ sigma_diagonal + 2.0 * (precision.off_diagonal @ sigma_off)
-        grad = np.append(grad, 0.5 * squares / noise_level - 0.5 * trace + rest_grad)
-    return value, grad
-
-
-def inverse_from_cholesky(L: np.ndarray) -> np.ndarray:
-    """The symmetric inverse ``(L L^T)^{-1}`` from a lower Cholesky factor (LAPACK potri)."""
-    inverse, info = linalg.lapack.dpotri(L, lower=1)
-    if info != 0:
-        return linalg.cho_solve((L, True), np.eye(L.shape[0]), check_finite=False)
-    # potri fills the lower triangle; the upper one is that of L, zero
-    diagonal = np.diag(inverse).copy()
-    inverse += inverse.T
-    inverse[np.diag_indices_from(inverse)] = diagonal
-    return inverse
+        return data_covariance(kernel, operator, noise).log_likelihood(y)
+    return data_covariance(kernel, operator, noise, "contraction").log_likelihood_gradient(y)
 
 
 def log_marginal_likelihood_fisher(
@@ -587,79 +403,12 @@ def log_marginal_likelihood_fisher(
 ):
     """Log evidence, its gradient and its Fisher information in ``theta``.
 
-    With ``a = Ky^{-1} y`` and ``V_j = Ky^{-1} dKy_j`` (``dKy_j`` the
-    derivative of the data covariance with respect to ``theta_j``):
-
-    * gradient ``g_j = 1/2 (a^T dKy_j a - tr V_j)``;
-    * Fisher information ``F_jk = 1/2 tr(V_j V_k)``, the expected negative
-      Hessian of the log evidence.
-
-    A dense derivative costs one matrix product ``Ky^{-1} dKy_j``; low-rank
-    derivatives (PK terms, constants) stay factored, ``dKy_j = U D U^T``
-    with ``B = Ky^{-1} U``, so their traces cost ``O(M^2 r)``.  The entries
-    follow the kernel's ``theta`` and, when ``noise_free``, ``log(noise_level)``
-    last.
+    :meth:`~gpmultirate.covariance.DenseCovariance.log_likelihood_fisher`:
+    the entries follow the kernel's ``theta`` and, when ``noise_free``,
+    ``log(noise_level)`` last.
     """
-    S, items = observe(kernel, operator).covariance_with_derivatives()
-    Ky = S.copy()  # S may itself be an item (the derivative of an amplitude)
-    Ky[np.diag_indices_from(Ky)] += noise_level
-    L, _ = robust_cholesky(Ky)
-    M = y.shape[0]
-    inverse = inverse_from_cholesky(L)
-    a = inverse @ y
-    value = log_gaussian(y @ a, 2.0 * np.log(np.diag(L)).sum(), M)
-    terms = []  # ("dense", dS, V, V^T) or ("factor", U, B, D)
-    solved = {}  # factors shared by the items of one PK term are solved once
-    for item in items:
-        if isinstance(item, tuple):
-            U, D = item
-            if id(U) not in solved:
-                solved[id(U)] = inverse @ U
-            terms.append(("factor", U, solved[id(U)], D))
-        else:
-            product = inverse @ item
-            # tr(V_j V_k) = sum(V_j * V_k^T): keep the transpose contiguous
-            terms.append(("dense", item, product, np.ascontiguousarray(product.T)))
-    if noise_free:
-        scaled = noise_level * inverse  # symmetric: its own transpose
-        terms.append(("dense", None, scaled, scaled))
-    n = len(terms)
-    grad = np.empty(n)
-    fisher = np.empty((n, n))
-    for j, term in enumerate(terms):
-        if term[0] == "factor":
-            _, U, B, D = term
-            Ua = U.T @ a
-            grad[j] = 0.5 * (Ua @ D @ Ua - np.sum(D * (B.T @ U)))
-        else:
-            _, dS, V, _ = term
-            quad = noise_level * (a @ a) if dS is None else a @ dS @ a
-            grad[j] = 0.5 * (quad - np.trace(V))
-        for k in range(j + 1):
-            fisher[j, k] = fisher[k, j] = 0.5 * _trace_of_product(term, terms[k])
-    rest_value, rest_grad, rest_fisher = operator.discarded_log_likelihood(noise_level)
-    value += rest_value
-    if noise_free:
-        grad[-1] += rest_grad
-        fisher[-1, -1] += rest_fisher
-    return value, grad, fisher
-
-
-def _trace_of_product(term1, term2) -> float:
-    """``tr(V1 V2)`` for ``V = Ky^{-1} dKy`` given as dense products or factors."""
-    if term1[0] == "factor" and term2[0] == "factor":
-        _, U1, _, D1 = term1
-        _, _, B2, D2 = term2
-        C = U1.T @ B2  # U1^T Ky^{-1} U2
-        return float(np.sum((D1 @ C) * (C @ D2)))
-    if term1[0] == "factor":
-        term1, term2 = term2, term1
-    V = term1[2]
-    if term2[0] == "factor":
-        _, U, B, D = term2
-        # tr(V B D U^T) = sum((U^T V B) * D^T)
-        return float(np.sum(((U.T @ V) @ B) * D.T))
-    return float(np.vdot(V, term2[3]))
+    noise = WhiteNoise(noise_level, (0.0, np.inf) if noise_free else "fixed")
+    return data_covariance(kernel, operator, noise, "matrices").log_likelihood_fisher(y)
 
 
 def resonance_grid_log_marginal_likelihood(
@@ -670,8 +419,8 @@ def resonance_grid_log_marginal_likelihood(
     ``term`` must be a summand of ``kernel`` (not inside a product) whose
     structured term is low rank (:meth:`~gpmultirate.kernels.ObservedTerm.low_rank`),
     such as a PK resonance; returns None otherwise.  The rest of the data
-    covariance is factored once and the summand enters each candidate by
-    the matrix determinant lemma and the Woodbury identity: ``O(M^2)`` per
+    covariance is factored once and the summand enters each candidate as a
+    :class:`~gpmultirate.covariance.WoodburyCovariance`: ``O(M^2)`` per
     candidate instead of ``O(M^3)``.
     """
     tree = observe(kernel, operator)
@@ -680,33 +429,123 @@ def resonance_grid_log_marginal_likelihood(
     if found is None:
         return None
     U, weights = found
-    Ky = S_rest
-    Ky[np.diag_indices_from(Ky)] += noise_level
-    L, _ = robust_cholesky(Ky)
-    w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
-    half_log_det = np.log(np.diag(L)).sum()
-    rest = operator.discarded_log_likelihood(noise_level)[0]
-    A = linalg.solve_triangular(L, U, lower=True, check_finite=False)
-    result = np.empty(len(values))
-    start = 0
-    for k, weight in enumerate(weights):
-        rank = weight.shape[0]
-        # B = L^{-1} U_k D^{1/2}, for the positive semidefinite weight D
-        d, Q = np.linalg.eigh(weight)
-        B = A[:, start : start + rank] @ (Q * np.sqrt(np.maximum(d, 0.0)))
-        start += rank
-        C = np.eye(rank) + B.T @ B
-        b = B.T @ w
-        chol = np.linalg.cholesky(C)
-        v = np.linalg.solve(chol, b)
-        # Woodbury: quadratic w^T w - v^T v; determinant lemma: det Ky = det(L L^T) det C
-        result[k] = log_gaussian(
-            w @ w - v @ v, 2.0 * (half_log_det + np.log(np.diag(chol)).sum()), y.shape[0]
-        ) + rest
-    return result
+    rest = DenseCovariance(tree, WhiteNoise(noise_level), WhiteNoise(noise_level).remainder(operator),
+                           S_rest, copy=False)
+    return np.array([update.log_likelihood(y) for update in rest.plus_low_rank(U, weights)])
 
 
-class LogEvidence:
+class TuningObjective:
+    """What every objective of tuning shares: the kernel, the noise model and ``theta``.
+
+    ``theta`` is the kernel's ``theta`` followed by the noise model's (the
+    log noise level when it is tuned); :func:`~gpmultirate.tuning.maximize`
+    treats every subclass alike: :class:`LogEvidence` and
+    :class:`~gpmultirate.crossvalidation.CrossValidation`.  Subclasses are
+    callable, ``objective(theta, eval_gradient=False)``, and say whether
+    they offer :meth:`LogEvidence.with_fisher` (``has_fisher``).
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        The kernel at the initial hyperparameters (not modified).
+    noise_level : float
+        The noise variance; the initial value when it is tuned.
+    noise_bounds : pair of floats or "fixed"
+    """
+
+    #: whether ``with_fisher`` is available (Fisher scoring may be used)
+    has_fisher = False
+
+    def __init__(self, kernel, noise_level: float, noise_bounds):
+        self.kernel = kernel
+        self.noise = WhiteNoise(noise_level, noise_bounds)
+        self._work = None
+
+    @property
+    def noise_level(self) -> float:
+        """The (initial) noise variance."""
+        return self.noise.level
+
+    @property
+    def noise_bounds(self):
+        """The bounds of the noise variance, or ``"fixed"``."""
+        return self.noise.noise_bounds
+
+    @property
+    def noise_is_free(self) -> bool:
+        """Whether the noise model's ``theta`` (``log(noise_level)``) ends ``theta``."""
+        return self.noise.is_free
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The initial ``theta``: the kernel's and, if tuned, ``log(noise_level)``."""
+        theta = self.kernel.theta
+        return np.append(theta, self.noise.theta) if self.noise_is_free else theta
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Bounds of ``theta`` (the kernel's ``bounds``, log noise bounds), of shape ``(n, 2)``."""
+        bounds = self.kernel.bounds.reshape(-1, 2)
+        if self.noise_is_free:
+            bounds = np.vstack([bounds, self.noise.bounds])
+        return bounds
+
+    def roles(self) -> list:
+        """One :class:`~gpmultirate.kernels.Role` per kernel entry of ``theta``."""
+        return observe(self.kernel).roles()
+
+    def scale_positions(self):
+        """``[(position, power)]`` of the amplitudes that scale the whole kernel, or None."""
+        term = observe(self.kernel)
+        positions = term.scale_roles()
+        if positions is None:
+            return None
+        roles = term.roles()
+        return [(i, roles[i].power) for i in positions]
+
+    def amplitude_couplings(self):
+        """Correlations and the amplitudes scaling their terms, as positions in ``theta``.
+
+        ``[(correlation, amplitude, power)]`` with the amplitude's power (see
+        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`).
+        """
+        term = observe(self.kernel)
+        roles = term.roles()
+        return [(j, a, roles[a].power) for j, a in term.amplitude_couplings()]
+
+    def split(self, theta, into=None):
+        """The kernel and noise level of ``theta``.
+
+        With ``into`` (a kernel of the same structure) its ``theta`` is set
+        in place instead of cloning.
+        """
+        n_kernel = self.kernel.theta.shape[0]
+        if into is None:
+            kernel = self.kernel.clone_with_theta(theta[:n_kernel])
+        else:
+            into.theta = theta[:n_kernel]
+            kernel = into
+        return kernel, self.noise.with_theta(theta[n_kernel:]).level
+
+    def moved_to(self, kernel, noise_level: float) -> "TuningObjective":
+        """The same objective, on the same data, started at ``kernel`` and ``noise_level``."""
+        moved = type(self).__new__(type(self))
+        moved.__dict__.update(self.__dict__)
+        moved.kernel, moved.noise = kernel, WhiteNoise(noise_level, self.noise.noise_bounds)
+        return moved
+
+    def reusing_kernel(self) -> "TuningObjective":
+        """A copy whose evaluations set the hyperparameters of one working kernel in place.
+
+        An optimizer evaluates hundreds of points, and a deep copy of the
+        kernel per point is a large part of a small problem's cost.
+        """
+        reusing = self.moved_to(self.kernel, self.noise_level)
+        reusing._work = clone(self.kernel)
+        return reusing
+
+
+class LogEvidence(TuningObjective):
     """The log marginal likelihood of the data as a function of ``theta``.
 
     The objective that tuning maximizes: ``theta`` is the kernel's ``theta``
@@ -747,58 +586,16 @@ class LogEvidence:
     (4,)
     """
 
-    #: whether :meth:`with_fisher` is available (Fisher scoring may be used)
     has_fisher = True
 
     def __init__(self, observation, y, kernel, noise_level: float, noise_bounds):
+        super().__init__(kernel, noise_level, noise_bounds)
         self.data, self.z = reduce_observation(observation, y)
-        self.kernel = kernel
-        self.noise_level = float(noise_level)
-        self.noise_bounds = noise_bounds
-        self.noise_is_free = not isinstance(noise_bounds, str)
-        self._work = None
 
     @property
     def n_outputs(self) -> int:
         """Outputs of the (reduced) data: the size of every data-space matrix."""
         return self.data.n_outputs
-
-    @property
-    def theta(self) -> np.ndarray:
-        """The initial ``theta``: the kernel's and, if tuned, ``log(noise_level)``."""
-        theta = self.kernel.theta
-        return np.append(theta, np.log(self.noise_level)) if self.noise_is_free else theta
-
-    @property
-    def bounds(self) -> np.ndarray:
-        """Bounds of ``theta`` (the kernel's ``bounds``, log noise bounds), of shape ``(n, 2)``."""
-        bounds = self.kernel.bounds.reshape(-1, 2)
-        if self.noise_is_free:
-            bounds = np.vstack([bounds, np.log(self.noise_bounds)])
-        return bounds
-
-    def roles(self) -> list:
-        """One :class:`~gpmultirate.kernels.Role` per kernel entry of ``theta``."""
-        return observe(self.kernel).roles()
-
-    def scale_positions(self):
-        """``[(position, power)]`` of the amplitudes that scale the whole kernel, or None."""
-        term = observe(self.kernel)
-        positions = term.scale_roles()
-        if positions is None:
-            return None
-        roles = term.roles()
-        return [(i, roles[i].power) for i in positions]
-
-    def amplitude_couplings(self):
-        """Correlations and the amplitudes scaling their terms, as positions in ``theta``.
-
-        ``[(correlation, amplitude, power)]`` with the amplitude's power (see
-        :meth:`~gpmultirate.kernels.ObservedTerm.amplitude_couplings`).
-        """
-        term = observe(self.kernel)
-        roles = term.roles()
-        return [(j, a, roles[a].power) for j, a in term.amplitude_couplings()]
 
     def scale_groups(self, theta):
         """``[(positions, powers, S_part)]`` of independently scaled parts of ``S`` at ``theta``, or None."""
@@ -810,38 +607,6 @@ class LogEvidence:
         roles = tree.roles()
         return [(positions, [roles[i].power for i in positions], S) for positions, S in groups]
 
-    def split(self, theta, into=None):
-        """The kernel and noise level of ``theta``.
-
-        With ``into`` (a kernel of the same structure) its ``theta`` is set
-        in place instead of cloning.
-        """
-        n_kernel = self.kernel.theta.shape[0]
-        if into is None:
-            kernel = self.kernel.clone_with_theta(theta[:n_kernel])
-        else:
-            into.theta = theta[:n_kernel]
-            kernel = into
-        noise = float(np.exp(theta[n_kernel])) if self.noise_is_free else self.noise_level
-        return kernel, noise
-
-    def moved_to(self, kernel, noise_level: float) -> "LogEvidence":
-        """The same objective, on the same (reduced) data, started at ``kernel`` and ``noise_level``."""
-        moved = type(self).__new__(type(self))
-        moved.__dict__.update(self.__dict__)
-        moved.kernel, moved.noise_level = kernel, float(noise_level)
-        return moved
-
-    def reusing_kernel(self) -> "LogEvidence":
-        """A copy whose evaluations set the hyperparameters of one working kernel in place.
-
-        An optimizer evaluates hundreds of points, and a deep copy of the
-        kernel per point is a large part of a small problem's cost.
-        """
-        reusing = self.moved_to(self.kernel, self.noise_level)
-        reusing._work = clone(self.kernel)
-        return reusing
-
     @property
     def by_precision(self) -> bool:
         """Whether evaluations go through the prior's tridiagonal precision.
@@ -851,7 +616,17 @@ class LogEvidence:
         ``P x P`` Cholesky factor and a triangular inverse, much cheaper than
         the data-space Fisher information.
         """
-        return _square_precision(observe(self.kernel, self.data), self.data) is not None
+        return takes_precision_route(self.kernel, self.data, self.noise)
+
+    def remainder(self):
+        """The :class:`~gpmultirate.covariance.Remainder` of the reduced data at the initial noise."""
+        return self.noise.remainder(self.data)
+
+    def data_covariance(self, theta, derivatives: str | None = None):
+        """The :class:`~gpmultirate.covariance.DataCovariance` of the (reduced) data at ``theta``."""
+        kernel, _ = self.split(theta, into=self._work)
+        noise = self.noise.with_theta(theta[self.kernel.theta.shape[0]:])
+        return data_covariance(kernel, self.data, noise, derivatives)
 
     def covariance(self) -> np.ndarray:
         """``S = Phi K Phi^T`` of the (reduced) data at the initial kernel."""
@@ -859,17 +634,13 @@ class LogEvidence:
 
     def __call__(self, theta, eval_gradient: bool = False):
         """The log evidence at ``theta`` and, with ``eval_gradient``, its gradient."""
-        kernel, noise = self.split(theta, into=self._work)
-        return log_marginal_likelihood(
-            self.data, kernel, noise, self.z, eval_gradient, self.noise_is_free
-        )
+        if not eval_gradient:
+            return self.data_covariance(theta).log_likelihood(self.z)
+        return self.data_covariance(theta, "contraction").log_likelihood_gradient(self.z)
 
     def with_fisher(self, theta):
         """The log evidence, its gradient and its Fisher information at ``theta``."""
-        kernel, noise = self.split(theta, into=self._work)
-        return log_marginal_likelihood_fisher(
-            self.data, kernel, noise, self.z, self.noise_is_free
-        )
+        return self.data_covariance(theta, "matrices").log_likelihood_fisher(self.z)
 
     def along(self, theta, index: int, values):
         """The log evidence for each value of ``theta[index]``, or None.

@@ -55,8 +55,9 @@ from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import tuning
+from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian
 from gpmultirate.exceptions import NumericalWarning
-from gpmultirate.inference import LOG_2PI, LogEvidence, blas_threads_for, robust_cholesky
+from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
     PK,
     input_kernels,
@@ -65,6 +66,7 @@ from gpmultirate.kernels import (
     resonance_summands,
     without_resonances,
 )
+from gpmultirate.kernels.lag import damped_sinusoids
 from gpmultirate.validation import check_positive
 
 __all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "MIN_EXCITATION", "SEARCH_THRESHOLD", "Resonance",
@@ -260,28 +262,23 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         alphas = np.exp(-2.0 * np.asarray(_SCAN_DECAYS) / P)
     omegas = np.asarray(omegas, dtype=float)
     alphas = np.asarray(alphas, dtype=float)
-    S = observe(kernel, observation).covariance().copy()
-    S[np.diag_indices_from(S)] += noise_level
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
-        L, _ = robust_cholesky(S)
-    w = linalg.solve_triangular(L, y, lower=True, check_finite=False)
-    white = linalg.solve_triangular(L, Phi, lower=True, check_finite=False)  # L^{-1} Phi
+        covariance = DenseCovariance.of(kernel, observation, WhiteNoise(noise_level))
+    w = covariance.whiten(y)
+    white = covariance.whiten(Phi)  # L^{-1} Phi
     if amplitudes is None:
         # the size of an impulse response that explains the data's power
         power_u = float(np.mean(Phi**2)) * P or 1.0
         amplitudes = _SCAN_AMPLITUDES * np.sqrt(float(np.mean(y**2)) / power_u)
     s2 = np.asarray(amplitudes, dtype=float) ** 2
-    if n_fft is None:
-        phase = np.outer(lags, omegas)
-        cos, sin = np.cos(phase), np.sin(phase)
     gain = np.empty((alphas.size, omegas.size))
     sigma = np.empty_like(gain)
     for a, alpha in enumerate(alphas):
         envelope = alpha ** (0.5 * lags)
         if n_fft is None:
-            Ac = white @ (envelope[:, None] * cos)
-            As = white @ (envelope[:, None] * sin)
+            cos, sin = damped_sinusoids(lags, omegas, envelope)  # PK's basis, per frequency
+            Ac, As = white @ cos, white @ sin
         else:
             # sum_t x_t e^{-i omega t}: real part the cosine, minus imaginary the sine
             spectrum = np.fft.rfft(white * envelope, n=2 * n_fft, axis=1)[:, index]
@@ -593,8 +590,7 @@ class _ResonantModel:
         for r, (k, _) in enumerate(self.terms):
             rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
             s1, s2 = np.exp(x[4 + 4 * r]), np.exp(x[5 + 4 * r])
-            envelope = np.exp(-rate * lags)
-            ec, es = envelope * np.cos(omega * lags), envelope * np.sin(omega * lags)
+            ec, es = damped_sinusoids(lags, omega, np.exp(-rate * lags))
             columns = [ec, es, lags * ec, lags * es] if eval_gradient else [ec, es]
             rotated = self._rotated_regressor(k) @ np.column_stack(columns)
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
@@ -605,8 +601,9 @@ class _ResonantModel:
             v = linalg.solve_triangular(chol, DW.T @ y, lower=True, check_finite=False)
             quad -= v @ v
             log_det += 2.0 * np.log(np.diag(chol)).sum()
-        rest, rest_grad, _ = self.evidence.data.discarded_log_likelihood(float(gamma))
-        value = float(-0.5 * (quad + log_det + y.shape[0] * LOG_2PI) + rest)
+        remainder = WhiteNoise(float(gamma)).remainder(self.evidence.data)
+        rest, rest_grad, _ = remainder.log_likelihood()
+        value = log_gaussian(quad, log_det, y.shape[0]) + rest
         if not eval_gradient:
             return value
         if r_terms:

@@ -180,8 +180,9 @@ def prefit_scale_and_noise(evidence) -> np.ndarray:
     noise_level = evidence.noise_level
 
     # samples a reduced observation left out: independent N(0, g), sum of squares rho^2
-    n_rest = evidence.data.n_discarded
-    rho2 = getattr(evidence.data, "residual", 0.0)
+    # (the remainder of the data covariance; its constant is left out of this objective)
+    remainder = evidence.remainder()
+    n_rest, rho2 = remainder.n, remainder.sum_of_squares
 
     def objective(x):
         log_c = x[0] if fit_scale else 0.0

@@ -21,7 +21,7 @@ from scipy.stats import multivariate_normal
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 import gpmultirate as gm
-from gpmultirate import inference
+from gpmultirate import covariance, inference
 from gpmultirate.inference import ParameterSpacePosterior, PrecisionPosterior, posterior
 from gpmultirate.kernels import DC, PK, TC
 from gpmultirate.observations import reduce_observation
@@ -111,11 +111,12 @@ def check_posterior(result, kernel, k, record, noise):
     data, _ = reduce_observation(record["op"], y)
     X = REAL_LAGS[:, None]
     lag_mean, lag_cov = at(REAL_LAGS)
-    close(result.mean_at_lags(data, kernel, X), lag_mean)
-    found_mean, found_var = result.at_lags(data, kernel, X, full_cov=False)
+    assert result.observation.n_outputs == data.n_outputs and result.kernel is kernel
+    close(result.mean_at_lags(X), lag_mean)
+    found_mean, found_var = result.at_lags(X, full_cov=False)
     close(found_mean, lag_mean)
     close(found_var, np.diag(lag_cov), rtol=1e-7)
-    close(result.at_lags(data, kernel, X, full_cov=True)[1], lag_cov, rtol=1e-7)
+    close(result.at_lags(X, full_cov=True)[1], lag_cov, rtol=1e-7)
 
 
 @pytest.mark.parametrize("constant, alpha, beta",
@@ -141,7 +142,10 @@ def test_kernels_without_a_precision_keep_the_parameter_space(record, kernel):
 
 def test_a_failed_factorization_falls_back_to_the_parameter_space(record, monkeypatch):
     kernel = C(1.0) * DC(0.9, -0.6)
-    monkeypatch.setattr(inference, "_solve_by_precision", lambda *args: None)
+    def fails(C):
+        raise covariance.NotPositiveDefinite("C")
+
+    monkeypatch.setattr(covariance, "_cholesky_of_posterior_precision", fails)
     result = posterior(record["op"], kernel, NOISE, record["y"])
     assert type(result) is ParameterSpacePosterior
     check_posterior(result, kernel, dc(1.0, 0.9, -0.6), record, NOISE)

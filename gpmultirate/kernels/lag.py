@@ -33,12 +33,47 @@ from gpmultirate.validation import as_real_array, check_bounds, check_positive
 
 __all__ = [
     "TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags", "correlation",
-    "resonance_summands", "without_resonances",
+    "damped_sinusoids", "resonance_summands", "without_resonances",
 ]
 
 # what the tuning strategy should know of each hyperparameter (see Role)
 _DECAY = ("decay", 1.0)
 _CORRELATION = ("correlation", 1.0)
+
+
+def damped_sinusoids(lags: np.ndarray, omega, envelope: np.ndarray):
+    """PK's basis: ``e(t) cos(omega t)`` and ``e(t) sin(omega t)`` at the lags ``t``.
+
+    The one place the resonance basis is computed: by :meth:`PK.basis`
+    (``e(t) = alpha^(t/2)``) and by the resonance search, which scans many
+    frequencies at once and parametrizes the decay by its rate
+    (``e(t) = exp(-rate t)``).
+
+    Parameters
+    ----------
+    lags : ndarray of shape (n,)
+    omega : float or ndarray of shape (k,)
+        Frequencies in radians per fast sample; an array gives one column each.
+    envelope : ndarray of shape (n,)
+        The decay ``e(t)`` at the lags.
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Of shape ``(n,)`` for a scalar ``omega``, else ``(n, k)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> lags = np.arange(4.0)
+    >>> c, s = damped_sinusoids(lags, np.array([0.5, 1.0]), 0.9 ** (lags / 2.0))
+    >>> c.shape, bool(np.allclose(s[:, 1], 0.9 ** (lags / 2.0) * np.sin(lags)))
+    ((4, 2), True)
+    """
+    phase = np.multiply.outer(lags, omega)
+    if np.ndim(omega) == 0:
+        return envelope * np.cos(phase), envelope * np.sin(phase)
+    return envelope[:, None] * np.cos(phase), envelope[:, None] * np.sin(phase)
 
 
 def check_lags(X, name: str = "X") -> np.ndarray:
@@ -753,9 +788,7 @@ class PK(LagKernel):
         (ndarray of shape (n,), ndarray of shape (n,))
         """
         values = self.checked_values()
-        envelope = values["alpha"] ** (lags / 2.0)
-        omega = values["omega"]
-        return envelope * np.cos(omega * lags), envelope * np.sin(omega * lags)
+        return damped_sinusoids(lags, values["omega"], values["alpha"] ** (lags / 2.0))
 
     def lag_covariance(self, t, s, eval_gradient=False):
         alpha, omega, sigma1, sigma2 = self.checked_values().values()

@@ -58,8 +58,11 @@ class Observation:
     order: int
     n_outputs: int
     n_inputs: int = 1
-    #: samples a reduction has summarized into ``discarded_log_likelihood``
+    #: samples a reduction has summarized (their likelihood is the noise model's
+    #: :meth:`~gpmultirate.covariance.WhiteNoise.remainder`)
     n_discarded: int = 0
+    #: the sum of squares ``rho^2`` of those samples
+    residual: float = 0.0
     #: the uniform sampling the diagonal recursion needs, if any
     uniform_sampling: UniformSampling | None = None
 
@@ -210,14 +213,6 @@ class Observation:
         gram += gram.T
         gram *= 0.5
         return gram, projection
-
-    def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
-        """Evidence of the samples a reduction left out: value, derivative, Fisher information.
-
-        Derivative and information are with respect to ``log(noise_level)``;
-        all zero unless this is a reduction.
-        """
-        return 0.0, 0.0, 0.0
 
     # ------------------------------------------------- with a kernel (dense)
     def kernel_matrix(self, kernel, eval_gradient: bool = False):

@@ -72,7 +72,8 @@ class ReducedObservation(Observation):
     An :class:`~gpmultirate.observations.base.Observation` whose regressor
     is the upper-triangular ``R`` and whose outputs are ``z``
     (``n_outputs = P``); ``n_discarded = M - P`` and ``residual = rho^2``
-    carry the rest of the evidence.  Products with matrices of the sparsity
+    are the statistics of the rest of the evidence (its likelihood is the
+    noise model's :meth:`~gpmultirate.covariance.WhiteNoise.remainder`).  Products with matrices of the sparsity
     of ``R`` use triangular BLAS (half the flops).
 
     Parameters
@@ -172,17 +173,6 @@ class ReducedObservation(Observation):
             self._gram = gram
         projection = None if y is None else self._matrix.T @ y
         return self._gram, projection
-
-    def discarded_log_likelihood(self, noise_level: float) -> tuple[float, float, float]:
-        """Value, derivative and Fisher information in ``log(noise_level)`` of the rest.
-
-        The ``M - P`` discarded components are independent ``N(0, gamma)``
-        with sum of squares ``rho^2``.
-        """
-        n = self.n_discarded
-        value = -0.5 * n * (np.log(2.0 * np.pi * noise_level)) - 0.5 * self.residual / noise_level
-        grad = -0.5 * n + 0.5 * self.residual / noise_level
-        return float(value), float(grad), 0.5 * n
 
     def __repr__(self) -> str:
         return (
