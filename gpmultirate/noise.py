@@ -191,6 +191,16 @@ class KernelNoise:
         _, dN = self.matrix_with_gradient()
         return weight * np.einsum("ij,ijk->k", W, dN)
 
+    def remainder(self, observation):
+        """No remainder: coloured noise is not summarized by the white-noise reduction.
+
+        The data-covariance seam (:func:`gpmultirate.covariance.data_covariance`)
+        asks each noise model for the likelihood of what a long-record
+        reduction left out; a reduction assumes white noise, so a reduced
+        ``observation`` is refused.
+        """
+        return _no_remainder(observation)
+
     def sample_variance(self) -> float:
         """The variance of one measured sample, ``k(t, t)`` (stationary kernels)."""
         return float(self.kernel.diag(np.zeros((1, 1)))[0])
@@ -203,6 +213,17 @@ class KernelNoise:
         one spacing.
         """
         return AR1Noise.from_kernel(self.kernel, self.instants)
+
+
+def _no_remainder(observation):
+    from gpmultirate.covariance import Remainder
+
+    if getattr(observation, "n_discarded", 0) > 0:
+        raise ValueError(
+            "a reduced observation assumes white noise: a coloured noise model needs the "
+            "observation itself (the AR(1) structure has its own reduction, AR1Statistics)"
+        )
+    return Remainder(0, 0.0, 1.0)
 
 
 def _exponential_parts(kernel):
@@ -342,6 +363,26 @@ class AR1Noise:
             k = np.arange(n)
             blocks.append(self.variance * a ** np.abs(k[:, None] - k[None, :]))
         return linalg.block_diag(*blocks)
+
+    def as_kernel_noise(self) -> KernelNoise:
+        """The same noise as a :class:`KernelNoise` (``C * Matern(nu=0.5)`` at the instants)."""
+        instants = [self.spacing * np.arange(n) for n in self.counts]  # independent blocks
+        kernel = ConstantKernel(self.variance, self.variance_bounds) * Matern(
+            self.length_scale, self.length_scale_bounds, nu=0.5)
+        return KernelNoise(kernel, instants)
+
+    def add_to(self, S: np.ndarray) -> np.ndarray:
+        """``S + N`` in place; returns ``S`` (the dense route of the data-covariance seam)."""
+        S += self.matrix()
+        return S
+
+    def contract(self, W: np.ndarray, weight: float = 1.0) -> np.ndarray:
+        """``[weight tr(W dN / d theta_j)]_j`` for symmetric ``W``."""
+        return self.as_kernel_noise().contract(W, weight)
+
+    def remainder(self, observation):
+        """No remainder; a reduced ``observation`` is refused (see :class:`KernelNoise`)."""
+        return _no_remainder(observation)
 
     def _band(self, a: float):
         """Diagonal and off-diagonal of ``T`` (records joined by zero off-diagonals)."""
@@ -601,9 +642,9 @@ def dense_log_evidence(Phi, K, y, N, dK=None, dN=None, eval_gradient: bool = Fal
     grad = []
     if dK is not None:
         A = Phi.T @ W @ Phi
-        grad.extend(0.5 * np.einsum("ij,ijk->k", A, dK))
+        grad.extend(0.5 * (A.reshape(1, -1) @ dK.reshape(A.size, -1))[0])
     if dN is not None:
-        grad.extend(0.5 * np.einsum("ij,ijk->k", W, dN))
+        grad.extend(0.5 * (W.reshape(1, -1) @ dN.reshape(W.size, -1))[0])
     return value, np.array(grad)
 
 

@@ -246,3 +246,53 @@ def test_measurement_band_holds_its_level_with_coloured_disturbances():
     std = np.sqrt(row @ Sigma @ row + noise.sample_variance())
     inside = np.abs(y_new - row @ (mu_map @ Y)) <= z * std
     assert 0.94 < np.mean(inside) < 0.96  # binomial sd 0.0034
+
+
+# ------------------------------------------- the data-covariance seam
+def _seam_problem():
+    rng = np.random.default_rng(6)
+    op = DownsampledConvolution(rng.standard_normal(150), 3, 20)
+    kernel = C(0.8) * DC(0.85, 0.3)
+    y = op.matvec(0.8 ** np.arange(20)) + 0.1 * rng.standard_normal(op.n_outputs)
+    return op, kernel, y
+
+
+@pytest.mark.parametrize("make", [
+    lambda t: KernelNoise(WhiteKernel(0.05) + C(0.3) * Matern(10.0, nu=1.5), t),
+    lambda t: KernelNoise(WhiteKernel(0.05) + C(0.2) * ExpSineSquared(5.0, 24.0), t),
+    lambda t: AR1Noise(0.3, 8.0, 3.0, t.shape[0]),
+])
+def test_noise_models_plug_into_the_data_covariance(make):
+    from gpmultirate.covariance import DenseCovariance, data_covariance
+    from gpmultirate.inference import DataSpacePosterior
+
+    op, kernel, y = _seam_problem()
+    noise = make(np.arange(op.n_outputs) * 3.0)
+    dense = noise if isinstance(noise, KernelNoise) else noise.as_kernel_noise()
+    N, dN = dense.matrix_with_gradient()
+    np.testing.assert_allclose(noise.matrix(), N, rtol=1e-12)
+    K, dK = kernel(op.lags, eval_gradient=True)
+    covariance = data_covariance(kernel, op, noise, "contraction")
+    assert isinstance(covariance, DenseCovariance)
+    value, grad = covariance.log_likelihood_gradient(y)
+    ref_value, ref_grad = dense_log_evidence(op.matrix, K, y, N, dK, dN, eval_gradient=True)
+    assert value == pytest.approx(ref_value, rel=1e-10)
+    np.testing.assert_allclose(grad, ref_grad, rtol=1e-8, atol=1e-10 * np.abs(ref_grad).max())
+    posterior = DataSpacePosterior(data_covariance(kernel, op, noise, space="posterior"), y)
+    mu, Sigma = dense_posterior(op.matrix, K, y, N)
+    np.testing.assert_allclose(posterior.coef, mu, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(posterior.covariance(), Sigma, rtol=1e-8, atol=1e-12)
+
+
+def test_coloured_noise_refuses_a_reduced_observation():
+    from gpmultirate.covariance import data_covariance
+    from gpmultirate.observations import reduce_observation
+
+    rng = np.random.default_rng(7)
+    op = DownsampledConvolution(rng.standard_normal(300), 3, 10)
+    data, _ = reduce_observation(op, rng.standard_normal(op.n_outputs))
+    assert data.n_discarded > 0
+    for noise in (KernelNoise(C(1.0) * Matern(5.0, nu=1.5), np.arange(10) * 3.0),
+                  AR1Noise(1.0, 5.0, 3.0, 10)):
+        with pytest.raises(ValueError, match="reduced observation assumes white noise"):
+            data_covariance(C(1.0) * DC(0.8, 0.5), data, noise)
