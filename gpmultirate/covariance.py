@@ -164,8 +164,8 @@ class Remainder:
     --------
     >>> import numpy as np
     >>> from scipy.stats import norm
-    >>> value, grad, fisher = Remainder(2, 0.5, 0.3).log_likelihood()
-    >>> bool(np.isclose(value, norm(0.0, np.sqrt(0.3)).logpdf([0.5, 0.0]).sum()))
+    >>> value, grad, fisher = Remainder(2, 0.6**2 + 0.8**2, 0.3).log_likelihood()
+    >>> bool(np.isclose(value, norm(0.0, np.sqrt(0.3)).logpdf([0.6, 0.8]).sum()))
     True
     """
 
