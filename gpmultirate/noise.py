@@ -44,14 +44,19 @@ from sklearn.gaussian_process.kernels import (
 )
 
 __all__ = [
+    "NAMED_DISTURBANCES",
     "AR1Noise",
     "AR1Statistics",
     "KernelNoise",
     "ar1_log_evidence",
     "dense_log_evidence",
     "dense_posterior",
+    "make_noise",
     "white_level",
 ]
+
+#: The named disturbances of ``make_noise``: Matérn smoothness ``nu`` of each.
+NAMED_DISTURBANCES = {"matern12": 0.5, "matern32": 1.5}
 
 LOG_2PI = np.log(2.0 * np.pi)
 
@@ -668,3 +673,69 @@ def dense_posterior(Phi, K, y, N):
     mu = PhiK.T @ linalg.cho_solve((L, True), y, check_finite=False)
     Sigma = K - B.T @ B
     return mu, 0.5 * (Sigma + Sigma.T)
+
+
+def _has_white(kernel) -> bool:
+    if isinstance(kernel, WhiteKernel):
+        return True
+    return isinstance(kernel, Sum) and (_has_white(kernel.k1) or _has_white(kernel.k2))
+
+
+def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
+               length_scale: float = 10.0):
+    """The noise model of a choice: ``"white"``, a named disturbance or a kernel.
+
+    Parameters
+    ----------
+    noise_kernel : "white", "matern12", "matern32" or sklearn Kernel
+        ``"white"``: ``gamma I`` (:class:`gpmultirate.covariance.WhiteNoise`).
+        ``"matern12"``/``"matern32"``: white noise plus
+        ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the instants, the
+        constant started at ``noise_level`` with the noise level's bounds.
+        A kernel: a disturbance over the instants, added to white noise of
+        ``noise_level`` unless it holds a ``WhiteKernel`` summand itself.
+    noise_level : float
+        The white noise variance ``gamma`` (the start when it is tuned).
+    noise_level_bounds : pair of floats or "fixed"
+    instants : array-like of shape (M,), or a list of them
+        The instant of each slow sample in fast samples, one array per record.
+    length_scale : float, default=10.0
+        The start of a named disturbance's time scale, in fast samples.
+
+    Returns
+    -------
+    WhiteNoise or KernelNoise
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> noise = make_noise("matern32", 0.1, (1e-3, 1.0), np.arange(5) * 3.0)
+    >>> noise.kernel
+    WhiteKernel(noise_level=0.1) + 0.316**2 * Matern(length_scale=10, nu=1.5)
+    >>> type(make_noise("white", 0.1, "fixed", np.arange(5))).__name__
+    'WhiteNoise'
+    """
+    from gpmultirate.covariance import WhiteNoise
+
+    gamma = float(noise_level)
+    if not (np.isfinite(gamma) and gamma > 0):
+        raise ValueError(f"noise_level must be finite and positive; got {noise_level!r}")
+    bounds = noise_level_bounds
+    if isinstance(noise_kernel, str):
+        if noise_kernel == "white":
+            return WhiteNoise(gamma, bounds)
+        if noise_kernel not in NAMED_DISTURBANCES:
+            raise ValueError(
+                f"noise_kernel must be 'white', {', '.join(map(repr, NAMED_DISTURBANCES))} or a "
+                f"scikit-learn kernel; got {noise_kernel!r}"
+            )
+        disturbance = ConstantKernel(gamma, bounds) * Matern(
+            length_scale, "fixed" if isinstance(bounds, str) else (1.0, 1e4),
+            nu=NAMED_DISTURBANCES[noise_kernel])
+        return KernelNoise(WhiteKernel(gamma, bounds) + disturbance, instants)
+    if not isinstance(noise_kernel, Kernel):
+        raise ValueError(f"noise_kernel must be 'white', a named disturbance or a scikit-learn "
+                         f"kernel; got {type(noise_kernel).__name__}")
+    if _has_white(noise_kernel):
+        return KernelNoise(noise_kernel, instants)
+    return KernelNoise(WhiteKernel(gamma, bounds) + noise_kernel, instants)

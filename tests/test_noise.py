@@ -296,3 +296,31 @@ def test_coloured_noise_refuses_a_reduced_observation():
                   AR1Noise(1.0, 5.0, 3.0, 10)):
         with pytest.raises(ValueError, match="reduced observation assumes white noise"):
             data_covariance(C(1.0) * DC(0.8, 0.5), data, noise)
+
+
+def test_make_noise_builds_each_choice():
+    from gpmultirate.covariance import WhiteNoise
+    from gpmultirate.noise import make_noise
+
+    t = np.arange(6) * 3.0
+    white = make_noise("white", 0.2, (1e-3, 1.0), t)
+    assert isinstance(white, WhiteNoise) and white.level == 0.2
+    for name, nu in (("matern12", 0.5), ("matern32", 1.5)):
+        noise = make_noise(name, 0.2, (1e-3, 1.0), t, length_scale=7.0)
+        expected = WhiteKernel(0.2)(t[:, None]) + (C(0.2) * Matern(7.0, nu=nu))(t[:, None])
+        np.testing.assert_allclose(noise.matrix(), expected, rtol=1e-12)
+        assert noise.level == 0.2 and noise.theta.shape == (3,)
+    fixed = make_noise("matern12", 0.2, "fixed", t)
+    assert not fixed.is_free
+    periodic = C(0.5) * ExpSineSquared(2.0, 12.0)
+    added = make_noise(periodic, 0.2, "fixed", t)
+    np.testing.assert_allclose(added.matrix(), 0.2 * np.eye(6) + periodic(t[:, None]),
+                               rtol=1e-12)
+    own = WhiteKernel(0.05) + C(1.0) * Matern(4.0, nu=1.5)
+    assert make_noise(own, 0.2, "fixed", t).level == pytest.approx(0.05)
+    with pytest.raises(ValueError, match="noise_kernel"):
+        make_noise("matern52", 0.2, "fixed", t)
+    with pytest.raises(ValueError, match="noise_kernel"):
+        make_noise(3, 0.2, "fixed", t)
+    with pytest.raises(ValueError, match="noise_level"):
+        make_noise("white", -1.0, "fixed", t)
