@@ -48,6 +48,7 @@ from gpmultirate.kernels import (
     rescaled,
 )
 from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.noise import NAMED_DISTURBANCES, make_noise, noise_instants
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
 from gpmultirate.observations.sampled import check_initial_conditions
@@ -133,7 +134,8 @@ class _FIRModelMixin:
             for k in range(x.shape[1])
         ])
 
-    def predict(self, u, return_std: bool = False, sample_times=None):
+    def predict(self, u, return_std: bool = False, sample_times=None,
+                include_noise: bool = False):
         """Fast-rate output of the model for input ``u``.
 
         ``y(n) = sum_k sum_i g_k(i) u_k(n - i)`` for ``n = 0..len(u)-1``,
@@ -155,6 +157,12 @@ class _FIRModelMixin:
             increasing in ``[0, len(u))``), with the model's exposure and
             latency (:doc:`/cameras`); the standard deviation is that of the
             noise-free reading.
+        include_noise : bool, default=False
+            With ``return_std``: the standard deviation of a measured sample
+            instead, the band a new measurement should fall in: the
+            posterior variance of the output plus the variance of one
+            sample of the fitted noise (the disturbance's and the white
+            noise's, see :doc:`/disturbances`).
 
         Returns
         -------
@@ -162,6 +170,15 @@ class _FIRModelMixin:
         std : ndarray of shape (n,), only if ``return_std``
         """
         check_is_fitted(self, "coef_")
+        if include_noise and not return_std:
+            raise ValueError("include_noise=True needs return_std=True")
+        if include_noise:
+            predicted = self.predict(u, True, sample_times)
+            extra = self._measurement_noise_variance()
+            if is_record_list(u):
+                return [(m, np.sqrt(s**2 + extra)) for m, s in predicted]
+            mean, std = predicted
+            return mean, np.sqrt(std**2 + extra)
         if is_record_list(u):
             if sample_times is None:
                 return [self.predict(u_r, return_std) for u_r in u]
@@ -187,6 +204,15 @@ class _FIRModelMixin:
             else:
                 mean[rows] = A @ self.posterior_.coef
         return (mean, np.sqrt(var)) if return_std else mean
+
+    def _measurement_noise_variance(self) -> float:
+        """The variance of one measured sample's noise (disturbance and white noise)."""
+        model = getattr(self, "_noise_model", None)
+        if model is not None and not model.white:
+            return float(model.sample_variance())
+        if hasattr(self, "noise_level_"):
+            return float(self.noise_level_)
+        return float(self.noise_variance_)
 
     def _predict_readings(self, x, sample_times, return_std):
         """Readings at ``sample_times``: here only on the fast ticks (no model between them)."""
@@ -423,6 +449,18 @@ ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
 
 
+def _check_noise_kernel(noise_kernel):
+    """``noise_kernel`` checked: ``"white"``, a named disturbance or a scikit-learn kernel."""
+    if isinstance(noise_kernel, Kernel):
+        return noise_kernel
+    if isinstance(noise_kernel, str) and (noise_kernel == "white"
+                                          or noise_kernel in NAMED_DISTURBANCES):
+        return noise_kernel
+    names = ", ".join(repr(name) for name in ("white", *NAMED_DISTURBANCES))
+    raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
+                     f"got {noise_kernel!r}")
+
+
 def _check_tuning(tuning_criterion) -> str:
     if not isinstance(tuning_criterion, str) or tuning_criterion not in (
         "evidence", "cross_validation"
@@ -455,6 +493,7 @@ class _Settings:
     max_resonances: int
     normalize: bool
     tuned: bool
+    noise_kernel: object = "white"
 
 
 @dataclass
@@ -475,6 +514,8 @@ class _Fit:
     log_marginal_likelihood_value_: float
     resonances_: object = None
     cv_log_predictive_likelihood_: float | None = None
+    noise_kernel_: object = "white"
+    noise_model: object = None
 
 
 class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
@@ -688,6 +729,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         cv: int = 5,
         exposure: float = 0.0,
         latency: float = 0.0,
+        noise_kernel="white",
     ):
         self.kernel = kernel
         self.factor = factor
@@ -706,6 +748,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.cv = cv
         self.exposure = exposure
         self.latency = latency
+        self.noise_kernel = noise_kernel
 
     # ------------------------------------------------------------------ fit
     def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "FIRGaussianProcess":
@@ -824,8 +867,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         """
         operator = self.observation_
         order = operator.order
+        # under a disturbance model correlated residuals are the model's, not a short order's
         if (operator.n_outputs <= operator.n_coefficients
-                or self.initial_conditions == "periodic"):
+                or self.initial_conditions == "periodic" or self._noise_model is not None):
             return
         experiment_inputs = [np.asarray(r.u, dtype=float) for r in operator.records]
         longest = max(x.shape[0] for x in experiment_inputs)
@@ -889,11 +933,18 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
+        noise_kernel = _check_noise_kernel(self.noise_kernel)
+        if noise_kernel != "white" and criterion == "cross_validation":
+            raise ValueError(
+                "tuning='cross_validation' does not take a disturbance model: use "
+                "noise_kernel='white' with it, or tuning='evidence' with "
+                f"noise_kernel={noise_kernel!r}"
+            )
         # normalized units are a start and bounds for tuning: without tuning
         # the kernel and the noise level are used exactly as given
         normalize = bool(self.normalize) and self.optimizer is not None
         return _Settings(criterion, n_folds, candidates, n_restarts, noise, auto,
-                         max_resonances, normalize, self.optimizer is not None)
+                         max_resonances, normalize, self.optimizer is not None, noise_kernel)
 
     def _experiment(self, data, order):
         return _experiment(self, *data, order)
@@ -902,8 +953,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         """Take the learned state of a fit at one order as the estimator's."""
         for name in ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
                      "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
-                     "log_marginal_likelihood_value_"):
+                     "log_marginal_likelihood_value_", "noise_kernel_"):
             setattr(self, name, getattr(fitted, name))
+        self._noise_model = fitted.noise_model
         # kept for log_marginal_likelihood(theta) and the posterior at real lags
         self._evidence = fitted.evidence
         for name in ("resonances_", "cv_log_predictive_likelihood_"):
@@ -956,7 +1008,21 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             if objective is not evidence:
                 moved = objective.moved_to(kernel, noise)
                 cv_value = float(moved(moved.theta))
-        moved_evidence = evidence.moved_to(kernel, noise)
+            noise_model = None
+            if settings.noise_kernel != "white":
+                # the disturbance is tuned with everything else, from the white fit
+                check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
+                noise_model = make_noise(settings.noise_kernel, noise, noise_bounds,
+                                         noise_instants(operator))
+                evidence = LogEvidence(operator, y, kernel, noise, noise_bounds, noise=noise_model)
+                if self.optimizer is not None:
+                    result = tuning.maximize(evidence, settings.n_restarts, self.random_state)
+                    if result is not None:
+                        optimizer_result = result
+                        kernel, noise_model = evidence.split_models(result.x)
+                posterior = evidence.posterior(kernel, noise_model)
+                noise = noise_model.level
+        moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
         if optimizer_result is not None:
             tuning.warn_at_bounds(moved_evidence)
         coef = posterior.coef
@@ -975,6 +1041,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             log_marginal_likelihood_value_=posterior.log_marginal_likelihood,
             resonances_=resonances_found,
             cv_log_predictive_likelihood_=cv_value,
+            noise_kernel_="white" if noise_model is None else noise_model.kernel,
+            noise_model=noise_model,
         )
 
     def _check_shorter_orders(self, data, experiment, settings: _Settings):
@@ -1019,7 +1087,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             candidates.append(order)
         fits = orders.held_out_fits(
             lambda p: operator if p == order else self._experiment(data, p).observation,
-            candidates, self.kernel_, self.noise_level_, y, folds,
+            candidates, self.kernel_,
+            self.noise_level_ if self._noise_model is None else self._noise_model, y, folds,
         )
         if fits is None:
             return

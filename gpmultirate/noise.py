@@ -52,6 +52,7 @@ __all__ = [
     "dense_log_evidence",
     "dense_posterior",
     "make_noise",
+    "noise_instants",
     "white_level",
 ]
 
@@ -679,6 +680,34 @@ def _has_white(kernel) -> bool:
     if isinstance(kernel, WhiteKernel):
         return True
     return isinstance(kernel, Sum) and (_has_white(kernel.k1) or _has_white(kernel.k2))
+
+
+def noise_instants(observation) -> list[np.ndarray]:
+    """The instant of every slow sample of each record, in fast samples.
+
+    The fast-sample index of each sample (``sample_indices``), or the
+    reading's stamp for readings at their own instants (``sample_times``);
+    one array per record, as :class:`KernelNoise` takes them.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> noise_instants(DownsampledConvolution(np.ones(10), 3, 4, offset=1))[0].tolist()
+    [1.0, 4.0, 7.0]
+    """
+    blocks = []
+    for record in observation.records:
+        instants = getattr(record, "sample_indices", None)
+        if instants is None:
+            instants = getattr(record, "sample_times", None)
+        if instants is None:
+            raise ValueError(
+                f"a disturbance model needs the instant of every slow sample; "
+                f"{type(record).__name__} does not give them"
+            )
+        blocks.append(np.asarray(instants, dtype=float))
+    return blocks
 
 
 def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,

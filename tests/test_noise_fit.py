@@ -1,0 +1,109 @@
+"""The disturbance model inside the estimator: evidence, gradient and posterior of a fit
+against the dense formulas with the disturbance covariance, finite differences, the
+measurement band by Monte Carlo with disturbances drawn from the model, and the checks."""
+
+import numpy as np
+import pytest
+from sklearn.gaussian_process.kernels import (
+    ConstantKernel as C,
+    ExpSineSquared,
+    Matern,
+    WhiteKernel,
+)
+
+from gpmultirate import FIRGaussianProcess
+from gpmultirate.kernels import DC
+from gpmultirate.noise import KernelNoise, dense_log_evidence, dense_posterior, noise_instants
+
+FACTOR, ORDER = 3, 30
+
+pytestmark = pytest.mark.filterwarnings("ignore:tuning ended on a bound", "ignore:order=30 looks too short")
+
+
+def _data(seed=0, n=240):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.85 ** np.arange(ORDER))[:n]
+    drift = np.cumsum(0.05 * rng.standard_normal(n))
+    return u, (y + drift + 0.05 * rng.standard_normal(n))[::FACTOR]
+
+
+def _fd(f, theta, step=1e-6):
+    out = []
+    for j in range(theta.shape[0]):
+        e = np.zeros_like(theta)
+        e[j] = step
+        out.append((f(theta + e) - f(theta - e)) / (2 * step))
+    return np.array(out)
+
+
+def _dense_parts(model, theta):
+    """Phi, K, dK, N, dN of a fitted model at ``theta`` (kernel's entries, then the noise's)."""
+    op = model.observation_
+    n_kernel = model.kernel_.theta.shape[0]
+    kernel = model.kernel_.clone_with_theta(theta[:n_kernel])
+    noise = KernelNoise(model.noise_kernel_.clone_with_theta(theta[n_kernel:]),
+                        noise_instants(op))
+    K, dK = kernel(op.lags, eval_gradient=True)
+    N, dN = noise.matrix_with_gradient()
+    return op.matrix, K, dK, N, dN
+
+
+@pytest.mark.parametrize("noise_kernel", [
+    "matern12",
+    "matern32",
+    C(0.1) * ExpSineSquared(2.0, 24.0, periodicity_bounds="fixed"),
+])
+def test_fitted_evidence_gradient_and_posterior_against_dense_formulas(noise_kernel):
+    u, y = _data()
+    model = FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), factor=FACTOR, order=ORDER,
+                               noise_level=1e-2, noise_kernel=noise_kernel).fit(u, y)
+    theta = model._evidence.theta
+    n_kernel = model.kernel_.theta.shape[0]
+    assert theta.shape[0] == n_kernel + model.noise_kernel_.theta.shape[0]
+    Phi, K, dK, N, dN = _dense_parts(model, theta)
+    ref, ref_grad = dense_log_evidence(Phi, K, y, N, dK, dN, eval_gradient=True)
+    assert model.log_marginal_likelihood_value_ == pytest.approx(ref, rel=1e-8)
+    moved = theta + 0.1
+    value, grad = model.log_marginal_likelihood(moved, eval_gradient=True)
+    Phi, K, dK, N, dN = _dense_parts(model, moved)
+    ref, ref_grad = dense_log_evidence(Phi, K, y, N, dK, dN, eval_gradient=True)
+    assert value == pytest.approx(ref, rel=1e-8)
+    np.testing.assert_allclose(grad, ref_grad, rtol=1e-8, atol=1e-8 * np.abs(ref_grad).max())
+    numeric = _fd(lambda t: model.log_marginal_likelihood(t), moved)
+    np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+    Phi, K, _, N, _ = _dense_parts(model, theta)
+    mu, Sigma = dense_posterior(Phi, K, y, N)
+    np.testing.assert_allclose(model.coef_, mu, rtol=1e-8, atol=1e-10 * np.abs(mu).max())
+    np.testing.assert_allclose(model.posterior_.covariance(), Sigma, rtol=1e-8,
+                               atol=1e-10 * np.abs(Sigma).max())
+    # the fast-rate output band is that of the dense posterior
+    mean, std = model.predict(u, return_std=True)
+    rows = np.array([np.concatenate([u[n::-1], np.zeros(ORDER)])[:ORDER] for n in range(len(u))])
+    np.testing.assert_allclose(mean, rows @ mu, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(std**2, np.einsum("ij,jk,ik->i", rows, Sigma, rows), rtol=1e-8,
+                               atol=1e-12)
+
+
+def test_tuning_raises_the_evidence_over_white_on_a_drifting_record():
+    u, y = _data(1)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    coloured = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern12").fit(u, y)
+    assert white.noise_kernel_ == "white"
+    assert isinstance(coloured.noise_kernel_, type(WhiteKernel() + Matern()))
+    assert coloured.log_marginal_likelihood_value_ > white.log_marginal_likelihood_value_ + 5
+    assert coloured.noise_level_ == pytest.approx(coloured.noise_kernel_.k1.noise_level)
+
+
+def test_noise_kernel_is_checked():
+    u, y = _data()
+    for bad in ("matern52", 3, None):
+        with pytest.raises(ValueError, match="noise_kernel"):
+            FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=bad).fit(u, y)
+    with pytest.raises(ValueError, match="cross_validation"):
+        FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern32",
+                           tuning="cross_validation").fit(u, y)
+    model = FIRGaussianProcess(noise_kernel="matern32")
+    assert model.get_params()["noise_kernel"] == "matern32"
+    with pytest.raises(ValueError, match="return_std"):
+        FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y).predict(u, include_noise=True)
