@@ -107,3 +107,38 @@ def test_noise_kernel_is_checked():
     assert model.get_params()["noise_kernel"] == "matern32"
     with pytest.raises(ValueError, match="return_std"):
         FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y).predict(u, include_noise=True)
+
+
+def test_measurement_band_is_calibrated_with_disturbances_drawn_from_the_model():
+    """Systems drawn from the prior, disturbances from the noise kernel: a new record's
+    measured samples fall in the 95 % measurement band 95 % of the time, and the
+    standardized errors have unit variance; the band of the output alone is too narrow."""
+    rng = np.random.default_rng(11)
+    kernel = C(1.0, "fixed") * DC(0.8, 0.5, "fixed", "fixed")
+    noise_kernel = WhiteKernel(0.02, "fixed") + C(0.3, "fixed") * Matern(12.0, "fixed", nu=1.5)
+    n, n_new = 150, 90
+    t_new = np.arange(n_new, dtype=float)[:, None]
+    L_new = np.linalg.cholesky(noise_kernel(t_new) + 1e-12 * np.eye(n_new))
+    z_band, z_output = [], []
+    for _ in range(200):
+        u = rng.standard_normal(n)
+        model = FIRGaussianProcess(kernel, factor=FACTOR, order=ORDER, optimizer=None,
+                                   noise_kernel=noise_kernel)
+        op_lags = np.arange(ORDER, dtype=float)[:, None]
+        g = np.linalg.cholesky(kernel(op_lags) + 1e-12 * np.eye(ORDER)) @ rng.standard_normal(
+            ORDER)
+        t = np.arange(0, n, FACTOR, dtype=float)[:, None]
+        L = np.linalg.cholesky(noise_kernel(t) + 1e-12 * np.eye(t.shape[0]))
+        y = np.convolve(u, g)[:n][::FACTOR] + L @ rng.standard_normal(t.shape[0])
+        model.fit(u, y)
+        u_new = rng.standard_normal(n_new)
+        measured = np.convolve(u_new, g)[:n_new] + L_new @ rng.standard_normal(n_new)
+        mean, std = model.predict(u_new, return_std=True, include_noise=True)
+        _, std_output = model.predict(u_new, return_std=True)
+        z_band.append((measured - mean) / std)
+        z_output.append((measured - mean) / std_output)
+    z_band, z_output = np.concatenate(z_band), np.concatenate(z_output)
+    coverage = np.mean(np.abs(z_band) < 1.959964)
+    assert 0.93 < coverage < 0.97
+    assert np.mean(z_band**2) == pytest.approx(1.0, abs=0.08)
+    assert np.mean(np.abs(z_output) < 1.959964) < 0.8
