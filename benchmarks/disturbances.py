@@ -117,7 +117,7 @@ def run(name):
         warnings.simplefilter("ignore", ConvergenceWarning)
         model = gm.FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(split.u_estimation,
                                                                       split.y_slow)
-    op = model.operator_
+    op = model.observation_
     Phi, lags, y_slow = op.matrix, op.lags, model.y_slow_
     K0 = model.kernel_(lags)
     if not np.allclose(K0, op.kernel_matrix(model.kernel_)):

@@ -449,14 +449,19 @@ ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
 
 
+#: nats of log evidence a disturbance model must gain over white noise for
+#: ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
+AUTO_NOISE_MARGIN = 10.0
+
+
 def _check_noise_kernel(noise_kernel):
     """``noise_kernel`` checked: ``"white"``, a named disturbance or a scikit-learn kernel."""
     if isinstance(noise_kernel, Kernel):
         return noise_kernel
-    if isinstance(noise_kernel, str) and (noise_kernel == "white"
+    if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white")
                                           or noise_kernel in NAMED_DISTURBANCES):
         return noise_kernel
-    names = ", ".join(repr(name) for name in ("white", *NAMED_DISTURBANCES))
+    names = ", ".join(repr(name) for name in ("auto", "white", *NAMED_DISTURBANCES))
     raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
                      f"got {noise_kernel!r}")
 
@@ -607,6 +612,19 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
         the output at ``t - latency`` (fast sample periods).
+    noise_kernel : "white", "matern12", "matern32", "auto" or sklearn Kernel, default="white"
+        The noise of the slow samples.  ``"white"``: ``noise_level * I``.
+        ``"matern12"``/``"matern32"``: white noise plus a disturbance
+        ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the samples'
+        instants in fast samples (``Matern(length_scale=10)`` spans ten fast
+        samples).  A kernel: a disturbance over the instants (a periodic one
+        with ``ExpSineSquared``), added to white noise unless it holds a
+        ``WhiteKernel``.  A disturbance is tuned with everything else by the
+        evidence, starting from the white fit, on the samples themselves
+        (the data-space route: ``O(M^3)`` per evaluation).  ``"auto"`` fits
+        white, Matérn 1/2 and 3/2 and keeps a disturbance only when its log
+        evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.  Not with
+        ``tuning="cross_validation"``.  See :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -646,7 +664,12 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     kernel_ : sklearn Kernel
         The kernel with the tuned hyperparameters.
     noise_level_ : float
-        The tuned (or given) noise variance.
+        The tuned (or given) white noise variance (the ``WhiteKernel`` part
+        of a disturbance model).
+    noise_kernel_ : "white" or sklearn Kernel
+        The fitted noise: ``"white"``, or the tuned noise kernel over the
+        instants (white part included), such as
+        ``WhiteKernel(0.01) + C(0.2) * Matern(40, nu=1.5)``.
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
         (scikit-learn's sign and constants: higher is better).
@@ -1012,16 +1035,20 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             if settings.noise_kernel != "white":
                 # the disturbance is tuned with everything else, from the white fit
                 check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
-                noise_model = make_noise(settings.noise_kernel, noise, noise_bounds,
-                                         noise_instants(operator))
-                evidence = LogEvidence(operator, y, kernel, noise, noise_bounds, noise=noise_model)
-                if self.optimizer is not None:
-                    result = tuning.maximize(evidence, settings.n_restarts, self.random_state)
-                    if result is not None:
-                        optimizer_result = result
-                        kernel, noise_model = evidence.split_models(result.x)
-                posterior = evidence.posterior(kernel, noise_model)
-                noise = noise_model.level
+                choices = (list(NAMED_DISTURBANCES) if settings.noise_kernel == "auto"
+                           else [settings.noise_kernel])
+                best = None
+                for choice in choices:
+                    tried = self._fit_disturbance(operator, y, kernel, noise, noise_bounds,
+                                                  choice, settings)
+                    if best is None or tried[3].log_marginal_likelihood > \
+                            best[3].log_marginal_likelihood:
+                        best = tried
+                if settings.noise_kernel != "auto" or best[3].log_marginal_likelihood > \
+                        posterior.log_marginal_likelihood + AUTO_NOISE_MARGIN:
+                    evidence, kernel, noise_model, posterior, result = best
+                    optimizer_result = result if result is not None else optimizer_result
+                    noise = noise_model.level
         moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
         if optimizer_result is not None:
             tuning.warn_at_bounds(moved_evidence)
@@ -1044,6 +1071,21 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             noise_kernel_="white" if noise_model is None else noise_model.kernel,
             noise_model=noise_model,
         )
+
+    def _fit_disturbance(self, operator, y, kernel, noise_level, noise_bounds, choice,
+                         settings: _Settings):
+        """Tune a disturbance model with everything else, from the white fit's point.
+
+        Returns ``(evidence, kernel, noise_model, posterior, optimizer_result)``.
+        """
+        noise_model = make_noise(choice, noise_level, noise_bounds, noise_instants(operator))
+        evidence = LogEvidence(operator, y, kernel, noise_level, noise_bounds, noise=noise_model)
+        result = None
+        if self.optimizer is not None:
+            result = tuning.maximize(evidence, settings.n_restarts, self.random_state)
+            if result is not None:
+                kernel, noise_model = evidence.split_models(result.x)
+        return evidence, kernel, noise_model, evidence.posterior(kernel, noise_model), result
 
     def _check_shorter_orders(self, data, experiment, settings: _Settings):
         """Compare the held-out fit of the tuned model with that of shorter orders; act on it.

@@ -142,3 +142,31 @@ def test_measurement_band_is_calibrated_with_disturbances_drawn_from_the_model()
     assert 0.93 < coverage < 0.97
     assert np.mean(z_band**2) == pytest.approx(1.0, abs=0.08)
     assert np.mean(np.abs(z_output) < 1.959964) < 0.8
+
+
+def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, 0.85 ** np.arange(ORDER))[:300][::FACTOR]
+    y = y + 0.05 * rng.standard_normal(y.shape[0])
+    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    assert auto.noise_kernel_ == "white"
+    np.testing.assert_array_equal(auto.coef_, white.coef_)
+    assert auto.log_marginal_likelihood_value_ == white.log_marginal_likelihood_value_
+
+
+def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
+    from gpmultirate.estimators import AUTO_NOISE_MARGIN
+
+    u, y = _data(1)
+    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    fits = {name: FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=name).fit(u, y)
+            for name in ("matern12", "matern32")}
+    best = max(fits, key=lambda name: fits[name].log_marginal_likelihood_value_)
+    assert (fits[best].log_marginal_likelihood_value_
+            > white.log_marginal_likelihood_value_ + AUTO_NOISE_MARGIN)
+    assert auto.noise_kernel_ == fits[best].noise_kernel_
+    assert auto.log_marginal_likelihood_value_ == pytest.approx(
+        fits[best].log_marginal_likelihood_value_, rel=1e-12)
