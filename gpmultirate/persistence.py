@@ -337,6 +337,9 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
             ),
             optimizer_result_=None if result is None else _encode_optimizer_result(result),
         )
+        if not _is_white(getattr(model, "noise_kernel_", "white")):
+            # the tuned disturbance: the load conditions on it again
+            fitted["noise_kernel_"] = describe_kernel(model.noise_kernel_)
         if hasattr(model, "cv_log_predictive_likelihood_"):
             fitted["cv_log_predictive_likelihood_"] = _encode(
                 model.cv_log_predictive_likelihood_, "cv_log_predictive_likelihood_")
@@ -903,7 +906,7 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
     arguments = dict(
         params, kernel=_kernel_from_tree(fitted["kernel_"], classes),
         noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
-        order=order, **_stored_noise_bounds(fitted),
+        order=order, **_stored_noise_bounds(fitted), **_stored_noise_kernel(fitted, classes),
     )
     model = FIRGaussianProcess(**arguments).fit(us, ys, sample_indices=indices)
     if model.observation_.order != order:
@@ -920,6 +923,17 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
     _restore_resonances(model, fitted)
     _restore_tuning_results(model, fitted)
     return model
+
+
+def _is_white(noise_kernel) -> bool:
+    return isinstance(noise_kernel, str) and noise_kernel == "white"
+
+
+def _stored_noise_kernel(fitted: dict, classes) -> dict:
+    """The tuned noise kernel of the file as the ``noise_kernel`` to condition on, if any."""
+    if "noise_kernel_" not in fitted:
+        return {"noise_kernel": "white"}
+    return {"noise_kernel": _kernel_from_tree(fitted["noise_kernel_"], classes)}
 
 
 def _stored_noise_bounds(fitted: dict) -> dict:
@@ -978,6 +992,7 @@ def _load_gaussian_process(header: dict, arrays: dict, classes) -> FIRGaussianPr
         # the order that was fitted (the parameter may be "auto" or a list)
         order=_integer(fitted, "order"),
         **_stored_noise_bounds(fitted),
+        **_stored_noise_kernel(fitted, classes),
     )
     model = FIRGaussianProcess(**refit).fit(arrays["u"], arrays["y_slow"])
     _check_layout(model.observation_, fitted)

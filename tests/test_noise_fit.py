@@ -170,3 +170,31 @@ def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
     assert auto.noise_kernel_ == fits[best].noise_kernel_
     assert auto.log_marginal_likelihood_value_ == pytest.approx(
         fits[best].log_marginal_likelihood_value_, rel=1e-12)
+
+
+@pytest.mark.parametrize("noise_kernel", ["matern32", C(0.1) * ExpSineSquared(2.0, 24.0)])
+def test_a_disturbance_model_is_saved_and_loaded(tmp_path, noise_kernel):
+    from gpmultirate import load_model, save_model
+
+    u, y = _data(1)
+    model = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=noise_kernel).fit(u, y)
+    save_model(model, tmp_path / "model.gpm")
+    loaded = load_model(tmp_path / "model.gpm")
+    assert repr(loaded.noise_kernel_) == repr(model.noise_kernel_)
+    assert repr(loaded.get_params()["noise_kernel"]) == repr(noise_kernel)
+    np.testing.assert_allclose(loaded.coef_, model.coef_, rtol=1e-8, atol=1e-12)
+    _, std = model.predict(u, return_std=True, include_noise=True)
+    _, loaded_std = loaded.predict(u, return_std=True, include_noise=True)
+    np.testing.assert_allclose(loaded_std, std, rtol=1e-8)
+
+
+def test_multi_output_passes_the_noise_kernel_through():
+    from gpmultirate import MultiOutputFIR
+
+    u, y = _data(1)
+    _, y2 = _data(2)
+    model = MultiOutputFIR(FIRGaussianProcess(factor=FACTOR, order=ORDER,
+                                              noise_kernel="matern12")).fit(
+        u, np.column_stack([y, y2]))
+    for estimator in model.estimators_:
+        assert not isinstance(estimator.noise_kernel_, str)
