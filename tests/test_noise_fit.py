@@ -198,3 +198,33 @@ def test_multi_output_passes_the_noise_kernel_through():
         u, np.column_stack([y, y2]))
     for estimator in model.estimators_:
         assert not isinstance(estimator.noise_kernel_, str)
+
+
+def test_command_line_noise_option_summary_and_residual_figure(tmp_path, capsys):
+    import json
+
+    from gpmultirate.cli import main
+
+    u, y = _data(1)
+    column = np.full(u.shape[0], np.nan)
+    column[::FACTOR] = y
+    data = tmp_path / "data.csv"
+    np.savetxt(data, np.column_stack([u, column]), delimiter=",", header="u,y", comments="")
+    out = tmp_path / "fit"
+    assert main(["fit", str(data), "--input", "u", "--output", "y", "--order", str(ORDER),
+                 "--noise", "matern12", "--out", str(out), "--quiet"]) == 0
+    assert "disturbance std" in capsys.readouterr().out
+    assert (out / "residuals.png").read_bytes()[:4] == b"\x89PNG"
+    noise = json.loads((out / "summary.json").read_text())["model"]["noise"]
+    model = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern12").fit(u, y)
+    assert noise["model"] == str(model.noise_kernel_)
+    assert noise["white_level"] == pytest.approx(model.noise_level_, rel=1e-6)
+    total = model.noise_kernel_.k1.noise_level + model.noise_kernel_.k2.k1.constant_value
+    assert noise["white_level"] + noise["disturbance_level"] == pytest.approx(total, rel=1e-6)
+    assert noise["time_scale"]["k2__k2__length_scale"] == pytest.approx(
+        model.noise_kernel_.k2.k2.length_scale, rel=1e-6)
+    assert isinstance(noise["residuals_white"], bool)
+    assert "noise model" in (out / "summary.md").read_text()
+    with pytest.raises(SystemExit):
+        main(["fit", str(data), "--input", "u", "--output", "y", "--noise", "matern52",
+              "--out", str(out)])
