@@ -1167,7 +1167,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         theta : array-like, optional
             Hyperparameters in tuning coordinates: ``kernel_.theta`` (the
             log of each free value, ``artanh`` of DC's ``beta``) followed by
-            ``log(noise_level)`` unless the noise level is fixed.  By default
+            ``log(noise_level)`` unless the noise level is fixed (with a
+            disturbance model: the noise kernel's ``theta``).  By default
             the fitted value is returned.
         eval_gradient : bool, default=False
             Also return the gradient with respect to ``theta``.
