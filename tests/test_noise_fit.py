@@ -17,7 +17,8 @@ from gpmultirate.noise import KernelNoise, dense_log_evidence, dense_posterior, 
 
 FACTOR, ORDER = 3, 30
 
-pytestmark = pytest.mark.filterwarnings("ignore:tuning ended on a bound", "ignore:order=30 looks too short")
+pytestmark = pytest.mark.filterwarnings("ignore:tuning ended on a bound",
+                                    "ignore:order=30 looks too short")
 
 
 def _data(seed=0, n=240):
