@@ -456,7 +456,10 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
         files["state_space.npz"] = buffer.getvalue()
     analysis = None
     try:
-        analysis = analyze_residuals(model, u, samples.values, samples.indices)
+        # MATLAB's 25 lags, fewer for a short record
+        max_lag = min(25, samples.values.shape[0] // 2)
+        analysis = analyze_residuals(model, u, samples.values, samples.indices,
+                                     max_lag=max(max_lag, 1))
     except ValueError as error:
         notes.append(f"residuals.png was not written: {error}")
     report = fit_report(model, samples, file=file, inputs=inputs, output=output,
