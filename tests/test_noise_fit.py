@@ -229,3 +229,23 @@ def test_command_line_noise_option_summary_and_residual_figure(tmp_path, capsys)
     with pytest.raises(SystemExit):
         main(["fit", str(data), "--input", "u", "--output", "y", "--noise", "matern52",
               "--out", str(out)])
+
+
+def test_held_out_predictions_under_a_disturbance_against_dense_conditioning():
+    from gpmultirate import DownsampledConvolution
+    from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
+
+    u, y = _data(4)
+    op = DownsampledConvolution(u, FACTOR, ORDER)
+    kernel = C(0.8) * DC(0.85, 0.3)
+    noise = KernelNoise(WhiteKernel(1e-3) + C(0.05) * Matern(20.0, nu=1.5), noise_instants(op))
+    folds = contiguous_folds([op.n_outputs], 4)
+    mean, variance = held_out_predictions(op, kernel, noise, y, folds)
+    Phi = op.matrix
+    Ky = Phi @ kernel(op.lags) @ Phi.T + noise.matrix()
+    for B in folds:
+        R = np.setdiff1d(np.arange(y.shape[0]), B)
+        weights = np.linalg.solve(Ky[np.ix_(R, R)], Ky[np.ix_(R, B)])
+        np.testing.assert_allclose(mean[B], weights.T @ y[R], rtol=1e-8, atol=1e-10)
+        expected = np.diag(Ky[np.ix_(B, B)] - Ky[np.ix_(B, R)] @ weights)
+        np.testing.assert_allclose(variance[B], expected, rtol=1e-8)
