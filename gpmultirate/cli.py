@@ -117,8 +117,10 @@ FIT_KERNELS = ("dc", "tc", "ss", "auto")
 #: file, inputs, output.
 EXAMPLES = {"robot-arm": ("robot_arm_csv", ("u",), "y_slow")}
 #: Files written by ``gpmultirate fit`` into ``--out``.
-FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "summary.json",
-             "summary.md", "state_space.npz")
+FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "residuals.png",
+             "summary.json", "summary.md", "state_space.npz")
+#: Choices of ``gpmultirate fit --noise`` (``FIRGaussianProcess(noise_kernel=...)``).
+FIT_NOISES = ("white", "auto", "matern12", "matern32")
 FIT_OUT = "gpmultirate-fit"
 PREDICT_OUT = "gpmultirate-prediction.csv"
 
@@ -135,6 +137,7 @@ def _add_fit_parser(commands) -> None:
                     "missing samples need no option.  --factor/--offset instead downsample "
                     "a fully measured output.  Writes model.npz (gpmultirate.load_model), "
                     "bode.png, impulse.png and intersample.png with 95 % credible bands, "
+                    "residuals.png (autocorrelation of the slow residuals), "
                     "summary.json, summary.md and, when the model supports it, "
                     "state_space.npz to --out.  Errors are one line with exit status 2.",
     )
@@ -172,6 +175,11 @@ def _add_fit_parser(commands) -> None:
                      help="prior of the impulse response: dc, tc or ss with a data-scaled "
                           "amplitude, or auto (resonances found from the data) "
                           "(default: dc)")
+    fit.add_argument("--noise", choices=FIT_NOISES, default="white",
+                     help="noise of the slow samples: white, or white plus a Matern 1/2 or "
+                          "3/2 disturbance over time tuned by the evidence; auto keeps a "
+                          "disturbance only where the evidence clearly calls for it "
+                          "(default: white)")
     fit.add_argument("--initial-conditions", choices=("zero", "discard", "periodic"),
                      default="zero",
                      help="zero: at rest before the record; discard: use only outputs that "
@@ -553,7 +561,7 @@ def _fit(parser, args) -> int:
     model = FIRGaussianProcess(
         kernel=_fit_kernel(args.kernel), order=args.order,
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
-        tuning=args.tuning, cv=args.cv, **samples.estimator_params)
+        tuning=args.tuning, cv=args.cv, noise_kernel=args.noise, **samples.estimator_params)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -578,6 +586,8 @@ def _fit(parser, args) -> int:
     line = (f"order {summary['model']['order']}, log evidence "
             f"{summary['model']['log_evidence']:.6g}, noise std "
             f"{report.noise_std:.4g}")
+    if summary["model"]["noise"]["model"] != "white":
+        line += f", disturbance std {math.sqrt(summary['model']['noise']['disturbance_level']):.4g}"
     if "validation" in summary:
         line += f", validation GoF {summary['validation']['gof_percent']:.2f} %"
     print(line)

@@ -148,8 +148,11 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
     mean, variance : ndarray of shape (M,)
         For sample ``m`` in fold ``k``: the predictive mean and variance of
         ``y[m]`` given the samples outside fold ``k`` (noise included).
+        ``noise_level`` may be a noise model (:mod:`gpmultirate.noise`), whose
+        disturbance then links the folds.
     """
-    A, alpha, _ = _data_precision(operator, kernel, WhiteNoise(noise_level), y, False)
+    noise = noise_level if hasattr(noise_level, "white") else WhiteNoise(noise_level)
+    A, alpha, _ = _data_precision(operator, kernel, noise, y, False)
     mean = np.empty_like(y)
     variance = np.empty_like(y)
     for B, (L_B, r_B) in zip(folds, _fold_factors(A, alpha, folds)):

@@ -48,6 +48,7 @@ from gpmultirate.kernels import (
     rescaled,
 )
 from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.noise import NAMED_DISTURBANCES, make_noise, noise_instants
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
 from gpmultirate.observations.sampled import check_initial_conditions
@@ -134,7 +135,8 @@ class _FIRModelMixin:
             for k in range(x.shape[1])
         ])
 
-    def predict(self, u, return_std: bool = False, sample_times=None):
+    def predict(self, u, return_std: bool = False, sample_times=None,
+                include_noise: bool = False):
         """Fast-rate output of the model for input ``u``.
 
         ``y(n) = sum_k sum_i g_k(i) u_k(n - i)`` for ``n = 0..len(u)-1``,
@@ -156,6 +158,12 @@ class _FIRModelMixin:
             increasing in ``[0, len(u))``), with the model's exposure and
             latency (:doc:`/cameras`); the standard deviation is that of the
             noise-free reading.
+        include_noise : bool, default=False
+            With ``return_std``: the standard deviation of a measured sample
+            instead, the band a new measurement should fall in: the
+            posterior variance of the output plus the variance of one
+            sample of the fitted noise (the disturbance's and the white
+            noise's, see :doc:`/disturbances`).
 
         Returns
         -------
@@ -163,6 +171,15 @@ class _FIRModelMixin:
         std : ndarray of shape (n,), only if ``return_std``
         """
         check_is_fitted(self, "coef_")
+        if include_noise and not return_std:
+            raise ValueError("include_noise=True needs return_std=True")
+        if include_noise:
+            predicted = self.predict(u, True, sample_times)
+            extra = self._measurement_noise_variance()
+            if is_record_list(u):
+                return [(m, np.sqrt(s**2 + extra)) for m, s in predicted]
+            mean, std = predicted
+            return mean, np.sqrt(std**2 + extra)
         if is_record_list(u):
             if sample_times is None:
                 return [self.predict(u_r, return_std) for u_r in u]
@@ -198,6 +215,19 @@ class _FIRModelMixin:
             else:
                 mean[rows] = A @ posterior.coef
         return (mean, np.sqrt(var)) if return_std else mean
+
+    def _measurement_noise_variance(self) -> float:
+        """The variance of one measured sample's noise (disturbance and white noise)."""
+        model = getattr(self, "_noise_model", None)
+        exponent = int(np.frexp(getattr(self, "output_scale_", 1.0))[1] - 1)
+        with np.errstate(over="ignore"):
+            if model is not None and not model.white:  # tuned on the normalized data
+                return float(np.ldexp(model.sample_variance(), 2 * exponent))
+            if hasattr(self, "noise_level_"):
+                if getattr(self, "hyperparameter_units_", "data") == "normalized":
+                    return float(np.ldexp(self.noise_level_, 2 * exponent))
+                return float(self.noise_level_)
+        return float(self.noise_variance_)
 
     def _predict_readings(self, x, sample_times, return_std):
         """Readings at ``sample_times``: here only on the fast ticks (no model between them)."""
@@ -457,6 +487,23 @@ ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
 
 
+#: nats of log evidence a disturbance model must gain over white noise for
+#: ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
+AUTO_NOISE_MARGIN = 10.0
+
+
+def _check_noise_kernel(noise_kernel):
+    """``noise_kernel`` checked: ``"white"``, a named disturbance or a scikit-learn kernel."""
+    if isinstance(noise_kernel, Kernel):
+        return noise_kernel
+    if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white")
+                                          or noise_kernel in NAMED_DISTURBANCES):
+        return noise_kernel
+    names = ", ".join(repr(name) for name in ("auto", "white", *NAMED_DISTURBANCES))
+    raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
+                     f"got {noise_kernel!r}")
+
+
 def _check_tuning(tuning_criterion) -> str:
     if not isinstance(tuning_criterion, str) or tuning_criterion not in (
         "evidence", "cross_validation"
@@ -490,6 +537,7 @@ class _Settings:
     normalize: bool
     tuned: bool
     scale: object = None  # the DataScale of the data (units.normalize), set by fit
+    noise_kernel: object = "white"
 
 
 @dataclass
@@ -510,6 +558,8 @@ class _Fit:
     log_marginal_likelihood_value_: float
     resonances_: object = None
     cv_log_predictive_likelihood_: float | None = None
+    noise_kernel_: object = "white"
+    noise_model: object = None
 
 
 class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
@@ -601,6 +651,19 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
         the output at ``t - latency`` (fast sample periods).
+    noise_kernel : "white", "matern12", "matern32", "auto" or sklearn Kernel, default="white"
+        The noise of the slow samples.  ``"white"``: ``noise_level * I``.
+        ``"matern12"``/``"matern32"``: white noise plus a disturbance
+        ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the samples'
+        instants in fast samples (``Matern(length_scale=10)`` spans ten fast
+        samples).  A kernel: a disturbance over the instants (a periodic one
+        with ``ExpSineSquared``), added to white noise unless it holds a
+        ``WhiteKernel``.  A disturbance is tuned with everything else by the
+        evidence, starting from the white fit, on the samples themselves
+        (the data-space route: ``O(M^3)`` per evaluation).  ``"auto"`` fits
+        white, Matérn 1/2 and 3/2 and keeps a disturbance only when its log
+        evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.  Not with
+        ``tuning="cross_validation"``.  See :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -640,7 +703,12 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     kernel_ : sklearn Kernel
         The kernel with the tuned hyperparameters.
     noise_level_ : float
-        The tuned (or given) noise variance.
+        The tuned (or given) white noise variance (the ``WhiteKernel`` part
+        of a disturbance model).
+    noise_kernel_ : "white" or sklearn Kernel
+        The fitted noise: ``"white"``, or the tuned noise kernel over the
+        instants (white part included), such as
+        ``WhiteKernel(0.01) + C(0.2) * Matern(40, nu=1.5)``.
     log_marginal_likelihood_value_ : float
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
         (scikit-learn's sign and constants: higher is better), a density of
@@ -731,6 +799,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         cv: int = 5,
         exposure: float = 0.0,
         latency: float = 0.0,
+        noise_kernel="white",
     ):
         self.kernel = kernel
         self.factor = factor
@@ -749,6 +818,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.cv = cv
         self.exposure = exposure
         self.latency = latency
+        self.noise_kernel = noise_kernel
 
     # ------------------------------------------------------------------ fit
     def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "FIRGaussianProcess":
@@ -903,8 +973,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         """
         operator = self.observation_
         order = operator.order
+        # under a disturbance model correlated residuals are the model's, not a short order's
         if (operator.n_outputs <= operator.n_coefficients
-                or self.initial_conditions == "periodic"):
+                or self.initial_conditions == "periodic" or self._noise_model is not None):
             return
         experiment_inputs = [np.asarray(r.u, dtype=float) for r in operator.records]
         longest = max(x.shape[0] for x in experiment_inputs)
@@ -968,11 +1039,19 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
+        noise_kernel = _check_noise_kernel(self.noise_kernel)
+        if noise_kernel != "white" and criterion == "cross_validation":
+            raise ValueError(
+                "tuning='cross_validation' does not take a disturbance model: use "
+                "noise_kernel='white' with it, or tuning='evidence' with "
+                f"noise_kernel={noise_kernel!r}"
+            )
         # normalized units are a start and bounds for tuning: without tuning
         # the kernel and the noise level are used exactly as given
         normalize = bool(self.normalize) and self.optimizer is not None
         return _Settings(criterion, n_folds, candidates, n_restarts, noise, auto,
-                         max_resonances, normalize, self.optimizer is not None)
+                         max_resonances, normalize, self.optimizer is not None,
+                         noise_kernel=noise_kernel)
 
     def _experiment(self, data, order):
         return _experiment(self, *data, order)
@@ -981,8 +1060,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         """Take the learned state of a fit at one order as the estimator's."""
         for name in ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
                      "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
-                     "log_marginal_likelihood_value_"):
+                     "log_marginal_likelihood_value_", "noise_kernel_"):
             setattr(self, name, getattr(fitted, name))
+        self._noise_model = fitted.noise_model
         # kept for log_marginal_likelihood(theta) and the posterior at real lags
         self._evidence = fitted.evidence
         for name in ("resonances_", "cv_log_predictive_likelihood_"):
@@ -1046,7 +1126,25 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             if objective is not evidence:
                 moved = objective.moved_to(kernel, noise)
                 cv_value = float(moved(moved.theta))
-        moved_evidence = evidence.moved_to(kernel, noise)
+            noise_model = None
+            if settings.noise_kernel != "white":
+                # the disturbance is tuned with everything else, from the white fit
+                check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
+                choices = (list(NAMED_DISTURBANCES) if settings.noise_kernel == "auto"
+                           else [self._noise_kernel_in_fit_units(settings)])
+                best = None
+                for choice in choices:
+                    tried = self._fit_disturbance(operator, y, kernel, noise, noise_bounds,
+                                                  choice, settings)
+                    if best is None or tried[3].log_marginal_likelihood > \
+                            best[3].log_marginal_likelihood:
+                        best = tried
+                if settings.noise_kernel != "auto" or best[3].log_marginal_likelihood > \
+                        posterior.log_marginal_likelihood + AUTO_NOISE_MARGIN:
+                    evidence, kernel, noise_model, posterior, result = best
+                    optimizer_result = result if result is not None else optimizer_result
+                    noise = noise_model.level
+        moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
         if optimizer_result is not None:
             tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))
         coef = posterior.coef
@@ -1065,7 +1163,32 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             log_marginal_likelihood_value_=posterior.log_marginal_likelihood,
             resonances_=resonances_found,
             cv_log_predictive_likelihood_=cv_value,
+            noise_kernel_="white" if noise_model is None else noise_model.kernel,
+            noise_model=noise_model,
         )
+
+    def _noise_kernel_in_fit_units(self, settings: _Settings):
+        """The noise choice in the units of the normalized data (a kernel is given in the data's)."""
+        choice = settings.noise_kernel
+        if (isinstance(choice, str) or settings.scale is None
+                or getattr(self, "_prior_in_normalized_units", False)):
+            return choice
+        return units.scaled_noise_kernel(choice, settings.scale.variance(1.0, to_data=False))
+
+    def _fit_disturbance(self, operator, y, kernel, noise_level, noise_bounds, choice,
+                         settings: _Settings):
+        """Tune a disturbance model with everything else, from the white fit's point.
+
+        Returns ``(evidence, kernel, noise_model, posterior, optimizer_result)``.
+        """
+        noise_model = make_noise(choice, noise_level, noise_bounds, noise_instants(operator))
+        evidence = LogEvidence(operator, y, kernel, noise_level, noise_bounds, noise=noise_model)
+        result = None
+        if self.optimizer is not None:
+            result = tuning.maximize(evidence, settings.n_restarts, self.random_state)
+            if result is not None:
+                kernel, noise_model = evidence.split_models(result.x)
+        return evidence, kernel, noise_model, evidence.posterior(kernel, noise_model), result
 
     def _check_shorter_orders(self, data, experiment, settings: _Settings):
         """Compare the held-out fit of the tuned model with that of shorter orders; act on it.
@@ -1110,7 +1233,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             candidates.append(order)
         fits = orders.held_out_fits(
             lambda p: operator if p == order else self._experiment(data, p).observation,
-            candidates, self.kernel_, self.noise_level_, y, folds,
+            candidates, self.kernel_,
+            self.noise_level_ if self._noise_model is None else self._noise_model, y, folds,
         )
         if fits is None:
             return
@@ -1147,7 +1271,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         theta : array-like, optional
             Hyperparameters in tuning coordinates: ``kernel_.theta`` (the
             log of each free value, ``artanh`` of DC's ``beta``) followed by
-            ``log(noise_level)`` unless the noise level is fixed.  By default
+            ``log(noise_level)`` unless the noise level is fixed (with a
+            disturbance model: the noise kernel's ``theta``).  By default
             the fitted value is returned.
         eval_gradient : bool, default=False
             Also return the gradient with respect to ``theta``.

@@ -26,6 +26,7 @@ tuning coordinates: the log of most, ``artanh`` of DC's ``beta``) for tuning.
 from __future__ import annotations
 
 import contextlib
+import numbers
 import os
 
 import numpy as np
@@ -483,10 +484,15 @@ class TuningObjective:
     #: whether ``with_fisher`` is available (Fisher scoring may be used)
     has_fisher = False
 
-    def __init__(self, kernel, noise_level: float, noise_bounds):
+    def __init__(self, kernel, noise_level: float, noise_bounds, noise=None):
         self.kernel = kernel
-        self.noise = WhiteNoise(noise_level, noise_bounds)
+        self.noise = WhiteNoise(noise_level, noise_bounds) if noise is None else noise
         self._work = None
+
+    @property
+    def coloured(self) -> bool:
+        """Whether the noise model is a disturbance over the instants (not ``gamma I``)."""
+        return not self.noise.white
 
     @property
     def noise_level(self) -> float:
@@ -495,8 +501,8 @@ class TuningObjective:
 
     @property
     def noise_bounds(self):
-        """The bounds of the noise variance, or ``"fixed"``."""
-        return self.noise.noise_bounds
+        """The bounds of the noise variance, or ``"fixed"`` (None for a disturbance model)."""
+        return getattr(self.noise, "noise_bounds", None)
 
     @property
     def noise_is_free(self) -> bool:
@@ -559,11 +565,21 @@ class TuningObjective:
             kernel = into
         return kernel, self.noise.with_theta(theta[n_kernel:])
 
-    def moved_to(self, kernel, noise_level: float) -> "TuningObjective":
-        """The same objective, on the same data, started at ``kernel`` and ``noise_level``."""
+    def moved_to(self, kernel, noise_level) -> "TuningObjective":
+        """The same objective, on the same data, started at ``kernel`` and ``noise_level``.
+
+        ``noise_level`` is the white noise variance, or a noise model of the
+        objective's kind (:mod:`gpmultirate.noise`) for a disturbance model.
+        """
         moved = type(self).__new__(type(self))
         moved.__dict__.update(self.__dict__)
-        moved.kernel, moved.noise = kernel, WhiteNoise(noise_level, self.noise.noise_bounds)
+        if isinstance(noise_level, numbers.Real):
+            if self.coloured:
+                raise ValueError("a disturbance model moves to a noise model, not a noise level")
+            noise = WhiteNoise(float(noise_level), self.noise.noise_bounds)
+        else:
+            noise = noise_level
+        moved.kernel, moved.noise = kernel, noise
         return moved
 
     def reusing_kernel(self) -> "TuningObjective":
@@ -572,7 +588,7 @@ class TuningObjective:
         An optimizer evaluates hundreds of points, and a deep copy of the
         kernel per point is a large part of a small problem's cost.
         """
-        reusing = self.moved_to(self.kernel, self.noise_level)
+        reusing = self.moved_to(self.kernel, self.noise)
         reusing._work = clone(self.kernel)
         return reusing
 
@@ -620,9 +636,15 @@ class LogEvidence(TuningObjective):
 
     has_fisher = True
 
-    def __init__(self, observation, y, kernel, noise_level: float, noise_bounds):
-        super().__init__(kernel, noise_level, noise_bounds)
-        self.data, self.z = reduce_observation(observation, y)
+    def __init__(self, observation, y, kernel, noise_level: float, noise_bounds, noise=None):
+        super().__init__(kernel, noise_level, noise_bounds, noise)
+        if self.coloured:
+            # a reduction assumes white noise: the disturbance needs the samples themselves,
+            # and its Fisher information is not offered (tuning takes L-BFGS)
+            self.data, self.z = observation, np.asarray(y, dtype=float)
+            self.has_fisher = False
+        else:
+            self.data, self.z = reduce_observation(observation, y)
 
     @property
     def n_outputs(self) -> int:
@@ -687,6 +709,15 @@ class LogEvidence(TuningObjective):
             self.data, kernel, owner, role.leaf_name, noise, self.z, values
         )
 
-    def posterior(self, kernel, noise_level: float):
-        """The posterior of the coefficients for ``kernel`` and ``noise_level``."""
-        return posterior(self.data, kernel, noise_level, self.z)
+    def posterior(self, kernel, noise_level):
+        """The posterior of the coefficients for ``kernel`` and ``noise_level``.
+
+        ``noise_level`` may be a noise model (:mod:`gpmultirate.noise`): the
+        posterior is then the data-space one under that disturbance.
+        """
+        if isinstance(noise_level, numbers.Real):
+            return posterior(self.data, kernel, float(noise_level), self.z)
+        if noise_level.white:
+            return posterior(self.data, kernel, noise_level.level, self.z)
+        covariance = data_covariance(kernel, self.data, noise_level, space="posterior")
+        return DataSpacePosterior(covariance, self.z)

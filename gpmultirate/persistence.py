@@ -345,6 +345,9 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
                 input_scale_exponents=[int(e) for e in np.frexp(model.input_scale_)[1] - 1],
                 output_scale_exponent=int(np.frexp(model.output_scale_)[1] - 1),
             )
+        if not _is_white(getattr(model, "noise_kernel_", "white")):
+            # the tuned disturbance: the load conditions on it again
+            fitted["noise_kernel_"] = describe_kernel(model.noise_kernel_)
         if hasattr(model, "cv_log_predictive_likelihood_"):
             fitted["cv_log_predictive_likelihood_"] = _encode(
                 model.cv_log_predictive_likelihood_, "cv_log_predictive_likelihood_")
@@ -911,7 +914,7 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
     arguments = dict(
         params, kernel=_kernel_from_tree(fitted["kernel_"], classes),
         noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
-        order=order, **_stored_noise_bounds(fitted),
+        order=order, **_stored_noise_bounds(fitted), **_stored_noise_kernel(fitted, classes),
     )
     model = _fit_stored(arguments, fitted, us, ys, sample_indices=indices)
     if model.observation_.order != order:
@@ -973,6 +976,17 @@ def _fit_stored(arguments: dict, fitted: dict, u, y_slow, **kwargs) -> FIRGaussi
     return model
 
 
+def _is_white(noise_kernel) -> bool:
+    return isinstance(noise_kernel, str) and noise_kernel == "white"
+
+
+def _stored_noise_kernel(fitted: dict, classes) -> dict:
+    """The tuned noise kernel of the file as the ``noise_kernel`` to condition on, if any."""
+    if "noise_kernel_" not in fitted:
+        return {"noise_kernel": "white"}
+    return {"noise_kernel": _kernel_from_tree(fitted["noise_kernel_"], classes)}
+
+
 def _stored_noise_bounds(fitted: dict) -> dict:
     """The noise bounds the model was tuned with, in the data's units (files since 0.1)."""
     if "noise_level_bounds_" not in fitted:
@@ -1029,6 +1043,7 @@ def _load_gaussian_process(header: dict, arrays: dict, classes) -> FIRGaussianPr
         # the order that was fitted (the parameter may be "auto" or a list)
         order=_integer(fitted, "order"),
         **_stored_noise_bounds(fitted),
+        **_stored_noise_kernel(fitted, classes),
     )
     model = _fit_stored(refit, fitted, arrays["u"], arrays["y_slow"])
     _check_layout(model.observation_, fitted)

@@ -23,8 +23,8 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.io import SlowSamples, model_slow_samples, read_slow_samples
 
-__all__ = ["FitReport", "fit_files", "fit_report", "model_slow_samples", "prediction_csv",
-           "study_header", "write_study"]
+__all__ = ["FitReport", "fit_files", "fit_report", "model_slow_samples", "noise_summary",
+           "prediction_csv", "study_header", "write_study"]
 
 
 def _plain(value):
@@ -175,6 +175,69 @@ def _noise_line(model: dict) -> str:
     return line
 
 
+def noise_summary(model, residuals=None) -> dict:
+    """The fitted noise of a model: white, or the disturbance with its level and time scale.
+
+    Parameters
+    ----------
+    model : fitted FIRGaussianProcess
+    residuals : ResidualAnalysis, optional
+        :func:`~gpmultirate.residuals.analyze_residuals` of the fit: the
+        whiteness verdict of the slow residuals is added.
+
+    Returns
+    -------
+    dict
+        ``model`` (``"white"`` or the noise kernel), ``white_level`` (the
+        white variance) and, for a disturbance, ``disturbance_level`` (its
+        variance at one sample) and ``time_scale`` (its length scales and
+        periods in fast samples); with ``residuals``, ``residuals_white`` and
+        ``ljung_box_p_value``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(90)
+    >>> y = np.convolve(u, 0.8 ** np.arange(20))[:90] + 0.01 * rng.standard_normal(90)
+    >>> noise_summary(gm.FIRGaussianProcess(order=20, factor=3).fit(u, y[::3]))["model"]
+    'white'
+    """
+    kernel = getattr(model, "noise_kernel_", "white")
+    found = {"model": "white" if isinstance(kernel, str) else str(kernel),
+             "white_level": float(model.noise_level_)}
+    if not isinstance(kernel, str):
+        total = float(kernel.diag(np.zeros((1, 1)))[0])
+        found["disturbance_level"] = total - float(model.noise_level_)
+        found["time_scale"] = {
+            name: float(np.ravel(value)[0]) for name, value in kernel.get_params().items()
+            if name.endswith(("length_scale", "periodicity")) and not name.endswith("_bounds")
+        }
+    if residuals is not None:
+        found["residuals_white"] = bool(residuals.white)
+        found["ljung_box_p_value"] = float(residuals.p_value)
+    return found
+
+
+def _noise_lines(noise) -> list[str]:
+    if noise is None:
+        return []
+    if noise["model"] == "white":
+        lines = ["- noise model: white"]
+    else:
+        scales = ", ".join(f"{name.rsplit('__', 1)[-1]} {value:.4g}"
+                           for name, value in noise["time_scale"].items())
+        lines = [f"- noise model: `{noise['model']}`: a disturbance of variance "
+                 f"{noise['disturbance_level']:.4g} over time ({scales} fast samples) "
+                 f"plus white noise of variance {noise['white_level']:.4g}"]
+    if "residuals_white" in noise:
+        verdict = "look white" if noise["residuals_white"] else "do not look white"
+        lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
+                     f"{noise['ljung_box_p_value']:.3g}; residuals.png)")
+    return lines
+
+
 def _markdown(summary: dict) -> str:
     data, model = summary["data"], summary["model"]
     lines = ["# gpmultirate fit", "",
@@ -186,7 +249,7 @@ def _markdown(summary: dict) -> str:
              f"conditions {model['initial_conditions']}",
              f"- kernel: `{model['kernel']}`",
              f"- log evidence: {model['log_evidence']:.6g}",
-             _noise_line(model), "",
+             _noise_line(model), *_noise_lines(model.get("noise")), "",
              "## Hyperparameters", "", "| name | value |", "|---|---|"]
     lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
     resonances = summary.get("resonances")
@@ -254,7 +317,8 @@ def _noise_in_data_units(model) -> dict:
 
 def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,
                output: str = "y", validation=None, validation_file=None, state_space=None,
-               notes=(), warnings=(), kernel_option: str | None = None) -> FitReport:
+               notes=(), warnings=(), kernel_option: str | None = None,
+               residuals=None) -> FitReport:
     """The report of a fitted :class:`~gpmultirate.FIRGaussianProcess`.
 
     Parameters
@@ -285,6 +349,9 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
         Remarks, and the warnings the fit raised.
     kernel_option : str, optional
         The kernel as the user chose it (``gpmultirate fit --kernel``).
+    residuals : ResidualAnalysis, optional
+        The residual analysis of the fit: the noise section says whether
+        the slow residuals look white (:func:`noise_summary`).
 
     Returns
     -------
@@ -330,6 +397,7 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
                     "tuning": model.tuning,
                     "log_evidence": float(model.log_marginal_likelihood_value_)})
     summary.update(_noise_in_data_units(model))
+    summary["noise"] = noise_summary(model, residuals)
     if hasattr(model, "cv_log_predictive_likelihood_"):
         summary["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
     selection = None
@@ -378,7 +446,8 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
         (:func:`gpmultirate.export.save_state_space`; otherwise a note in
         the report says why not), the figures ``bode.png``, ``impulse.png``
         and ``intersample.png`` (:func:`gpmultirate.plotting.report.fit_figures`),
-        ``summary.json`` and ``summary.md``.  Write them with
+        ``residuals.png`` (:func:`gpmultirate.plotting.plot_residuals` of the
+        slow residuals), ``summary.json`` and ``summary.md``.  Write them with
         :func:`gpmultirate.io.write_folder`.
     report : FitReport
 
@@ -399,14 +468,16 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
     >>> model = gm.FIRGaussianProcess(order=15, factor=3).fit(u, y[::3])
     >>> files, report = fit_files(model, u)
     >>> sorted(files)  # doctest: +NORMALIZE_WHITESPACE
-    ['bode.png', 'impulse.png', 'intersample.png', 'model.npz', 'state_space.npz',
-     'summary.json', 'summary.md']
+    ['bode.png', 'impulse.png', 'intersample.png', 'model.npz', 'residuals.png',
+     'state_space.npz', 'summary.json', 'summary.md']
     """
     import io
 
     from gpmultirate.export import save_state_space
     from gpmultirate.persistence import save_model
-    from gpmultirate.plotting.report import fit_figures
+    from gpmultirate.plotting.report import _figure, fit_figures
+    from gpmultirate.plotting.residuals import plot_residuals
+    from gpmultirate.residuals import analyze_residuals
 
     if samples is None:
         samples = model_slow_samples(model)
@@ -425,11 +496,25 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
         buffer = io.BytesIO()
         save_state_space(system, buffer, sample_time=model.sample_time)
         files["state_space.npz"] = buffer.getvalue()
+    analysis = None
+    try:
+        # MATLAB's 25 lags, fewer for a short record
+        max_lag = min(25, samples.values.shape[0] // 2)
+        analysis = analyze_residuals(model, u, samples.values, samples.indices,
+                                     max_lag=max(max_lag, 1))
+    except ValueError as error:
+        notes.append(f"residuals.png was not written: {error}")
     report = fit_report(model, samples, file=file, inputs=inputs, output=output,
                         validation=validation, validation_file=validation_file,
                         state_space=system, notes=notes, warnings=warnings,
-                        kernel_option=kernel_option)
-    for name, figure in fit_figures(model, u, samples, inputs).items():
+                        kernel_option=kernel_option, residuals=analysis)
+    figures = fit_figures(model, u, samples, inputs)
+    if analysis is not None:
+        figure = _figure(figsize=(6.4, 2.4 * (1 + analysis.cross_correlation.shape[0])))
+        plot_residuals(analysis, ax=figure.subplots(1 + analysis.cross_correlation.shape[0], 1,
+                                                     squeeze=False)[:, 0])
+        figures["residuals.png"] = figure
+    for name, figure in figures.items():
         buffer = io.BytesIO()
         figure.savefig(buffer, format="png", dpi=150)
         files[name] = buffer.getvalue()

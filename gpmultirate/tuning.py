@@ -97,13 +97,15 @@ def maximize(evidence, n_restarts: int = 0, random_state=None):
     evidence = evidence.reusing_kernel()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
-        theta0 = prefit_scale_and_noise(evidence)
+        # a disturbance model starts from its white fit: no prefit of gamma alone
+        coloured = getattr(evidence, "coloured", False)
+        theta0 = evidence.theta.copy() if coloured else prefit_scale_and_noise(evidence)
         if theta0.shape[0] == 0:
             return None
         bounds = evidence.bounds
         roles = evidence.roles()
         resonances = [i for i, role in enumerate(roles) if role.kind == "frequency"]
-        if resonances:
+        if resonances and not coloured:
             theta0 = grid_search_resonances(evidence, theta0, bounds, resonances)
             bounds = resonance_window(theta0, bounds, resonances)
         transform = DecayRateTransform(
@@ -565,7 +567,15 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
     kernel, noise = evidence.split(theta)
     params = kernel.get_params()
     names = [role.name for role in evidence.roles()]
-    if evidence.noise_is_free:
+    coloured = getattr(evidence, "coloured", False)
+    if coloured:
+        _, noise_model = evidence.split_models(theta)
+        noise_kernel = noise_model.kernel
+        noise_params = noise_kernel.get_params()
+        for h in noise_kernel.hyperparameters:
+            if not h.fixed:
+                names.extend([f"noise_kernel__{h.name}"] * h.n_elements)
+    elif evidence.noise_is_free:
         names.append("noise_level")
     found = []
     for i, name in enumerate(names):
@@ -574,8 +584,15 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
             if not np.isfinite(edge):
                 continue
             if abs(theta[i] - edge) <= BOUND_TOLERANCE * max(1.0, abs(edge)):
+                if side == "lower" and name.startswith("noise_kernel__") and \
+                        name.endswith("noise_level"):
+                    continue  # the disturbance explains all the noise: no white part needed
                 if name == "noise_level":
                     value, bound = noise, evidence.noise_bounds[column]
+                elif name.startswith("noise_kernel__"):
+                    leaf = name[len("noise_kernel__"):]
+                    value = noise_params[leaf]
+                    bound = _value_bounds(noise_kernel, leaf)[column]
                 else:
                     value = params[name]
                     bound = _value_bounds(kernel, name)[column]

@@ -363,6 +363,44 @@ def to_normalized(kernel, noise: float, noise_bounds, scale: DataScale):
     return converted, noise, noise_bounds
 
 
+def scaled_noise_kernel(kernel, factor: float):
+    """A noise kernel over the instants whose covariance is ``factor`` times larger.
+
+    The variances of its summands are multiplied, bounds included: a
+    ``WhiteKernel``'s level, a ``ConstantKernel``'s value, or the constant of
+    a product with one; any other summand is wrapped as
+    ``ConstantKernel(factor, "fixed") * summand``.  Exact for powers of two.
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C, Matern, WhiteKernel
+    >>> scaled_noise_kernel(WhiteKernel(0.5) + C(2.0) * Matern(10.0, nu=1.5), 4.0)
+    WhiteKernel(noise_level=2) + 2.83**2 * Matern(length_scale=10, nu=1.5)
+    """
+    from sklearn.base import clone
+    from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum, WhiteKernel
+
+    def times(value, bounds):
+        if isinstance(bounds, str):
+            return value * factor, bounds
+        return value * factor, (bounds[0] * factor, bounds[1] * factor)
+
+    if isinstance(kernel, Sum):
+        return Sum(scaled_noise_kernel(kernel.k1, factor), scaled_noise_kernel(kernel.k2, factor))
+    if isinstance(kernel, WhiteKernel):
+        level, bounds = times(kernel.noise_level, kernel.noise_level_bounds)
+        return WhiteKernel(level, bounds)
+    if isinstance(kernel, ConstantKernel):
+        value, bounds = times(kernel.constant_value, kernel.constant_value_bounds)
+        return ConstantKernel(value, bounds)
+    if isinstance(kernel, Product):
+        if isinstance(kernel.k1, ConstantKernel):
+            return Product(scaled_noise_kernel(kernel.k1, factor), clone(kernel.k2))
+        if isinstance(kernel.k2, ConstantKernel):
+            return Product(clone(kernel.k1), scaled_noise_kernel(kernel.k2, factor))
+    return ConstantKernel(float(factor), "fixed") * clone(kernel)
+
+
 def rescale_gaussian_process(model, scale: DataScale, rebuild) -> None:
     """Carry a fit on normalized data into the data's units (every public attribute).
 
@@ -399,6 +437,9 @@ def rescale_gaussian_process(model, scale: DataScale, rebuild) -> None:
     )
     if representable:
         model.kernel_, model.noise_level_, model.noise_level_bounds_ = kernel, noise, bounds
+        noise_kernel = getattr(model, "noise_kernel_", "white")
+        if not isinstance(noise_kernel, str):  # a disturbance: its variances in the data's units
+            model.noise_kernel_ = scaled_noise_kernel(noise_kernel, scale.variance(1.0))
     else:
         model.hyperparameter_units_ = "normalized"
         warnings.warn(
@@ -445,8 +486,9 @@ def rescale_least_squares(model, scale: DataScale, rebuild) -> None:
 
 def evidence_in_data_units(evidence, scale):
     """The normalized ``evidence`` at its kernel and noise level in the data's units, for the
-    messages that name their values (the normalized one where they are not representable)."""
-    if scale is None or scale.identity:
+    messages that name their values (the normalized one where they are not representable,
+    and under a disturbance model)."""
+    if scale is None or scale.identity or not evidence.noise.white:
         return evidence
     kernel = scale.kernel(evidence.kernel)
     noise = scale.variance(evidence.noise_level)

@@ -155,8 +155,8 @@ def test_time_left_and_its_format():
 
 
 # ---------------------------------------------------------------- fit, predict
-FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "summary.json",
-             "summary.md", "state_space.npz")
+FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "residuals.png",
+             "summary.json", "summary.md", "state_space.npz")
 N_FAST, ORDER = 90, 30
 
 

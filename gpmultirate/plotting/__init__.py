@@ -22,6 +22,8 @@ estimates (least squares, DC kernel, PK kernel) share one figure.
   slow samples.
 * :func:`plot_gof_vs_order` and :func:`plot_study`: goodness of fit against
   model order over Monte Carlo runs (Fig. 5, 9).
+* :func:`plot_residuals`: autocorrelation of the slow residuals and their
+  cross-correlation with each input, with the bands for white residuals.
 * :func:`plot_nonidentifiable_example`: three fast-rate models with
   identical slow-rate outputs (Example 1, Fig. 2).
 
@@ -53,6 +55,7 @@ Examples
 
 from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.plotting.frequency import BodePlot, plot_bode
+from gpmultirate.plotting.residuals import ResidualPlot, plot_residuals
 from gpmultirate.plotting.study import GoFPlot, StudyPlot, plot_gof_vs_order, plot_study
 from gpmultirate.plotting.time import (
     ImpulseResponsePlot,
@@ -68,12 +71,14 @@ __all__ = [
     "GoFPlot",
     "ImpulseResponsePlot",
     "IntersamplePlot",
+    "ResidualPlot",
     "StudyPlot",
     "plot_bode",
     "plot_gof_vs_order",
     "plot_impulse_response",
     "plot_intersample",
     "plot_nonidentifiable_example",
+    "plot_residuals",
     "plot_study",
 ]
 

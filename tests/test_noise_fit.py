@@ -1,0 +1,251 @@
+"""The disturbance model inside the estimator: evidence, gradient and posterior of a fit
+against the dense formulas with the disturbance covariance, finite differences, the
+measurement band by Monte Carlo with disturbances drawn from the model, and the checks."""
+
+import numpy as np
+import pytest
+from sklearn.gaussian_process.kernels import (
+    ConstantKernel as C,
+    ExpSineSquared,
+    Matern,
+    WhiteKernel,
+)
+
+from gpmultirate import FIRGaussianProcess
+from gpmultirate.kernels import DC
+from gpmultirate.noise import KernelNoise, dense_log_evidence, dense_posterior, noise_instants
+
+FACTOR, ORDER = 3, 30
+
+pytestmark = pytest.mark.filterwarnings("ignore:tuning ended on a bound",
+                                    "ignore:order=30 looks too short")
+
+
+def _data(seed=0, n=240):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.85 ** np.arange(ORDER))[:n]
+    drift = np.cumsum(0.05 * rng.standard_normal(n))
+    return u, (y + drift + 0.05 * rng.standard_normal(n))[::FACTOR]
+
+
+def _fd(f, theta, step=1e-6):
+    out = []
+    for j in range(theta.shape[0]):
+        e = np.zeros_like(theta)
+        e[j] = step
+        out.append((f(theta + e) - f(theta - e)) / (2 * step))
+    return np.array(out)
+
+
+def _dense_parts(model, theta):
+    """Phi, K, dK, N, dN of a fitted model at ``theta`` (kernel's entries, then the noise's)."""
+    op = model.observation_
+    n_kernel = model.kernel_.theta.shape[0]
+    kernel = model.kernel_.clone_with_theta(theta[:n_kernel])
+    noise = KernelNoise(model.noise_kernel_.clone_with_theta(theta[n_kernel:]),
+                        noise_instants(op))
+    K, dK = kernel(op.lags, eval_gradient=True)
+    N, dN = noise.matrix_with_gradient()
+    return op.matrix, K, dK, N, dN
+
+
+@pytest.mark.parametrize("noise_kernel", [
+    "matern12",
+    "matern32",
+    C(0.1) * ExpSineSquared(2.0, 24.0, periodicity_bounds="fixed"),
+])
+def test_fitted_evidence_gradient_and_posterior_against_dense_formulas(noise_kernel):
+    u, y = _data()
+    model = FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), factor=FACTOR, order=ORDER,
+                               noise_level=1e-2, noise_kernel=noise_kernel).fit(u, y)
+    theta = model._evidence.theta
+    n_kernel = model.kernel_.theta.shape[0]
+    assert theta.shape[0] == n_kernel + model.noise_kernel_.theta.shape[0]
+    Phi, K, dK, N, dN = _dense_parts(model, theta)
+    ref, ref_grad = dense_log_evidence(Phi, K, y, N, dK, dN, eval_gradient=True)
+    assert model.log_marginal_likelihood_value_ == pytest.approx(ref, rel=1e-8)
+    moved = theta + 0.1
+    value, grad = model.log_marginal_likelihood(moved, eval_gradient=True)
+    Phi, K, dK, N, dN = _dense_parts(model, moved)
+    ref, ref_grad = dense_log_evidence(Phi, K, y, N, dK, dN, eval_gradient=True)
+    assert value == pytest.approx(ref, rel=1e-8)
+    np.testing.assert_allclose(grad, ref_grad, rtol=1e-8, atol=1e-8 * np.abs(ref_grad).max())
+    numeric = _fd(lambda t: model.log_marginal_likelihood(t), moved)
+    np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+    Phi, K, _, N, _ = _dense_parts(model, theta)
+    mu, Sigma = dense_posterior(Phi, K, y, N)
+    np.testing.assert_allclose(model.coef_, mu, rtol=1e-8, atol=1e-10 * np.abs(mu).max())
+    np.testing.assert_allclose(model.posterior_.covariance(), Sigma, rtol=1e-8,
+                               atol=1e-10 * np.abs(Sigma).max())
+    # the fast-rate output band is that of the dense posterior
+    mean, std = model.predict(u, return_std=True)
+    rows = np.array([np.concatenate([u[n::-1], np.zeros(ORDER)])[:ORDER] for n in range(len(u))])
+    np.testing.assert_allclose(mean, rows @ mu, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(std**2, np.einsum("ij,jk,ik->i", rows, Sigma, rows), rtol=1e-8,
+                               atol=1e-12)
+
+
+def test_tuning_raises_the_evidence_over_white_on_a_drifting_record():
+    u, y = _data(1)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    coloured = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern12").fit(u, y)
+    assert white.noise_kernel_ == "white"
+    assert isinstance(coloured.noise_kernel_, type(WhiteKernel() + Matern()))
+    assert coloured.log_marginal_likelihood_value_ > white.log_marginal_likelihood_value_ + 5
+    assert coloured.noise_level_ == pytest.approx(coloured.noise_kernel_.k1.noise_level)
+
+
+def test_noise_kernel_is_checked():
+    u, y = _data()
+    for bad in ("matern52", 3, None):
+        with pytest.raises(ValueError, match="noise_kernel"):
+            FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=bad).fit(u, y)
+    with pytest.raises(ValueError, match="cross_validation"):
+        FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern32",
+                           tuning="cross_validation").fit(u, y)
+    model = FIRGaussianProcess(noise_kernel="matern32")
+    assert model.get_params()["noise_kernel"] == "matern32"
+    with pytest.raises(ValueError, match="return_std"):
+        FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y).predict(u, include_noise=True)
+
+
+def test_measurement_band_is_calibrated_with_disturbances_drawn_from_the_model():
+    """Systems drawn from the prior, disturbances from the noise kernel: a new record's
+    measured samples fall in the 95 % measurement band 95 % of the time, and the
+    standardized errors have unit variance; the band of the output alone is too narrow."""
+    rng = np.random.default_rng(11)
+    kernel = C(1.0, "fixed") * DC(0.8, 0.5, "fixed", "fixed")
+    noise_kernel = WhiteKernel(0.02, "fixed") + C(0.3, "fixed") * Matern(12.0, "fixed", nu=1.5)
+    n, n_new = 150, 90
+    t_new = np.arange(n_new, dtype=float)[:, None]
+    L_new = np.linalg.cholesky(noise_kernel(t_new) + 1e-12 * np.eye(n_new))
+    z_band, z_output = [], []
+    for _ in range(200):
+        u = rng.standard_normal(n)
+        model = FIRGaussianProcess(kernel, factor=FACTOR, order=ORDER, optimizer=None,
+                                   noise_kernel=noise_kernel)
+        op_lags = np.arange(ORDER, dtype=float)[:, None]
+        g = np.linalg.cholesky(kernel(op_lags) + 1e-12 * np.eye(ORDER)) @ rng.standard_normal(
+            ORDER)
+        t = np.arange(0, n, FACTOR, dtype=float)[:, None]
+        L = np.linalg.cholesky(noise_kernel(t) + 1e-12 * np.eye(t.shape[0]))
+        y = np.convolve(u, g)[:n][::FACTOR] + L @ rng.standard_normal(t.shape[0])
+        model.fit(u, y)
+        u_new = rng.standard_normal(n_new)
+        measured = np.convolve(u_new, g)[:n_new] + L_new @ rng.standard_normal(n_new)
+        mean, std = model.predict(u_new, return_std=True, include_noise=True)
+        _, std_output = model.predict(u_new, return_std=True)
+        z_band.append((measured - mean) / std)
+        z_output.append((measured - mean) / std_output)
+    z_band, z_output = np.concatenate(z_band), np.concatenate(z_output)
+    coverage = np.mean(np.abs(z_band) < 1.959964)
+    assert 0.93 < coverage < 0.97
+    assert np.mean(z_band**2) == pytest.approx(1.0, abs=0.08)
+    assert np.mean(np.abs(z_output) < 1.959964) < 0.8
+
+
+def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, 0.85 ** np.arange(ORDER))[:300][::FACTOR]
+    y = y + 0.05 * rng.standard_normal(y.shape[0])
+    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    assert auto.noise_kernel_ == "white"
+    np.testing.assert_array_equal(auto.coef_, white.coef_)
+    assert auto.log_marginal_likelihood_value_ == white.log_marginal_likelihood_value_
+
+
+def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
+    from gpmultirate.estimators import AUTO_NOISE_MARGIN
+
+    u, y = _data(1)
+    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    fits = {name: FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=name).fit(u, y)
+            for name in ("matern12", "matern32")}
+    best = max(fits, key=lambda name: fits[name].log_marginal_likelihood_value_)
+    assert (fits[best].log_marginal_likelihood_value_
+            > white.log_marginal_likelihood_value_ + AUTO_NOISE_MARGIN)
+    assert auto.noise_kernel_ == fits[best].noise_kernel_
+    assert auto.log_marginal_likelihood_value_ == pytest.approx(
+        fits[best].log_marginal_likelihood_value_, rel=1e-12)
+
+
+@pytest.mark.parametrize("noise_kernel", ["matern32", C(0.1) * ExpSineSquared(2.0, 24.0)])
+def test_a_disturbance_model_is_saved_and_loaded(tmp_path, noise_kernel):
+    from gpmultirate import load_model, save_model
+
+    u, y = _data(1)
+    model = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=noise_kernel).fit(u, y)
+    save_model(model, tmp_path / "model.gpm")
+    loaded = load_model(tmp_path / "model.gpm")
+    assert repr(loaded.noise_kernel_) == repr(model.noise_kernel_)
+    assert repr(loaded.get_params()["noise_kernel"]) == repr(noise_kernel)
+    np.testing.assert_allclose(loaded.coef_, model.coef_, rtol=1e-8, atol=1e-12)
+    _, std = model.predict(u, return_std=True, include_noise=True)
+    _, loaded_std = loaded.predict(u, return_std=True, include_noise=True)
+    np.testing.assert_allclose(loaded_std, std, rtol=1e-8)
+
+
+def test_multi_output_passes_the_noise_kernel_through():
+    from gpmultirate import MultiOutputFIR
+
+    u, y = _data(1)
+    _, y2 = _data(2)
+    model = MultiOutputFIR(FIRGaussianProcess(factor=FACTOR, order=ORDER,
+                                              noise_kernel="matern12")).fit(
+        u, np.column_stack([y, y2]))
+    for estimator in model.estimators_:
+        assert not isinstance(estimator.noise_kernel_, str)
+
+
+def test_command_line_noise_option_summary_and_residual_figure(tmp_path, capsys):
+    import json
+
+    from gpmultirate.cli import main
+
+    u, y = _data(1)
+    column = np.full(u.shape[0], np.nan)
+    column[::FACTOR] = y
+    data = tmp_path / "data.csv"
+    np.savetxt(data, np.column_stack([u, column]), delimiter=",", header="u,y", comments="")
+    out = tmp_path / "fit"
+    assert main(["fit", str(data), "--input", "u", "--output", "y", "--order", str(ORDER),
+                 "--noise", "matern12", "--out", str(out), "--quiet"]) == 0
+    assert "disturbance std" in capsys.readouterr().out
+    assert (out / "residuals.png").read_bytes()[:4] == b"\x89PNG"
+    noise = json.loads((out / "summary.json").read_text())["model"]["noise"]
+    model = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern12").fit(u, y)
+    assert noise["model"] == str(model.noise_kernel_)
+    assert noise["white_level"] == pytest.approx(model.noise_level_, rel=1e-6)
+    total = model.noise_kernel_.k1.noise_level + model.noise_kernel_.k2.k1.constant_value
+    assert noise["white_level"] + noise["disturbance_level"] == pytest.approx(total, rel=1e-6)
+    assert noise["time_scale"]["k2__k2__length_scale"] == pytest.approx(
+        model.noise_kernel_.k2.k2.length_scale, rel=1e-6)
+    assert isinstance(noise["residuals_white"], bool)
+    assert "noise model" in (out / "summary.md").read_text()
+    with pytest.raises(SystemExit):
+        main(["fit", str(data), "--input", "u", "--output", "y", "--noise", "matern52",
+              "--out", str(out)])
+
+
+def test_held_out_predictions_under_a_disturbance_against_dense_conditioning():
+    from gpmultirate import DownsampledConvolution
+    from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
+
+    u, y = _data(4)
+    op = DownsampledConvolution(u, FACTOR, ORDER)
+    kernel = C(0.8) * DC(0.85, 0.3)
+    noise = KernelNoise(WhiteKernel(1e-3) + C(0.05) * Matern(20.0, nu=1.5), noise_instants(op))
+    folds = contiguous_folds([op.n_outputs], 4)
+    mean, variance = held_out_predictions(op, kernel, noise, y, folds)
+    Phi = op.matrix
+    Ky = Phi @ kernel(op.lags) @ Phi.T + noise.matrix()
+    for B in folds:
+        R = np.setdiff1d(np.arange(y.shape[0]), B)
+        weights = np.linalg.solve(Ky[np.ix_(R, R)], Ky[np.ix_(R, B)])
+        np.testing.assert_allclose(mean[B], weights.T @ y[R], rtol=1e-8, atol=1e-10)
+        expected = np.diag(Ky[np.ix_(B, B)] - Ky[np.ix_(B, R)] @ weights)
+        np.testing.assert_allclose(variance[B], expected, rtol=1e-8)

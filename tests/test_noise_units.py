@@ -1,0 +1,64 @@
+"""A disturbance model in the data's units: exact under powers of two, and through a model file."""
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+from sklearn.gaussian_process.kernels import Matern, WhiteKernel
+
+import gpmultirate as gm
+from gpmultirate.units import scaled_noise_kernel
+
+
+@pytest.fixture(scope="module")
+def drifting():
+    rng = np.random.default_rng(1)
+    n = 300
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.8 ** np.arange(30))[:n]
+    drift = np.zeros(n)
+    steps = rng.standard_normal(n)
+    for i in range(1, n):
+        drift[i] = 0.95 * drift[i - 1] + 0.1 * steps[i]
+    return u, (y + drift + 0.01 * rng.standard_normal(n))[::3]
+
+
+def _fit(u, y_slow, **params):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return gm.FIRGaussianProcess(order=30, factor=3, **params).fit(u, y_slow)
+
+
+def test_scaled_noise_kernel_multiplies_the_covariance():
+    kernel = WhiteKernel(0.5, (1e-3, 1.0)) + C(2.0) * Matern(10.0, nu=1.5)
+    X = np.arange(6.0)[:, None]
+    np.testing.assert_allclose(scaled_noise_kernel(kernel, 8.0)(X), 8.0 * kernel(X), rtol=1e-14)
+    assert scaled_noise_kernel(kernel, 8.0).k1.noise_level_bounds == (8e-3, 8.0)
+
+
+def test_disturbance_fit_is_exact_under_a_power_of_two(drifting):
+    u, y_slow = drifting
+    plain = _fit(u, y_slow, noise_kernel="matern32")
+    scaled = _fit(u, y_slow * 2.0**20, noise_kernel="matern32")
+    assert not isinstance(plain.noise_kernel_, str)
+    X = np.arange(8.0)[:, None]
+    np.testing.assert_allclose(scaled.noise_kernel_(X), 2.0**40 * plain.noise_kernel_(X),
+                               rtol=1e-12)
+    mean, std = plain.predict(u, return_std=True, include_noise=True)
+    mean2, std2 = scaled.predict(u, return_std=True, include_noise=True)
+    np.testing.assert_allclose(mean2, 2.0**20 * mean, rtol=1e-12, atol=1e-12 * 2.0**20)
+    np.testing.assert_allclose(std2, 2.0**20 * std, rtol=1e-12)
+
+
+def test_disturbance_model_file_keeps_the_data_units(drifting, tmp_path):
+    u, y_slow = drifting
+    model = _fit(u, y_slow * 2.0**20, noise_kernel="matern32")
+    gm.save_model(model, tmp_path / "model.npz")
+    loaded = gm.load_model(tmp_path / "model.npz")
+    X = np.arange(8.0)[:, None]
+    np.testing.assert_allclose(loaded.noise_kernel_(X), model.noise_kernel_(X), rtol=1e-12)
+    mean, std = model.predict(u, return_std=True, include_noise=True)
+    mean2, std2 = loaded.predict(u, return_std=True, include_noise=True)
+    np.testing.assert_allclose(mean2, mean, rtol=1e-10, atol=1e-10 * np.abs(mean).max())
+    np.testing.assert_allclose(std2, std, rtol=1e-10)
