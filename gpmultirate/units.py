@@ -515,6 +515,11 @@ def evidence_theta(model, theta):
     if kernel is None or kernel.theta.shape[0] != model._evidence.kernel.theta.shape[0]:
         raise ValueError("theta: its amplitudes leave the float range in normalized units")
     normalized = kernel.theta
-    if theta.shape[0] > n_kernel:
+    noise_kernel = getattr(model, "noise_kernel_", "white")
+    if not isinstance(noise_kernel, str):  # a disturbance: its variances scale with the output
+        noise = scaled_noise_kernel(noise_kernel.clone_with_theta(theta[n_kernel:]),
+                                    scale.variance(1.0, to_data=False))
+        normalized = np.append(normalized, noise.theta)
+    elif theta.shape[0] > n_kernel:
         normalized = np.append(normalized, theta[-1] - 2 * scale.output_exponent * math.log(2.0))
     return normalized, scale.log_density_shift(model.y_slow_.shape[0])

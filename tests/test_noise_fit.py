@@ -59,9 +59,10 @@ def test_fitted_evidence_gradient_and_posterior_against_dense_formulas(noise_ker
     u, y = _data()
     model = FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), factor=FACTOR, order=ORDER,
                                noise_level=1e-2, noise_kernel=noise_kernel).fit(u, y)
-    theta = model._evidence.theta
+    # in the data's units: the kernel's, then the noise kernel's
+    theta = np.concatenate([model.kernel_.theta, model.noise_kernel_.theta])
     n_kernel = model.kernel_.theta.shape[0]
-    assert theta.shape[0] == n_kernel + model.noise_kernel_.theta.shape[0]
+    assert model._evidence.theta.shape[0] == n_kernel + model.noise_kernel_.theta.shape[0]
     Phi, K, dK, N, dN = _dense_parts(model, theta)
     ref, ref_grad = dense_log_evidence(Phi, K, y, N, dK, dN, eval_gradient=True)
     assert model.log_marginal_likelihood_value_ == pytest.approx(ref, rel=1e-8)
