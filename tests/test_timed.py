@@ -488,3 +488,68 @@ def test_multioutput_passes_the_instants_through():
     np.testing.assert_allclose(listed[1], mean)
     with pytest.raises(ValueError, match="one entry per record"):
         several.predict([u, u], sample_times=new)
+
+
+# ------------------------------------------- exposure windows in closed form
+def test_ordered_exponential_integral_against_the_quadrature():
+    from gpmultirate.kernels.offsets import ordered_exponential_integral
+    from gpmultirate.observations.timed import _ordered_integral
+
+    rng = np.random.default_rng(5)
+    n = 400
+    ends = np.sort(rng.uniform(0, 1, (4, n)), axis=0)
+    a1, b1 = ends[0], ends[2]
+    a2, b2 = ends[1], ends[3]
+    # equal, nested, disjoint and empty intervals among them
+    a2[:20], b2[:20] = a1[:20], b1[:20]
+    a1[20:40], b1[20:40] = b2[20:40], np.minimum(b2[20:40] + 0.1, 1.0)
+    b1[40:60] = a1[40:60]
+    xi, w = np.polynomial.legendre.leggauss(16)
+    for lam, mu in [(-0.2, 0.0), (0.3, -0.25), (-1e-9, 1e-9), (0.0, 0.0), (-2.5, 1.7),
+                    (np.log(0.9), np.log(0.9) / 2)]:
+        value = ordered_exponential_integral(lam, mu, a1, b1, a2, b2)
+        reference = _ordered_integral(lambda x: np.exp(lam * x), lambda y: np.exp(mu * y),
+                                      a1, b1, a2, b2, xi, w)
+        assert np.allclose(value, reference, rtol=1e-8, atol=1e-12)
+        # the complex step: the derivative in lam, against the quadrature's own
+        step = 1e-30
+        d_value = np.imag(ordered_exponential_integral(lam + 1j * step, mu, a1, b1, a2, b2))
+        d_reference = _ordered_integral(lambda x: x * np.exp(lam * x), lambda y: np.exp(mu * y),
+                                        a1, b1, a2, b2, xi, w)
+        assert np.allclose(d_value / step, d_reference, rtol=1e-8, atol=1e-12)
+
+
+def test_exp_divided_difference_on_both_sides_of_the_series():
+    from gpmultirate.kernels.offsets import exp_divided_difference
+
+    z = np.array([[0.1, 0.3, 0.35], [0.0, 0.49, -0.01], [-3.0, 0.2, 1.0], [0.2, 0.2, 0.2]])
+    xi, w = np.polynomial.legendre.leggauss(40)
+    for z0, z1, z2 in z:
+        # the integral over the triangle 0 <= v <= u <= 1 of exp(z0 + (z1 - z0) u + (z2 - z1) v)
+        u = (xi + 1) / 2
+        inner = [np.sum(w / 2 * np.exp(z0 + (z1 - z0) * uu + (z2 - z1) * uu * (xi + 1) / 2)) * uu
+                 for uu in u]
+        reference = np.sum(w / 2 * np.array(inner))
+        assert np.isclose(exp_divided_difference(z0, z1, z2), reference, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["DC", "TC", "SS"])
+def test_closed_form_windows_match_the_quadrature(name, monkeypatch):
+    import gpmultirate.kernels.offsets as offsets
+
+    u = _input()
+    timed = TimedConvolution(u, TIMES, order=P, exposure=0.7, latency=0.2)
+    kernel = KERNELS[name]
+    closed, closed_grad = observe_covariance(kernel, timed)
+    original = offsets.offset_structure
+    monkeypatch.setattr(
+        "gpmultirate.observations.timed.offset_structure",
+        lambda *args: original(*args)._replace(rates=None))
+    quadrature, quadrature_grad = observe_covariance(kernel, timed)
+    assert np.allclose(closed, quadrature, rtol=1e-8, atol=1e-10 * np.abs(quadrature).max())
+    assert np.allclose(closed_grad, quadrature_grad, rtol=1e-8,
+                       atol=1e-10 * np.abs(quadrature_grad).max())
+
+
+def observe_covariance(kernel, observation):
+    return observation.covariance(kernel, eval_gradient=True)
