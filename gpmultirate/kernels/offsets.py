@@ -230,11 +230,18 @@ def exp_divided_difference(z0, z1, z2):
     if np.any(near):
         a, b = w1[near], w2[near]
         # sum_k h_k(a, b) / (k + 2)!, h_k the complete homogeneous polynomial of degree k
+        # (|h_k| <= (k + 1) spread^k): as many terms as the largest spread needs
+        largest = float(np.max(spread[near]))
+        terms, bound, k = 1, 0.5, 0
+        while k < _SERIES_TERMS and bound > 1e-18 * 0.5:
+            k += 1
+            bound = bound * largest * (k + 1) / k / (k + 2)
+            terms = k + 1
         h = np.ones_like(a)
         power = np.ones_like(a)
         total = h / 2.0
         factorial = 2.0
-        for k in range(1, _SERIES_TERMS):
+        for k in range(1, terms):
             power = power * a
             h = b * h + power
             factorial *= k + 2
@@ -254,19 +261,18 @@ def exp_divided_difference(z0, z1, z2):
 
 
 def _exprel(z):
-    """``(exp(z) - 1) / z``, analytic (a Taylor series near 0)."""
+    """``(exp(z) - 1) / z``, analytic: ``expm1(z) / z``, a Taylor series very near 0.
+
+    NumPy's ``expm1`` of a complex number is accurate in both parts, so the
+    complex step differentiates it.
+    """
     z = np.asarray(z)
     out = np.empty(z.shape, dtype=np.result_type(z, float))
-    near = np.abs(z) < _SERIES_SPREAD
+    near = np.abs(z) < 1e-5
     a = z[near]
-    term = np.ones_like(a)
-    total = np.ones_like(a)
-    for k in range(2, _SERIES_TERMS + 1):
-        term = term * a / k
-        total = total + term
-    out[near] = total
+    out[near] = 1.0 + a * (0.5 + a * (1.0 / 6.0 + a / 24.0))
     b = z[~near]
-    out[~near] = (np.exp(b) - 1.0) / b
+    out[~near] = np.expm1(b) / b
     return out
 
 
