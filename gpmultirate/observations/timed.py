@@ -644,9 +644,11 @@ class ShiftScaledTimedTerm(_TimedTerm):
         """``sum_k c^k`` times the kernel at the offsets, integrated over pairs of window pieces.
 
         ``k(k + x, k + y) = c^k k(x, y)`` has its kink at ``x = y``; the
-        double integral over two pieces is split there
-        (:func:`_ordered_integral`), with ``k(x, y) = sum_r A_r[0, 0] f_r(x) h_r(y)``
-        for ``x > y``.
+        double integral over two pieces is split there, with
+        ``k(x, y) = sum_r A_r[0, 0] f_r(x) h_r(y)`` for ``x > y``: in closed
+        form where ``f_r`` and ``h_r`` are exponentials
+        (:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`),
+        otherwise by nested quadrature (:func:`_ordered_integral`).
         """
         obs = self.observation
         xi, w = np.polynomial.legendre.leggauss(obs.nodes)
