@@ -91,6 +91,9 @@ _finite_float = _argument("number", float, math.isfinite,
 _sample_time = _argument("seconds", float, lambda value: 1e-300 <= value <= 1e300,
                          lambda text, value: "must be a positive number between 1e-300 and "
                                              f"1e300 seconds, got {text!r}", "a number")
+_duration = _argument("seconds", float, lambda value: 0 <= value < math.inf,
+                      lambda text, value: f"must be a non-negative number, got {text!r}",
+                      "a number")
 _order_or_auto = _argument(
     "order", lambda text: text if text == "auto" else int(text),
     lambda value: value == "auto" or value >= 1,
@@ -185,6 +188,14 @@ def _add_fit_parser(commands) -> None:
                      help="zero: at rest before the record; discard: use only outputs that "
                           "see recorded inputs; periodic: the record is one period "
                           "(default: zero)")
+    _add_slow_arguments(fit, "the output column (--output) and the time stamps in seconds on "
+                             "the clock of DATA, whose row n is at n T")
+    fit.add_argument("--exposure", type=_duration, default=0.0, metavar="E",
+                     help="with --slow: each reading is the mean output over the E seconds "
+                          "before its stamp (default: 0)")
+    fit.add_argument("--latency", type=_duration, default=0.0, metavar="L",
+                     help="with --slow: a reading stamped t shows the output at t - L "
+                          "(seconds, default: 0)")
     fit.add_argument("--validate", metavar="DATA2", default=None,
                      help="validation file with the same columns and the output measured at "
                           "every row; its goodness of fit goes into the summary")
@@ -210,12 +221,21 @@ def _add_predict_parser(commands) -> None:
     predict.add_argument("data", metavar="DATA", help="data file: .csv, .npz or .mat")
     predict.add_argument("--input", nargs="+", metavar="COL", dest="inputs", required=True,
                          help="input column(s), as many as the model has inputs")
+    _add_slow_arguments(predict, "the time stamps (--time, seconds) of the readings to "
+                                 "predict, with the model's exposure and latency")
     predict.add_argument("--out", metavar="FILE", default=PREDICT_OUT,
                          help=f"CSV file of the prediction (default: {PREDICT_OUT})")
     predict.add_argument("--force", action="store_true", help="overwrite an existing file")
     predict.add_argument("--quiet", "-q", action="store_true",
                          help="no file messages on stderr")
     predict.set_defaults(handler=_predict, command_parser=predict)
+
+
+def _add_slow_arguments(parser, holds: str) -> None:
+    parser.add_argument("--slow", metavar="FILE", default=None,
+                        help=f"slow log (.csv, .npz, .mat) beside DATA: {holds}")
+    parser.add_argument("--time", metavar="COL", default=None,
+                        help="with --slow: its column of time stamps in seconds")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -525,16 +545,19 @@ def _fit(parser, args) -> int:
     import warnings
 
     from gpmultirate import FIRGaussianProcess
-    from gpmultirate.io import check_folder, read_record, read_slow_samples, write_folder
+    from gpmultirate.io import (
+        check_folder, read_record, read_slow_log, read_slow_samples, write_folder,
+    )
     from gpmultirate.report import fit_files
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
+    _check_slow(parser, args)
     out = Path(args.out)
     _check_out(parser, lambda: check_folder(out, FIT_FILES, overwrite=args.force))
     started = time.perf_counter()
-    u, y = read_record(path, inputs, output)
-    n = y.shape[0]
+    u, y = read_record(path, inputs, None if args.slow else output)
+    n = u.shape[0]
     if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")
@@ -545,10 +568,14 @@ def _fit(parser, args) -> int:
     if args.offset is not None and args.offset >= n:
         parser.error(f"argument --offset: must be below the {n} rows of {path}; got "
                      f"{args.offset}")
-    try:
-        samples = read_slow_samples(y, factor=args.factor, offset=args.offset)
-    except ValueError as error:
-        parser.error(f"{path}: {str(error).replace('column', f'output column {output!r}', 1)}")
+    if args.slow is not None:  # its errors name the slow file
+        samples = read_slow_log(args.slow, args.time, output, sample_time=args.sample_time,
+                                n_samples=n, exposure=args.exposure, latency=args.latency)
+    else:
+        try:
+            samples = read_slow_samples(y, factor=args.factor, offset=args.offset)
+        except ValueError as error:
+            parser.error(f"{path}: " + str(error).replace("column", f"output column {output!r}", 1))
     validation = None
     if args.validate is not None:
         validation = read_record(args.validate, inputs, output, complete=True)
@@ -611,7 +638,7 @@ def _check_out(parser, action) -> None:
 
 def _predict(parser, args) -> int:
     import gpmultirate as gm
-    from gpmultirate.io import read_record, write_file
+    from gpmultirate.io import read_record, read_slow_log, write_file
     from gpmultirate.report import prediction_csv
 
     _check_columns(parser, args.inputs)
@@ -627,14 +654,29 @@ def _predict(parser, args) -> int:
     if len(args.inputs) != model.n_inputs_:
         parser.error(f"argument --input: the model of {args.model} has {model.n_inputs_} "
                      f"input(s); got {len(args.inputs)} column(s)")
+    _check_slow(parser, args)
     u, _ = read_record(args.data, args.inputs)
+    log = None if args.slow is None else read_slow_log(
+        args.slow, args.time, sample_time=getattr(model, "sample_time", None) or 1.0, n_samples=u.shape[0])
     try:
-        table = prediction_csv(model, u)
+        table = prediction_csv(model, u, None if log is None else log.sample_times)
     except ValueError as error:
         parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
     _check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
     _say(args, f"wrote {out} ({table.count(chr(10)) - 1} fast samples)")
     return 0
+
+
+def _check_slow(parser, args) -> None:
+    if (args.slow is None) != (args.time is None):
+        parser.error("argument --slow/--time: a slow log needs both: --slow FILE --time COL")
+    wrong = ("--exposure/--latency", getattr(args, "exposure", 0) or getattr(args, "latency", 0))
+    if args.slow is not None:
+        wrong = ("--factor/--offset", getattr(args, "factor", None) is not None
+                 or getattr(args, "offset", None) is not None)
+    if wrong[1]:
+        parser.error(f"argument {wrong[0]}: " + ("not with --slow (the stamps place the "
+                     "readings)" if args.slow else "only with a slow log (--slow)"))
 
 
 def _shorten(text: str, limit: int = 80) -> str:

@@ -30,9 +30,9 @@ from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.exceptions import DataFileError
 
-__all__ = ["DataFileError", "DataTable", "SlowSamples", "check_folder", "model_slow_samples",
-           "read_columns", "read_record", "read_slow_samples", "read_table", "write_file",
-           "write_folder"]
+__all__ = ["DataFileError", "DataTable", "SlowLog", "SlowSamples", "check_folder",
+           "model_slow_samples", "read_columns", "read_record", "read_slow_log",
+           "read_slow_samples", "read_table", "write_file", "write_folder"]
 
 #: The largest number of columns a CSV file may have.
 MAX_COLUMNS = 100_000
@@ -670,6 +670,194 @@ def read_slow_samples(column, *, factor: int | None = None,
     uniform = bool(np.all((measured - offset) % factor == 0))
     return SlowSamples(indices=measured, values=y[measured], n_samples=n, factor=int(factor),
                        offset=int(offset) if uniform else None)
+
+
+@dataclass(frozen=True)
+class SlowLog:
+    """Readings of a slow sensor with their own time stamps, beside a fast record.
+
+    Build it with :func:`read_slow_log`.  It has the attributes of
+    :class:`SlowSamples` that describe the sampling (``indices`` are the
+    fast ticks at or before the stamps), so a report of the fit reads it
+    alike.
+
+    Attributes
+    ----------
+    stamps : ndarray of shape (M,)
+        The time stamps in seconds, strictly increasing, in ``[0, N T)``.
+    sample_times : ndarray of shape (M,)
+        The stamps in fast sample periods, ``stamps / T`` (within ``1e-9`` of
+        a tick: the tick), the ``sample_times`` of ``fit`` and ``predict``.
+    values : ndarray of shape (M,) or None
+        The readings (``NaN`` where one is missing); None for stamps alone.
+    n_samples : int
+        ``N``, the fast samples of the record.
+    sample_time : float
+        ``T`` in seconds.
+    exposure, latency : float
+        The sensor's exposure and latency in seconds.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> log = SlowLog(np.array([0.0025, 0.0061]), np.array([2.5, 6.1]), np.array([1.0, 2.0]),
+    ...               10, 0.001)
+    >>> log.indices, log.factor, log.fit_params
+    (array([2, 6]), 4, {'sample_times': array([2.5, 6.1])})
+    """
+
+    stamps: np.ndarray
+    sample_times: np.ndarray
+    values: np.ndarray | None
+    n_samples: int
+    sample_time: float
+    exposure: float = 0.0
+    latency: float = 0.0
+
+    offset = None
+    uniform = False
+    n_missing = 0
+
+    @property
+    def indices(self) -> np.ndarray:
+        """The fast tick at or before each stamp."""
+        return np.floor(self.sample_times).astype(np.int64)
+
+    @property
+    def factor(self) -> int:
+        """The median spacing of the stamps in fast sample periods, rounded (at least 1)."""
+        if self.sample_times.shape[0] < 2:
+            return 1
+        return max(1, int(round(float(np.median(np.diff(self.sample_times))))))
+
+    @property
+    def y_slow(self) -> np.ndarray:
+        """The ``y_slow`` argument of ``fit``: the readings, ``NaN`` where missing."""
+        if self.values is None:
+            raise ValueError("the slow log has stamps only: no readings were read")
+        return self.values.copy()
+
+    @property
+    def estimator_params(self) -> dict:
+        """Constructor arguments of the estimator: ``exposure`` and ``latency`` in fast
+        sample periods."""
+        return {"exposure": self.exposure / self.sample_time,
+                "latency": self.latency / self.sample_time}
+
+    @property
+    def fit_params(self) -> dict:
+        """Keyword arguments of ``fit`` beside ``y_slow``: ``sample_times``."""
+        return {"sample_times": self.sample_times.copy()}
+
+    @property
+    def description(self) -> str:
+        """One phrase describing the sampling."""
+        text = f"time stamps of their own, median spacing {self.factor} fast periods"
+        for name in ("exposure", "latency"):
+            if getattr(self, name):
+                text += f", {name} {getattr(self, name):g} s"
+        return text
+
+
+def read_slow_log(path, time: str, output: str | None = None, *, sample_time: float,
+                  n_samples: int, exposure: float = 0.0, latency: float = 0.0) -> SlowLog:
+    """Read a slow log: readings and their time stamps in seconds, on the fast record's clock.
+
+    The fast record's row ``n`` is the instant ``n T``; a reading stamped
+    ``t`` seconds lies at ``t / T`` fast sample periods
+    (:meth:`gpmultirate.FIRGaussianProcess.fit` with ``sample_times``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``.csv``, ``.npz`` or ``.mat`` file (:func:`read_table`).
+    time : str
+        The column of the time stamps, in seconds.
+    output : str, optional
+        The column of the readings (empty or ``NaN`` where one is missing);
+        without it only the stamps are read (for a prediction).
+    sample_time : float
+        ``T``, the fast sample time in seconds.
+    n_samples : int
+        ``N``, the fast samples of the record: every stamp lies in ``[0, N T)``.
+    exposure, latency : float, default=0.0
+        The sensor's exposure and latency in seconds: a reading stamped ``t``
+        is the mean output over ``[t - L - E, t - L]``.
+
+    Returns
+    -------
+    SlowLog
+
+    Raises
+    ------
+    DataFileError
+        A malformed file, a missing column, text in a number, a missing
+        stamp, stamps that are not strictly increasing (unsorted or
+        duplicate) or that lie outside the record; one line naming the file.
+    ValueError
+        If ``sample_time``, ``n_samples``, ``exposure`` or ``latency`` is invalid.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.io import DataFileError, read_slow_log
+    >>> path = os.path.join(tempfile.mkdtemp(), "camera.csv")
+    >>> with open(path, "w") as f:
+    ...     _ = f.write("t,y\\n0.0025,1.0\\n0.0061,\\n0.009,3.0\\n")
+    >>> log = read_slow_log(path, "t", "y", sample_time=0.001, n_samples=10)
+    >>> log.sample_times, log.values
+    (array([2.5, 6.1, 9. ]), array([ 1., nan,  3.]))
+    >>> try:
+    ...     read_slow_log(path, "t", "y", sample_time=0.001, n_samples=8)
+    ... except DataFileError as error:
+    ...     print(error.problem)
+    column 't': stamp 3 (0.009 s) lies outside the record [0, 0.008) s of 8 fast samples
+    """
+    try:
+        sample_time = float(sample_time)
+    except (TypeError, ValueError):
+        raise ValueError(f"sample_time must be a positive number; got {sample_time!r}") from None
+    if not (np.isfinite(sample_time) and sample_time > 0):
+        raise ValueError(f"sample_time must be a positive number; got {sample_time!r}")
+    n_samples = _count(n_samples, "n_samples", 1)
+    for name, value in (("exposure", exposure), ("latency", latency)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) \
+                or not np.isfinite(value) or value < 0:
+            raise ValueError(f"{name} must be a non-negative number of seconds; got {value!r}")
+    names = [time] if output is None else [time, output]
+    if output is not None and output == time:
+        raise DataFileError(path, f"the time column {_short(time)} is also the output column")
+    columns = read_columns(path, names)
+    stamps = columns[time]
+    missing = np.flatnonzero(np.isnan(stamps))
+    if missing.size:
+        raise DataFileError(path, f"column {_short(time)}: stamp {missing[0] + 1} is missing "
+                                  "(every reading needs its time stamp)")
+    step = np.diff(stamps)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        k = bad[0]
+        what = "repeats" if step[k] == 0 else "comes before"
+        raise DataFileError(path, f"column {_short(time)}: stamp {k + 2} ({stamps[k + 1]:g} s) "
+                                  f"{what} stamp {k + 1} ({stamps[k]:g} s); the stamps must be "
+                                  "strictly increasing")
+    times = stamps / sample_time
+    tick = np.round(times)
+    times = np.where(np.abs(times - tick) <= 1e-9 * np.maximum(1.0, np.abs(tick)), tick, times)
+    outside = np.flatnonzero((times < 0) | (times >= n_samples))
+    if outside.size:
+        k = outside[0]
+        raise DataFileError(path, f"column {_short(time)}: stamp {k + 1} ({stamps[k]:g} s) lies "
+                                  f"outside the record [0, {n_samples * sample_time:g}) s of "
+                                  f"{n_samples} fast samples")
+    values = None if output is None else columns[output]
+    if values is not None and not np.any(np.isfinite(values)):
+        raise DataFileError(path, f"column {_short(output)} has no reading (every cell is "
+                                  "empty or NaN)")
+    for array in (stamps, times) + (() if values is None else (values,)):
+        array.setflags(write=False)
+    return SlowLog(stamps, times, values, n_samples, sample_time, float(exposure),
+                   float(latency))
 
 
 def _count(value, name: str, low: int) -> int:

@@ -117,7 +117,7 @@ class MultiOutputFIR(BaseEstimator):
         self.estimator = estimator
         self.n_jobs = n_jobs
 
-    def fit(self, u, y_slow, sample_indices=None) -> "MultiOutputFIR":
+    def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "MultiOutputFIR":
         """Fit one clone of the estimator per output column of ``y_slow``.
 
         Parameters
@@ -131,6 +131,10 @@ class MultiOutputFIR(BaseEstimator):
         sample_indices : array-like of int, or a list of them, optional
             The fast-sample index of each row of ``y_slow``, as for the
             estimator's ``fit``; shared by every output.
+        sample_times : array-like of float, or a list of them, optional
+            The instant of each row of ``y_slow`` in fast sample periods
+            (readings at their own instants, with the estimator's exposure and
+            latency), as for the estimator's ``fit``; shared by every output.
 
         Returns
         -------
@@ -149,7 +153,8 @@ class MultiOutputFIR(BaseEstimator):
         n_jobs = check_n_jobs(self.n_jobs)
         columns = _output_columns(y_slow, several_records=is_record_list(u))
         tasks = (
-            joblib.delayed(_fit_output)(clone(estimator), u, y_j, sample_indices, j)
+            joblib.delayed(_fit_output)(clone(estimator), u, y_j, sample_indices, j,
+                                        sample_times)
             for j, y_j in enumerate(columns)
         )
         self.estimators_ = list(joblib.Parallel(n_jobs=n_jobs)(tasks))
@@ -181,7 +186,7 @@ class MultiOutputFIR(BaseEstimator):
             return 0
         return check_int(output, "output", low=0, high=self.n_outputs_ - 1)
 
-    def predict(self, u, return_std: bool = False):
+    def predict(self, u, return_std: bool = False, sample_times=None):
         """Fast-rate output of every output's model for input ``u``.
 
         Parameters
@@ -191,6 +196,10 @@ class MultiOutputFIR(BaseEstimator):
         return_std : bool, default=False
             Also return the posterior standard deviation of each output (see
             the estimator's ``predict``).
+        sample_times : array-like of float, or a list of them, optional
+            Predict each output's readings at these instants (fast sample
+            periods) instead of the fast samples, as the estimator's
+            ``predict`` does; ``n`` is then their number.
 
         Returns
         -------
@@ -199,8 +208,13 @@ class MultiOutputFIR(BaseEstimator):
         """
         check_is_fitted(self, "estimators_")
         if is_record_list(u):
-            return [self.predict(u_r, return_std) for u_r in u]
-        answers = [e.predict(u, return_std=return_std) for e in self.estimators_]
+            if sample_times is None:
+                return [self.predict(u_r, return_std) for u_r in u]
+            if not is_record_list(sample_times) or len(sample_times) != len(u):
+                raise ValueError("sample_times must be a list with one entry per record of u")
+            return [self.predict(u_r, return_std, t) for u_r, t in zip(u, sample_times)]
+        extra = {} if sample_times is None else {"sample_times": sample_times}
+        answers = [e.predict(u, return_std=return_std, **extra) for e in self.estimators_]
         if return_std:
             return (np.column_stack([a[0] for a in answers]),
                     np.column_stack([a[1] for a in answers]))
@@ -247,7 +261,7 @@ class MultiOutputFIR(BaseEstimator):
         return self.estimators_[j].impulse_response(lags, return_std, return_cov)
 
 
-def _fit_output(estimator, u, y_slow, sample_indices, output: int):
+def _fit_output(estimator, u, y_slow, sample_indices, output: int, sample_times=None):
     """Fit ``estimator`` to one output (a task of :meth:`MultiOutputFIR.fit`).
 
     One BLAS thread: the parallelism is over outputs, and the result must
@@ -255,7 +269,10 @@ def _fit_output(estimator, u, y_slow, sample_indices, output: int):
     """
     try:
         with one_blas_thread():
-            return estimator.fit(u, y_slow, sample_indices=sample_indices)
+            if sample_times is None:
+                return estimator.fit(u, y_slow, sample_indices=sample_indices)
+            return estimator.fit(u, y_slow, sample_indices=sample_indices,
+                                 sample_times=sample_times)
     except Exception as exc:
         if hasattr(exc, "add_note"):  # Python >= 3.11
             exc.add_note(f"while fitting output {output} (column {output} of y_slow)")

@@ -483,11 +483,15 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
         samples = model_slow_samples(model)
     files, notes, system = {}, [], None
     buffer = io.BytesIO()
-    try:
-        save_model(model, buffer)
-    except (ValueError, TypeError) as error:
-        raise ValueError(f"the model cannot be saved: {error}") from None
-    files["model.npz"] = buffer.getvalue()
+    if hasattr(model.observation_, "exposure"):  # readings between the fast ticks
+        notes.append("model.npz was not written: a model fitted to readings at their own "
+                     "instants cannot be saved yet")
+    else:
+        try:
+            save_model(model, buffer)
+        except (ValueError, TypeError) as error:
+            raise ValueError(f"the model cannot be saved: {error}") from None
+        files["model.npz"] = buffer.getvalue()
     try:
         system = model.to_state_space()
     except ValueError as error:
@@ -523,7 +527,7 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
     return files, report
 
 
-def prediction_csv(model, u) -> str:
+def prediction_csv(model, u, sample_times=None) -> str:
     """The fast-rate prediction of a fitted model as CSV text (``gpmultirate predict``).
 
     Parameters
@@ -531,6 +535,10 @@ def prediction_csv(model, u) -> str:
     model : fitted estimator
         ``FIRGaussianProcess``, ``LeastSquaresFIR`` or ``MultiOutputFIR``.
     u : array-like of shape (n_samples,) or (n_samples, n_inputs)
+    sample_times : array-like of float, optional
+        Predict the readings at these instants (fast sample periods,
+        ``model.predict(u, sample_times=...)``) instead of the fast samples:
+        one row per reading, ``index`` its number and ``time`` its instant.
 
     Returns
     -------
@@ -557,7 +565,10 @@ def prediction_csv(model, u) -> str:
     >>> print(prediction_csv(model, [1.0, 0.0]).splitlines()[0])
     index,time,y,y_std
     """
-    mean, std = model.predict(u, return_std=True)
+    if sample_times is None:
+        mean, std = model.predict(u, return_std=True)
+    else:
+        mean, std = model.predict(u, return_std=True, sample_times=sample_times)
     if not (np.isfinite(mean).all() and np.isfinite(std).all()):
         raise ValueError("the prediction is not finite (the model or the inputs are out of "
                          "range)")
@@ -567,9 +578,10 @@ def prediction_csv(model, u) -> str:
     sample_time = float(getattr(models[0], "sample_time", 1.0))
     names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
     rows = [",".join(["index,time", *names])]
+    instants = np.arange(mean.shape[0]) if sample_times is None else np.asarray(sample_times)
     for k, (m, s) in enumerate(zip(mean, std)):
         values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
-        rows.append(f"{k},{k * sample_time:.17g},{values}")
+        rows.append(f"{k},{instants[k] * sample_time:.17g},{values}")
     return "\n".join(rows) + "\n"
 
 

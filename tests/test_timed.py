@@ -401,3 +401,155 @@ def test_saving_a_model_between_the_ticks_is_refused(tmp_path):
     model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_times=times)
     with pytest.raises(ValueError, match="cannot be saved yet"):
         gm.save_model(model, tmp_path / "model.npz")
+
+
+# ------------------------------------------------------- the band between the ticks
+def test_plot_intersample_draws_the_band_between_the_ticks():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from gpmultirate.plotting import IntersamplePlot, plot_intersample
+    from gpmultirate.responses import normal_quantile
+
+    u, y, _, times = _fit_data()
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT, exposure=0.5, latency=0.2,
+                                  optimizer=None, noise_level=1e-4).fit(u, y, sample_times=times)
+    fig, ax = plt.subplots()
+    shown = plt.show
+    try:
+        plt.show = lambda *a, **k: pytest.fail("plot_intersample must not show")
+        before = plt.get_fignums()
+        drawn = plot_intersample(model, u, y_slow=y, sample_times=times, sample_time=0.01,
+                                 window=(30, 45), between=4, ax=ax)
+    finally:
+        plt.show = shown
+    assert isinstance(drawn, IntersamplePlot) and drawn.ax is ax
+    assert plt.get_fignums() == before
+    grid = np.arange(120, 180) / 4
+    np.testing.assert_allclose(drawn.mean_line.get_xdata(), grid * 0.01)
+    # the band is the model's readings on the grid, an independent call of predict
+    mean, std = model.predict(u, sample_times=grid, return_std=True)
+    np.testing.assert_allclose(drawn.mean_line.get_ydata(), mean)
+    vertices = drawn.band.get_paths()[0].vertices
+    z = normal_quantile(0.95)
+    assert np.isclose(vertices[:, 1].max(), (mean + z * std).max())
+    assert np.isclose(vertices[:, 1].min(), (mean - z * std).min())
+    inside = (times >= 30) & (times < 45)
+    np.testing.assert_allclose(drawn.slow_markers.get_xdata(), times[inside] * 0.01)
+    np.testing.assert_array_equal(drawn.slow_markers.get_ydata(), y[inside])
+    # a model fitted between the ticks draws between them by default (8 per period)
+    default = plot_intersample(model, u, window=(30, 32))
+    assert default.mean_line.get_xdata().shape == (16,) and default.slow_markers is None
+    plt.close("all")
+
+
+def test_plot_intersample_between_checks():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from gpmultirate.plotting import plot_intersample
+
+    u, y, ticks, times = _fit_data()
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT, optimizer=None,
+                                  noise_level=1e-4).fit(u, y, sample_times=times)
+    with pytest.raises(ValueError, match="sample_times"):
+        plot_intersample(model, u, y_slow=y)
+    with pytest.raises(ValueError, match="y_slow"):
+        plot_intersample(model, u, y_slow=y[:-1], sample_times=times)
+    with pytest.raises(ValueError, match="between"):
+        plot_intersample(model, u, between=0)
+    with pytest.raises(ValueError, match="factor and offset"):
+        plot_intersample(model, u, factor=3)
+    least = gm.LeastSquaresFIR(order=P_FIT).fit(u, y, sample_indices=ticks)
+    with pytest.raises(ValueError, match="FIRGaussianProcess"):
+        plot_intersample(least, u, between=4)
+    plt.close("all")
+
+
+def test_multioutput_passes_the_instants_through():
+    u, y, _, times = _fit_data()
+    y2 = np.column_stack([y, 0.5 * y + 0.01])
+    base = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT, exposure=0.3, latency=0.1,
+                                 optimizer=None, noise_level=1e-4)
+    several = gm.MultiOutputFIR(base, n_jobs=1).fit(u, y2, sample_times=times)
+    new = np.array([5.5, 17.25, 40.1])
+    mean, std = several.predict(u, return_std=True, sample_times=new)
+    assert mean.shape == (3, 2)
+    for j in range(2):
+        alone = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT, exposure=0.3, latency=0.1,
+                                      optimizer=None, noise_level=1e-4).fit(
+            u, y2[:, j], sample_times=times)
+        assert isinstance(several.estimators_[j].observation_, gm.TimedConvolution)
+        np.testing.assert_allclose(several.estimators_[j].coef_, alone.coef_, rtol=1e-10)
+        m, s = alone.predict(u, return_std=True, sample_times=new)
+        np.testing.assert_allclose(mean[:, j], m, rtol=1e-10)
+        np.testing.assert_allclose(std[:, j], s, rtol=1e-10)
+    listed = several.predict([u, u], sample_times=[new, new])
+    np.testing.assert_allclose(listed[1], mean)
+    with pytest.raises(ValueError, match="one entry per record"):
+        several.predict([u, u], sample_times=new)
+
+
+# ------------------------------------------- exposure windows in closed form
+def test_ordered_exponential_integral_against_the_quadrature():
+    from gpmultirate.kernels.offsets import ordered_exponential_integral
+    from gpmultirate.observations.timed import _ordered_integral
+
+    rng = np.random.default_rng(5)
+    n = 400
+    ends = np.sort(rng.uniform(0, 1, (4, n)), axis=0)
+    a1, b1 = ends[0], ends[2]
+    a2, b2 = ends[1], ends[3]
+    # equal, nested, disjoint and empty intervals among them
+    a2[:20], b2[:20] = a1[:20], b1[:20]
+    a1[20:40], b1[20:40] = b2[20:40], np.minimum(b2[20:40] + 0.1, 1.0)
+    b1[40:60] = a1[40:60]
+    xi, w = np.polynomial.legendre.leggauss(16)
+    for lam, mu in [(-0.2, 0.0), (0.3, -0.25), (-1e-9, 1e-9), (0.0, 0.0), (-2.5, 1.7),
+                    (np.log(0.9), np.log(0.9) / 2)]:
+        value = ordered_exponential_integral(lam, mu, a1, b1, a2, b2)
+        reference = _ordered_integral(lambda x: np.exp(lam * x), lambda y: np.exp(mu * y),
+                                      a1, b1, a2, b2, xi, w)
+        assert np.allclose(value, reference, rtol=1e-8, atol=1e-12)
+        # the complex step: the derivative in lam, against the quadrature's own
+        step = 1e-30
+        d_value = np.imag(ordered_exponential_integral(lam + 1j * step, mu, a1, b1, a2, b2))
+        d_reference = _ordered_integral(lambda x: x * np.exp(lam * x), lambda y: np.exp(mu * y),
+                                        a1, b1, a2, b2, xi, w)
+        assert np.allclose(d_value / step, d_reference, rtol=1e-8, atol=1e-12)
+
+
+def test_exp_divided_difference_on_both_sides_of_the_series():
+    from gpmultirate.kernels.offsets import exp_divided_difference
+
+    z = np.array([[0.1, 0.3, 0.35], [0.0, 0.49, -0.01], [-3.0, 0.2, 1.0], [0.2, 0.2, 0.2]])
+    xi, w = np.polynomial.legendre.leggauss(40)
+    for z0, z1, z2 in z:
+        # the integral over the triangle 0 <= v <= u <= 1 of exp(z0 + (z1 - z0) u + (z2 - z1) v)
+        u = (xi + 1) / 2
+        inner = [np.sum(w / 2 * np.exp(z0 + (z1 - z0) * uu + (z2 - z1) * uu * (xi + 1) / 2)) * uu
+                 for uu in u]
+        reference = np.sum(w / 2 * np.array(inner))
+        assert np.isclose(exp_divided_difference(z0, z1, z2), reference, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["DC", "TC", "SS"])
+def test_closed_form_windows_match_the_quadrature(name, monkeypatch):
+    import gpmultirate.kernels.offsets as offsets
+
+    u = _input()
+    timed = TimedConvolution(u, TIMES, order=P, exposure=0.7, latency=0.2)
+    kernel = KERNELS[name]
+    closed, closed_grad = observe_covariance(kernel, timed)
+    original = offsets.offset_structure
+    monkeypatch.setattr(
+        "gpmultirate.observations.timed.offset_structure",
+        lambda *args: original(*args)._replace(rates=None))
+    quadrature, quadrature_grad = observe_covariance(kernel, timed)
+    assert np.allclose(closed, quadrature, rtol=1e-8, atol=1e-10 * np.abs(quadrature).max())
+    assert np.allclose(closed_grad, quadrature_grad, rtol=1e-8,
+                       atol=1e-10 * np.abs(quadrature_grad).max())
+
+
+def observe_covariance(kernel, observation):
+    return observation.covariance(kernel, eval_gradient=True)

@@ -110,8 +110,10 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     figures["impulse.png"] = fig
 
     # fast-rate output on the record, all of it and a zoom on 20 slow periods
+    instants = getattr(samples, "sample_times", None)  # a slow log: readings off the ticks
     prediction = OutputPrediction.from_model(
-        model, u, y_slow=values, sample_indices=indices)
+        model, u, y_slow=None if instants is not None else values,
+        sample_indices=indices if instants is None else np.unique(indices))
     n = prediction.time.shape[0]
     spacing = (max(1, int(round(float(np.median(np.diff(indices))))))
                if indices.size > 1 else 1)
@@ -122,8 +124,12 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     plot_intersample(prediction, ax=full, label="prediction (95 % band)")
     full.set_title("fast-rate output predicted from the slow samples", fontsize="medium",
                    loc="left")
-    plot_intersample(prediction, ax=zoom, window=(start, start + width),
-                     label="prediction (95 % band)")
+    if instants is None:
+        plot_intersample(prediction, ax=zoom, window=(start, start + width),
+                         label="prediction (95 % band)")
+    else:  # the band between the ticks, the readings at their instants
+        plot_intersample(model, u, y_slow=values, sample_times=instants, ax=zoom,
+                         window=(start, start + width), label="sensor reading (95 % band)")
     zoom.set_title(f"fast samples {start}..{start + width - 1}", fontsize="medium", loc="left")
     for ax in (full, zoom):
         ax.legend(fontsize="small")

@@ -31,9 +31,12 @@ from gpmultirate.plotting.axes import (
     label_marker,
     to_db,
 )
-from gpmultirate.responses import ImpulseResponse, OutputPrediction
+from gpmultirate.observations.timed import TimedConvolution, check_sample_times
+from gpmultirate.responses import ImpulseResponse, OutputPrediction, normal_quantile
 from gpmultirate.study.examples import NonidentifiableExample
-from gpmultirate.validation import check_int, check_positive, check_signal
+from gpmultirate.validation import (
+    check_inputs, check_int, check_level, check_positive, check_signal,
+)
 
 __all__ = [
     "EXAMPLE_STYLES",
@@ -264,6 +267,8 @@ def plot_intersample(
     window=None,
     label: str | None = None,
     color=None,
+    sample_times=None,
+    between: int | None = None,
 ) -> IntersamplePlot:
     """Fast-rate output predicted from slow samples, with its credible band.
 
@@ -304,6 +309,18 @@ def plot_intersample(
         Legend entry of the prediction.
     color : matplotlib colour, optional
         Colour of the prediction and its band.
+    sample_times : array-like of float, optional
+        Only with a fitted :class:`~gpmultirate.FIRGaussianProcess`: the
+        instant of each slow sample of ``y_slow`` (frames at their own
+        instants), in fast sample periods; the samples are drawn there.
+    between : int, optional
+        Only with a fitted :class:`~gpmultirate.FIRGaussianProcess`: draw
+        the band continuously, at ``between`` instants per fast period,
+        from ``model.predict(u, sample_times=grid, return_std=True)`` (the
+        reading the sensor would report at each instant, with the model's
+        exposure and latency; without them, the output itself).  By default
+        8 when ``sample_times`` is given or the model was fitted to readings
+        at their own instants; otherwise the band is drawn on the fast ticks.
 
     Returns
     -------
@@ -333,13 +350,25 @@ def plot_intersample(
     >>> same = plot_intersample(model, u, y_slow=y_fast[::3], sample_time=0.1, window=(30, 60))
     >>> same.slow_markers.get_xdata()[:3].round(2)
     array([3. , 3.3, 3.6])
+    >>> frames = plot_intersample(model, u, y_slow=y_fast[::3], sample_times=np.arange(0, 120, 3),
+    ...                           sample_time=0.1, window=(30, 60), between=4)
+    >>> frames.mean_line.get_xdata()[:3]
+    array([3.   , 3.025, 3.05 ])
     >>> import matplotlib.pyplot as plt
     >>> plt.close("all")
     """
     if isinstance(prediction, OutputPrediction):
         _refuse_model_arguments("OutputPrediction", {
             "u": u, "y_fast": y_fast, "y_slow": y_slow, "factor": factor, "offset": offset,
-            "sample_time": sample_time, "level": level})
+            "sample_time": sample_time, "level": level, "sample_times": sample_times,
+            "between": between})
+    elif _continuous(prediction, sample_times, between):
+        if factor is not None or offset is not None:
+            raise ValueError("factor and offset do not apply to a band between the ticks: give "
+                             "the instants of the slow samples as sample_times")
+        return _plot_between(prediction, u, y_fast, y_slow, sample_times, sample_time, ax,
+                             0.95 if level is None else level, window, label, color,
+                             8 if between is None else between)
     else:
         if u is None:
             raise ValueError("u must be given with a fitted model: the fast-rate input")
@@ -364,6 +393,82 @@ def plot_intersample(
             prediction.slow_time, prediction.y_slow, linestyle="none", marker="o",
             markersize=5, markerfacecolor="none", markeredgewidth=1.2, color="k",
             label="slow-rate samples", zorder=4)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("output")
+    ax.margins(x=0)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize="small", loc="upper right")
+    return IntersamplePlot(ax=ax, mean_line=mean_line, band=band, fast_line=fast_line,
+                           slow_markers=slow_markers)
+
+
+def _continuous(model, sample_times, between) -> bool:
+    """Whether ``plot_intersample`` draws ``model``'s band between the ticks."""
+    timed = isinstance(getattr(model, "observation_", None), TimedConvolution)
+    if sample_times is None and between is None and not timed:
+        return False
+    # a FIRGaussianProcess: its posterior and the sensor's exposure
+    if not (hasattr(model, "exposure") and hasattr(model, "posterior_")):
+        raise ValueError(
+            f"sample_times and between need a fitted FIRGaussianProcess (a model between the "
+            f"integer lags); got {type(model).__name__}"
+        )
+    return True
+
+
+def _plot_between(model, u, y_fast, y_slow, sample_times, sample_time, ax, level, window,
+                  label, color, between) -> IntersamplePlot:
+    """The band of ``model.predict(u, sample_times=grid)`` on a grid between the ticks."""
+    if u is None:
+        raise ValueError("u must be given with a fitted model: the fast-rate input")
+    n = check_inputs(u, "u").shape[0]
+    between = check_int(between, "between", low=1)
+    level = check_level(level)
+    if sample_time is None:
+        sample_time = getattr(model, "sample_time", None) or 1.0
+    sample_time = check_positive(sample_time, "sample_time")
+    start, stop = 0, n
+    if window is not None:
+        if not isinstance(window, (tuple, list, np.ndarray)) or len(window) != 2:
+            raise ValueError(f"window must be a pair (start, stop); got {window!r}")
+        start, stop = (check_int(w, "window", low=0, high=n) for w in window)
+        if start >= stop:
+            raise ValueError(f"window must satisfy start < stop; got {window!r}")
+    if y_slow is not None:
+        if sample_times is None:
+            raise ValueError("y_slow between the ticks needs sample_times: the instant of "
+                             "each slow sample, in fast sample periods")
+        times = check_sample_times(sample_times, n)
+        y_slow = np.asarray(y_slow, dtype=float).reshape(-1)
+        if y_slow.shape != times.shape:
+            raise ValueError(f"y_slow must have one sample per instant of sample_times "
+                             f"({times.shape[0]}); got {y_slow.shape[0]}")
+    elif sample_times is not None:
+        check_sample_times(sample_times, n)
+    if y_fast is not None:
+        y_fast = check_signal(y_fast, "y_fast")
+        if y_fast.shape[0] != n:
+            raise ValueError(f"y_fast must have len(u) = {n} samples; got {y_fast.shape[0]}")
+    grid = np.arange(start * between, stop * between) / between
+    mean, std = model.predict(u, sample_times=grid, return_std=True)
+    z = normal_quantile(level)
+    ax = axes_or_new(ax)
+    time = grid * sample_time
+    (mean_line,) = ax.plot(time, mean, color=color, label=label, zorder=3)
+    color = mean_line.get_color()
+    band = draw_band(ax, time, mean - z * std, mean + z * std, color)
+    fast_line = slow_markers = None
+    if y_fast is not None:
+        ticks = np.arange(start, stop)
+        (fast_line,) = ax.plot(ticks * sample_time, y_fast[start:stop], color="k",
+                               linestyle="--", linewidth=1.0, label="true fast-rate output",
+                               zorder=2.5)
+    if y_slow is not None:
+        shown = (times >= start) & (times < stop) & np.isfinite(y_slow)
+        (slow_markers,) = ax.plot(
+            times[shown] * sample_time, y_slow[shown], linestyle="none", marker="o",
+            markersize=5, markerfacecolor="none", markeredgewidth=1.2, color="k",
+            label="slow samples at their instants", zorder=4)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("output")
     ax.margins(x=0)
