@@ -412,6 +412,8 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
 
 def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonances,
             sample_time, random_state) -> ResonanceSearch:
+    _LOG.info("resonance search: order %d, up to %d resonance(s)", observation.order,
+              max_resonances)
     evidence = LogEvidence(observation, y, base_kernel, noise_level, noise_bounds)
     base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
     model_noise0, result0 = noise, result
