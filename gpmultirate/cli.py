@@ -4,7 +4,9 @@
 model from a CSV, ``.npz`` or ``.mat`` file (read by :mod:`gpmultirate.io`)
 whose output column holds the slow samples, empty or ``NaN`` elsewhere, and
 writes the model, its Bode, impulse-response and intersample figures with
-credible bands and a summary to ``--out``.  ``gpmultirate predict MODEL DATA``
+credible bands and a summary to ``--out``, showing the fit's progress on
+stderr (:func:`gpmultirate.progress.show_progress`; none with ``--quiet``).
+``gpmultirate predict MODEL DATA``
 writes the fast-rate prediction of a saved model with its standard deviation.
 ``gpmultirate demo`` runs a reduced version of the Monte Carlo study of the
 paper's Section 5 (``--runs 100 --orders 50 100 ... 600`` is the full one),
