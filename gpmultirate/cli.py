@@ -4,7 +4,9 @@
 model from a CSV, ``.npz`` or ``.mat`` file (read by :mod:`gpmultirate.io`)
 whose output column holds the slow samples, empty or ``NaN`` elsewhere, and
 writes the model, its Bode, impulse-response and intersample figures with
-credible bands and a summary to ``--out``.  ``gpmultirate predict MODEL DATA``
+credible bands and a summary to ``--out``, showing the fit's progress on
+stderr (:func:`gpmultirate.progress.show_progress`; none with ``--quiet``).
+``gpmultirate predict MODEL DATA``
 writes the fast-rate prediction of a saved model with its standard deviation.
 ``gpmultirate demo`` runs a reduced version of the Monte Carlo study of the
 paper's Section 5 (``--runs 100 --orders 50 100 ... 600`` is the full one),
@@ -31,7 +33,7 @@ an error (naming the option, file or column), 130 for Ctrl-C.
 from __future__ import annotations
 
 import argparse
-import io
+import contextlib
 import math
 import os
 import sys
@@ -43,8 +45,13 @@ import joblib
 import numpy as np
 
 from gpmultirate import __version__
+from gpmultirate.arguments import (OneLineErrorParser, available_cpus, duration, finite_float,
+                                   int_at_least, nonzero_int, order_or_auto, sample_time)
+from gpmultirate.progress import show_progress
+from gpmultirate.report import FIT_KERNELS
 from gpmultirate.study import METHODS, paper_example, run_paper_study
-from gpmultirate.study.journal import JOURNAL_NAME, JournalError, read_journal
+from gpmultirate.study.journal import (JOURNAL_NAME, JournalError, interrupted_message,
+                                       prepare_journal)
 
 __all__ = ["build_parser", "main"]
 
@@ -55,67 +62,12 @@ SAMPLE_TIME = 0.1  # the paper's fast sample time, s
 _DESCRIPTIONS = {"LS": "least squares", "DC": "DC kernel", "PK": "prior-knowledge kernel"}
 
 
-def _available_cpus() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
-
-
-# ------------------------------------------------------------ argument types
-def _argument(name: str, convert, ok, problem, expected: str = "an integer"):
-    """An argparse type: ``convert(text)`` if ``ok`` holds, else ``problem(text, value)``."""
-    def parse(text: str):
-        try:
-            value = convert(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-        if not ok(value):
-            raise argparse.ArgumentTypeError(problem(text, value))
-        return value
-
-    parse.__name__ = name
-    return parse
-
-
-def _int_at_least(low: int):
-    return _argument(f"integer >= {low}", int, lambda value: value >= low,
-                     lambda text, value: f"must be at least {low}, got {value}")
-
-
-_nonzero_int = _argument("integer", int, lambda value: value != 0, lambda text, value:
-                         "must not be 0 (use a positive count, or -1 for all CPUs)")
-_finite_float = _argument("number", float, math.isfinite,
-                          lambda text, value: f"must be finite, got {text!r}", "a number")
-# a sample time whose reciprocal, a frequency, is a finite normal number too
-_sample_time = _argument("seconds", float, lambda value: 1e-300 <= value <= 1e300,
-                         lambda text, value: "must be a positive number between 1e-300 and "
-                                             f"1e300 seconds, got {text!r}", "a number")
-_duration = _argument("seconds", float, lambda value: 0 <= value < math.inf,
-                      lambda text, value: f"must be a non-negative number, got {text!r}",
-                      "a number")
-_order_or_auto = _argument(
-    "order", lambda text: text if text == "auto" else int(text),
-    lambda value: value == "auto" or value >= 1,
-    lambda text, value: f"expected an integer >= 1 or 'auto', got {text!r}",
-    "an integer >= 1 or 'auto'")
-
-
-class _OneLineErrorParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line: ``prog: error: message``."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {' '.join(str(message).split())}\n")
-
-
 # ------------------------------------------------------------------- parser
 def _add_output(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument("--output", "-o", metavar="DIR", default=default,
                         help=f"directory for the results, created if needed (default: {default})")
 
 
-#: Kernels of ``gpmultirate fit --kernel``.
-FIT_KERNELS = ("dc", "tc", "ss", "auto")
 #: Data sets of ``gpmultirate fit --example``: function of gpmultirate.datasets giving the
 #: file, inputs, output.
 EXAMPLES = {"robot-arm": ("robot_arm_csv", ("u",), "y_slow")}
@@ -155,15 +107,15 @@ def _add_fit_parser(commands) -> None:
                      help="input column(s); several give a model of several inputs")
     fit.add_argument("--output", metavar="COL", dest="output_column", default=None,
                      help="output column: the slow samples, empty or NaN elsewhere")
-    fit.add_argument("--factor", type=_int_at_least(1), default=None, metavar="F",
+    fit.add_argument("--factor", type=int_at_least(1), default=None, metavar="F",
                      help="keep every F-th output sample (a fully measured output, for "
                           "testing); by default the measured samples are used as they are")
-    fit.add_argument("--offset", type=_int_at_least(0), default=None, metavar="O",
+    fit.add_argument("--offset", type=int_at_least(0), default=None, metavar="O",
                      help="row of the first kept sample with --factor, 0..F-1 (default: 0)")
-    fit.add_argument("--sample-time", type=_sample_time, default=1.0, metavar="T",
+    fit.add_argument("--sample-time", type=sample_time, default=1.0, metavar="T",
                      help="fast sample time in seconds; frequencies are in Hz (default: 1, "
                           "cycles per sample)")
-    fit.add_argument("--order", type=_order_or_auto, default=None, metavar="P",
+    fit.add_argument("--order", type=order_or_auto, default=None, metavar="P",
                      help="FIR order in 1..N, N the number of rows, or 'auto': the best of "
                           "N, N/2, ..., N/32 by the tuning criterion (default: N, or a "
                           "shorter N/2^k that predicts held-out slow samples clearly better)")
@@ -171,7 +123,7 @@ def _add_fit_parser(commands) -> None:
                      help="criterion of the hyperparameters (and of --order auto): the "
                           "marginal likelihood, or the log density of held-out blocks of slow "
                           "samples (default: evidence)")
-    fit.add_argument("--cv", type=_int_at_least(2), default=5, metavar="K",
+    fit.add_argument("--cv", type=int_at_least(2), default=5, metavar="K",
                      help="folds of cross-validation: contiguous blocks of slow samples "
                           "(default: 5)")
     fit.add_argument("--kernel", choices=FIT_KERNELS, default="dc",
@@ -190,10 +142,10 @@ def _add_fit_parser(commands) -> None:
                           "(default: zero)")
     _add_slow_arguments(fit, "the output column (--output) and the time stamps in seconds on "
                              "the clock of DATA, whose row n is at n T")
-    fit.add_argument("--exposure", type=_duration, default=0.0, metavar="E",
+    fit.add_argument("--exposure", type=duration, default=0.0, metavar="E",
                      help="with --slow: each reading is the mean output over the E seconds "
                           "before its stamp (default: 0)")
-    fit.add_argument("--latency", type=_duration, default=0.0, metavar="L",
+    fit.add_argument("--latency", type=duration, default=0.0, metavar="L",
                      help="with --slow: a reading stamped t shows the output at t - L "
                           "(seconds, default: 0)")
     fit.add_argument("--validate", metavar="DATA2", default=None,
@@ -255,8 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     >>> args.data, args.inputs, args.output_column, args.kernel
     ('data.csv', ['u'], 'y', 'dc')
     """
-    cpus = _available_cpus()
-    parser = _OneLineErrorParser(
+    cpus = available_cpus()
+    parser = OneLineErrorParser(
         prog="gpmultirate",
         description=textwrap.fill(
             "Identify fast-rate FIR models from slow-rate output data with Gaussian-process "
@@ -266,7 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
-                                     parser_class=_OneLineErrorParser)
+                                     parser_class=OneLineErrorParser)
     _add_fit_parser(commands)
     _add_predict_parser(commands)
 
@@ -287,9 +239,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "killed process) continues with --resume; the file is removed when the "
                     "study is complete.",
     )
-    demo.add_argument("--runs", type=_int_at_least(1), default=DEMO_RUNS, metavar="R",
+    demo.add_argument("--runs", type=int_at_least(1), default=DEMO_RUNS, metavar="R",
                       help=f"Monte Carlo runs (default: {DEMO_RUNS}; the paper: 100)")
-    demo.add_argument("--orders", type=_int_at_least(1), nargs="+", default=list(DEMO_ORDERS),
+    demo.add_argument("--orders", type=int_at_least(1), nargs="+", default=list(DEMO_ORDERS),
                       metavar="P",
                       help="FIR orders, each in 1..N (default: "
                            f"{' '.join(map(str, DEMO_ORDERS))}; the paper: 50 100 ... 600)")
@@ -297,10 +249,10 @@ def build_parser() -> argparse.ArgumentParser:
                       metavar="METHOD",
                       help=f"estimators among {', '.join(METHODS)} (default: all): "
                            + "; ".join(f"{m} = {d}" for m, d in _DESCRIPTIONS.items()))
-    demo.add_argument("--n-jobs", type=_nonzero_int, default=cpus, metavar="J",
+    demo.add_argument("--n-jobs", type=nonzero_int, default=cpus, metavar="J",
                       help=f"parallel processes, -1 for all CPUs (default: the number of "
                            f"CPUs, {cpus} here)")
-    demo.add_argument("--seed", type=_int_at_least(0), default=0, metavar="S",
+    demo.add_argument("--seed", type=int_at_least(0), default=0, metavar="S",
                       help="random seed of the study; the same seed gives the same numbers "
                            "for any --n-jobs (default: 0)")
     demo.set_defaults(handler=_demo, command_parser=demo)
@@ -310,16 +262,16 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--quiet", "-q", action="store_true",
                       help="no progress or file messages on stderr (the table is still "
                            "printed)")
-    demo.add_argument("--n-samples", type=_int_at_least(3), default=600, metavar="N",
+    demo.add_argument("--n-samples", type=int_at_least(3), default=600, metavar="N",
                       help="samples per multisine (default: 600, the paper's); smaller "
                            "values, e.g. 60 with --orders 10 20, give quick test runs")
-    demo.add_argument("--factor", type=_int_at_least(1), default=3, metavar="F",
+    demo.add_argument("--factor", type=int_at_least(1), default=3, metavar="F",
                       help="downsampling factor (default: 3, the paper's)")
-    demo.add_argument("--snr", type=_finite_float, nargs=2, default=[40.0, 60.0],
+    demo.add_argument("--snr", type=finite_float, nargs=2, default=[40.0, 60.0],
                       metavar=("LOW", "HIGH"),
                       help="range of the training signal-to-noise ratio in dB "
                            "(default: 40 60)")
-    demo.add_argument("--example-order", type=_int_at_least(1), default=None, metavar="P",
+    demo.add_argument("--example-order", type=int_at_least(1), default=None, metavar="P",
                       help="order of the DC and PK models in the figures (default: N, as in "
                            "the paper's Fig. 6); LS uses its best identifiable order")
     restart = demo.add_mutually_exclusive_group()
@@ -341,12 +293,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     example1.set_defaults(handler=_example1, command_parser=example1)
     _add_output(example1, "gpmultirate-output")
-    example1.add_argument("--n-samples", type=_int_at_least(2), default=1000, metavar="N",
+    example1.add_argument("--n-samples", type=int_at_least(2), default=1000, metavar="N",
                           help="samples of the impulse input and order of the models "
                                "(default: 1000)")
-    example1.add_argument("--factor", type=_int_at_least(2), default=4, metavar="F",
+    example1.add_argument("--factor", type=int_at_least(2), default=4, metavar="F",
                           help="downsampling factor (default: 4)")
-    example1.add_argument("--seed", type=_int_at_least(0), default=0, metavar="S",
+    example1.add_argument("--seed", type=int_at_least(0), default=0, metavar="S",
                           help="random seed of the added oscillations (default: 0)")
     example1.add_argument("--quiet", "-q", action="store_true",
                           help="no file messages on stderr")
@@ -392,54 +344,18 @@ def _demo(parser, args) -> int:
     check_orders([example_order], n, name="example_order")
     out = _output_dir(parser, args.output)
     journal = out / JOURNAL_NAME
-    _check_journal(parser, args, journal)
+    try:
+        note = prepare_journal(journal, resume=args.resume, force=args.force)
+    except ValueError as error:
+        parser.error(f"argument --output: {error}")
+    if note:
+        _say(args, note)
     try:
         status = _run_demo(parser, args, out, journal, example_order)
     except KeyboardInterrupt:
-        _interrupted(args, journal)
+        print(f"gpmultirate demo: {interrupted_message(journal)}", file=sys.stderr, flush=True)
         return 130
     return status
-
-
-def _journal_runs(journal: Path):
-    """Finished runs in ``journal`` and the runs of its study, or None if unreadable."""
-    try:
-        settings, trials = read_journal(journal)
-    except (OSError, JournalError):
-        return None
-    return len(trials), (None if settings is None else settings["n_runs"])
-
-
-def _check_journal(parser, args, journal: Path) -> None:
-    """Refuse to overwrite the saved runs of an interrupted study without --force."""
-    if not (journal.exists() or journal.is_symlink()):
-        if args.resume:
-            _say(args, f"no {JOURNAL_NAME} in {journal.parent}: nothing to resume, starting "
-                       f"the study")
-        return
-    if journal.is_dir():
-        parser.error(f"argument --output: {journal} is a directory")
-    if args.force:
-        journal.unlink()
-        return
-    if args.resume:
-        return
-    found = _journal_runs(journal)
-    if found is not None and found[0] == 0:
-        journal.unlink()  # no run was finished: nothing to lose
-        return
-    what = ("an unreadable journal" if found is None else
-            f"{found[0]} of {found[1]} finished runs of an interrupted study")
-    parser.error(f"argument --output: {journal} holds {what}; use --resume to continue it "
-                 f"or --force to start over")
-
-
-def _interrupted(args, journal: Path) -> None:
-    found = _journal_runs(journal) if journal.exists() else None
-    saved = (f"{found[0]} of {found[1]} runs are saved in {journal}" if found
-             else f"the finished runs are saved in {journal}")
-    print(f"gpmultirate demo: interrupted; {saved}; run the same command with --resume to "
-          f"continue", file=sys.stderr, flush=True)
 
 
 def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int:
@@ -522,25 +438,6 @@ def _check_columns(parser, inputs, output=None) -> None:
         parser.error(f"argument --output: column {output!r} is also an --input column")
 
 
-def _fit_kernel(name: str):
-    """The ``kernel`` argument of the estimator for ``--kernel name``.
-
-    ``tc`` and ``ss`` are ``ConstantKernel(1) * TC()`` (``SS()``) in the
-    estimator's normalized units, with the default kernel's amplitude bounds
-    ``1e-8 .. 1e8``: the estimator scales them to each input's data, as it
-    does its default ``dc`` kernel.
-    """
-    from sklearn.gaussian_process.kernels import ConstantKernel
-
-    from gpmultirate.kernels import SS, TC
-
-    if name == "dc":
-        return None
-    if name == "auto":
-        return "auto"
-    return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
-
-
 def _fit(parser, args) -> int:
     import warnings
 
@@ -548,7 +445,7 @@ def _fit(parser, args) -> int:
     from gpmultirate.io import (
         check_folder, read_record, read_slow_log, read_slow_samples, write_folder,
     )
-    from gpmultirate.report import fit_files
+    from gpmultirate.report import fit_files, kernel_option
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
@@ -586,15 +483,18 @@ def _fit(parser, args) -> int:
     _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} slow "
                f"samples ({samples.description}), {len(inputs)} input(s) ...")
     model = FIRGaussianProcess(
-        kernel=_fit_kernel(args.kernel), order=args.order,
+        kernel=kernel_option(args.kernel), order=args.order,
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
         tuning=args.tuning, cv=args.cv, noise_kernel=args.noise, **samples.estimator_params)
-    with warnings.catch_warnings(record=True) as caught:
+    progress = contextlib.nullcontext() if args.quiet else show_progress(prefix="gpmultirate fit")
+    with warnings.catch_warnings(record=True) as caught, progress:
         warnings.simplefilter("always")
         try:
             model.fit(u, samples.y_slow, **samples.fit_params)
         except ValueError as error:
             parser.error(f"{path}: the model cannot be fitted: {error}")
+    _say(args, f"gpmultirate fit: fitted in {time.perf_counter() - started:.1f} s; predictions, "
+               "Bode and impulse-response bands, state-space model, figures ...")
     messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
     for message in messages:
         _say(args, f"warning: {message}")

@@ -952,10 +952,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                                     whole.n_inputs, log=_LOG.info)
         if rule.fit is not None and (settings.auto or settings.criterion != "evidence"):
             rule = replace(rule, fit=None)  # the fit at that order goes on from here
+            _LOG.info("default order: %d, fitting it with the full settings", rule.order)
         if rule.fit is not None:
             for w in caught[rule.order]:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        _LOG.info("default order: %d", rule.order)
+            _LOG.info("default order: %d (the pilot fit at that order is kept)", rule.order)
         return rule
 
     def _check_long_enough(self) -> None:

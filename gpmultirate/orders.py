@@ -363,7 +363,8 @@ def default_order(
     log : callable, optional
         Called with a line of progress after each fit: its order and time,
         the lag read, and the next order with an estimate of the time it
-        takes (a fit's time grows about like ``P^2`` on a long record).
+        takes (a fit's time grows about like ``P^2`` on a long record), and
+        the chosen order with the time its fit takes when it is fitted again.
 
     Returns
     -------
@@ -392,15 +393,16 @@ def default_order(
         return below if order < below < following else following
 
     tried, lags = [], []
+    seconds = 0.0
     while True:
         start = time.perf_counter()
         fit = fit_at(order)
+        seconds = time.perf_counter() - start
         lag = min(int(tail_lag(fit)), order)
         tried.append(order)
         lags.append(lag)
         decayed = lag < order
         if log is not None:
-            seconds = time.perf_counter() - start
             following = longer(order)
             # a doubled order cost 2-8 times as much in the benchmark: the time left, roughly
             more = "" if decayed or order >= longest else (
@@ -416,6 +418,9 @@ def default_order(
     long_route = n_inputs * chosen < n_samples <= n_inputs * order
     if chosen < order and (2 * chosen <= order or long_route):
         fit = None
+        if log is not None:
+            log(f"default order: {chosen}, fitting it (about "
+                f"{seconds * (chosen / order) ** 2:.0f} s left)")
     else:
         chosen = order
     table = {

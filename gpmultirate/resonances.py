@@ -45,6 +45,8 @@ and a refinement.
 
 from __future__ import annotations
 
+import logging
+
 import numbers
 import warnings
 from dataclasses import dataclass, field
@@ -73,6 +75,9 @@ __all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "MIN_EXCITATION", "SEARCH_THRESH
            "ResonanceSearch", "damping_ratio", "excitation", "resonance_scan",
            "search_resonances",
            "slowest_decay"]
+
+#: the logger of a fit's progress (see :mod:`gpmultirate.progress`)
+_LOG = logging.getLogger("gpmultirate.fit")
 
 #: log evidence gain (nats) a PK term must bring to be kept
 EVIDENCE_THRESHOLD = 12.0
@@ -407,6 +412,8 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
 
 def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonances,
             sample_time, random_state) -> ResonanceSearch:
+    _LOG.info("resonance search: order %d, up to %d resonance(s)", observation.order,
+              max_resonances)
     evidence = LogEvidence(observation, y, base_kernel, noise_level, noise_bounds)
     base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
     model_noise0, result0 = noise, result
@@ -435,6 +442,8 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
         model = trial
         kernel = model.kernel()
         history.append(model.value)
+        _LOG.info("resonance search: a term at %.4g Hz on input %d (evidence gain %.1f nats)",
+                  float(omega) / (2.0 * np.pi * sample_time), k, gain)
     gains = []
     if model.terms:
         kernel, noise, result, value, gains = _tune_and_prune(

@@ -20,6 +20,11 @@ from gpmultirate.responses import ImpulseResponse, OutputPrediction
 
 __all__ = ["example_figures", "fit_figures", "nonidentifiable_figure", "study_figure"]
 
+#: the most frequencies of the Bode figure (beyond it a log-spaced grid, not the DFT bins)
+BODE_FREQUENCIES = 2048
+#: the most lags of the impulse-response figure (4 per sample on short responses)
+IMPULSE_POINTS = 2049
+
 _STYLES = {"LS": "tab:red", "DC": "tab:blue", "PK": "tab:green"}
 _DESCRIPTIONS = {"LS": "least squares", "DC": "DC kernel", "PK": "prior-knowledge kernel"}
 
@@ -50,9 +55,12 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     Returns
     -------
     dict of str to matplotlib.figure.Figure
-        ``bode.png``: magnitude and phase per input; ``impulse.png``: the
-        impulse response per input at four lags per sample over the first
-        ``max(60, N / 4)`` lags; ``intersample.png``: the fast-rate output
+        ``bode.png``: magnitude and phase per input, at the DFT bins of
+        the record (``BODE_FREQUENCIES`` log-spaced frequencies from the
+        first bin to the Nyquist frequency on a longer record);
+        ``impulse.png``: the impulse response per input at four lags per
+        sample (fewer where that would exceed ``IMPULSE_POINTS``) over the
+        first ``max(60, N / 4)`` lags; ``intersample.png``: the fast-rate output
         predicted from the slow samples over the record and over 20 slow
         periods in its middle.
 
@@ -83,8 +91,9 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     # Bode: one magnitude and phase pair per input
     fig = _figure(figsize=(4.8 * n_inputs + 1.2, 5.6))
     axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
+    freqs = _bode_frequencies(model)
     for k in range(n_inputs):
-        frf = model.frequency_response(input=k if n_inputs > 1 else None)
+        frf = model.frequency_response(freqs, input=k if n_inputs > 1 else None)
         plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean")
         axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
     figures["bode.png"] = fig
@@ -92,7 +101,8 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     # impulse responses at 4 lags per sample, between the integer lags too
     order = model.coef_.shape[-1]
     shown = min(order, max(60, prediction_length // 4))
-    lags = np.linspace(0.0, shown - 1.0, 4 * (shown - 1) + 1)
+    per_sample = max(1, min(4, (IMPULSE_POINTS - 1) // max(1, shown - 1)))
+    lags = np.linspace(0.0, shown - 1.0, per_sample * (shown - 1) + 1)
     mean, std = model.impulse_response(lags, return_std=True)
     mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
     fig = _figure(figsize=(8.5, 2.6 * n_inputs + 0.4))
@@ -135,6 +145,24 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
         ax.legend(fontsize="small")
     figures["intersample.png"] = fig
     return figures
+
+
+def _bode_frequencies(model):
+    """The DFT bins of the record, or log-spaced frequencies when there are too many.
+
+    A long record has more bins than a figure shows (and each costs a row of
+    the band's computation).  On the log axis the log-spaced grid is finer
+    than the bins at low frequencies; a peak of damping ``zeta`` gets about
+    ``2 zeta BODE_FREQUENCIES / log(N / 2)`` frequencies in its half-power
+    bandwidth (9 for ``zeta = 0.02`` and ``N = 20,000``).
+    """
+    from gpmultirate.responses import default_frequencies
+
+    sample_time = float(model.sample_time)
+    freqs = default_frequencies(model.observation_.n_samples, sample_time)
+    if freqs.size <= BODE_FREQUENCIES:
+        return None  # the model's default: the same bins
+    return np.concatenate([[0.0], np.geomspace(freqs[1], freqs[-1], BODE_FREQUENCIES - 1)])
 
 
 def _format_gof(value: float) -> str:

@@ -47,7 +47,8 @@ try:  # pragma: no cover - fcntl is missing on Windows only
 except ImportError:  # pragma: no cover
     fcntl = None
 
-__all__ = ["JOURNAL_NAME", "JournalError", "StudyJournal", "describe_mismatch", "read_journal",
+__all__ = ["JOURNAL_NAME", "JournalError", "StudyJournal", "describe_mismatch",
+           "interrupted_message", "journal_progress", "prepare_journal", "read_journal",
            "study_settings"]
 
 #: File name of the journal in the output folder of ``gpmultirate demo``.
@@ -233,6 +234,115 @@ def read_journal(path):
     """
     settings, trials, _ = _scan(path)
     return settings, trials
+
+
+def journal_progress(path):
+    """The finished runs of a journal and the runs of its study, or None if unreadable.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    tuple of (int, int or None), or None
+        ``(finished, n_runs)``, ``n_runs`` None when the header line is
+        missing; None when the file cannot be read or is not a journal.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.study import run_paper_study
+    >>> from gpmultirate.study.journal import journal_progress
+    >>> path = os.path.join(tempfile.mkdtemp(), "runs.jsonl")
+    >>> _ = run_paper_study(n_runs=2, orders=(10,), methods=("LS",), n_samples=60,
+    ...                     progress=False, journal=path)
+    >>> journal_progress(path), journal_progress(path + ".missing")
+    ((2, 2), None)
+    """
+    try:
+        settings, trials = read_journal(path)
+    except (OSError, JournalError):
+        return None
+    return len(trials), (None if settings is None else settings["n_runs"])
+
+
+def prepare_journal(path, *, resume: bool = False, force: bool = False) -> str | None:
+    """Make a study's journal ready to start (or resume) a study, or refuse.
+
+    The saved runs of an interrupted study are kept for ``resume``,
+    removed with ``force``; a journal without a finished run is removed
+    (nothing is lost); any other journal is refused.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The journal (``JOURNAL_NAME`` in the study's output folder).
+    resume, force : bool, default=False
+        Continue the saved runs, or discard them.
+
+    Returns
+    -------
+    str or None
+        A note when ``resume`` finds no journal (the study starts afresh).
+
+    Raises
+    ------
+    ValueError
+        If ``path`` is a directory, or holds finished runs (or cannot be
+        read) and neither ``resume`` nor ``force`` is given.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from gpmultirate.study.journal import prepare_journal
+    >>> prepare_journal(os.path.join(tempfile.mkdtemp(), "runs.jsonl")) is None
+    True
+    """
+    path = Path(path)
+    if not (path.exists() or path.is_symlink()):
+        if resume:
+            return f"no {path.name} in {path.parent}: nothing to resume, starting the study"
+        return None
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory")
+    if force:
+        path.unlink()
+        return None
+    if resume:
+        return None
+    found = journal_progress(path)
+    if found is not None and found[0] == 0:
+        path.unlink()  # no run was finished: nothing to lose
+        return None
+    what = ("an unreadable journal" if found is None else
+            f"{found[0]} of {found[1]} finished runs of an interrupted study")
+    raise ValueError(f"{path} holds {what}; use --resume to continue it or --force to start "
+                     f"over")
+
+
+def interrupted_message(path) -> str:
+    """What is saved of an interrupted study, and how to continue it.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The study's journal.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from gpmultirate.study.journal import interrupted_message
+    >>> interrupted_message("missing/runs.jsonl")  # doctest: +ELLIPSIS
+    'interrupted; the finished runs are saved in missing/runs.jsonl; run the same ...'
+    """
+    found = journal_progress(path) if Path(path).exists() else None
+    saved = (f"{found[0]} of {found[1]} runs are saved in {path}" if found
+             else f"the finished runs are saved in {path}")
+    return f"interrupted; {saved}; run the same command with --resume to continue"
 
 
 def describe_mismatch(found: dict, wanted: dict) -> str:
