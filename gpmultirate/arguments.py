@@ -17,8 +17,9 @@ import argparse
 import math
 import os
 
-__all__ = ["OneLineErrorParser", "argument_type", "available_cpus", "duration", "finite_float",
-           "int_at_least", "nonzero_int", "order_or_auto", "sample_time"]
+__all__ = ["OneLineErrorParser", "argument_type", "available_cpus", "check_out", "check_slow_log",
+           "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
+           "sample_time", "shorten"]
 
 
 def available_cpus() -> int:
@@ -73,3 +74,46 @@ class OneLineErrorParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {' '.join(str(message).split())}\n")
+
+
+# ------------------------------------------------------------------ errors
+def check_out(parser, action) -> None:
+    """Run ``action`` on ``--out``; a file that is in the way or an OS error ends the command."""
+    try:
+        action()
+    except FileExistsError as error:
+        hint = "; use --force to overwrite" if str(error).endswith(" exists") else ""
+        parser.error(f"argument --out: {error}{hint}")
+    except OSError as error:
+        parser.error(f"argument --out: cannot write to {shorten(error.filename or '')!r} "
+                     f"({error.strerror or error})")
+
+
+def check_slow_log(parser, args) -> None:
+    """Stop the command when ``--slow``/``--time`` come alone or with options they exclude."""
+    if (args.slow is None) != (args.time is None):
+        parser.error("argument --slow/--time: a slow log needs both: --slow FILE --time COL")
+    wrong = ("--exposure/--latency", getattr(args, "exposure", 0) or getattr(args, "latency", 0))
+    if args.slow is not None:
+        wrong = ("--factor/--offset", getattr(args, "factor", None) is not None
+                 or getattr(args, "offset", None) is not None)
+    if wrong[1]:
+        parser.error(f"argument {wrong[0]}: " + ("not with --slow (the stamps place the "
+                     "readings)" if args.slow else "only with a slow log (--slow)"))
+
+
+def shorten(text: str, limit: int = 80) -> str:
+    """``text``, its middle cut out beyond ``limit`` characters."""
+    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]}"
+
+
+def one_line(error: BaseException) -> str:
+    """An exception as one line that names the file (shortened) for an OS error."""
+    if isinstance(error, OSError) and error.strerror:
+        names = [shorten(os.fsdecode(name)) for name in (error.filename, error.filename2)
+                 if name is not None]
+        return ": ".join([*names, error.strerror])
+    text = " ".join(str(error).split())
+    if isinstance(error, MemoryError):  # the memory guard's refusal says how much and why
+        return text or "out of memory"
+    return text if isinstance(error, ValueError) else f"{type(error).__name__}: {text}"

@@ -34,8 +34,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
-import os
 import sys
 import textwrap
 import time
@@ -45,8 +43,9 @@ import joblib
 import numpy as np
 
 from gpmultirate import __version__
-from gpmultirate.arguments import (OneLineErrorParser, available_cpus, duration, finite_float,
-                                   int_at_least, nonzero_int, order_or_auto, sample_time)
+from gpmultirate.arguments import (OneLineErrorParser, available_cpus, check_out, check_slow_log,
+                                   duration, finite_float, int_at_least, nonzero_int, one_line,
+                                   order_or_auto, sample_time)
 from gpmultirate.progress import show_progress
 from gpmultirate.report import FIT_KERNELS
 from gpmultirate.study import METHODS, paper_example, run_paper_study
@@ -449,9 +448,9 @@ def _fit(parser, args) -> int:
 
     path, inputs, output = _fit_source(parser, args)
     _check_columns(parser, inputs, output)
-    _check_slow(parser, args)
+    check_slow_log(parser, args)
     out = Path(args.out)
-    _check_out(parser, lambda: check_folder(out, FIT_FILES, overwrite=args.force))
+    check_out(parser, lambda: check_folder(out, FIT_FILES, overwrite=args.force))
     started = time.perf_counter()
     u, y = read_record(path, inputs, None if args.slow else output)
     n = u.shape[0]
@@ -505,35 +504,15 @@ def _fit(parser, args) -> int:
     except ValueError as error:
         parser.error(f"{path}: {error}")
     # the folder appears complete in one step (or not at all), see io.write_folder
-    _check_out(parser, lambda: write_folder(out, files, overwrite=args.force,
+    check_out(parser, lambda: write_folder(out, files, overwrite=args.force,
                                             replaceable=FIT_FILES))
     for name in files:
         _say(args, f"wrote {out / name}")
-    summary = report.to_dict()
-    line = (f"order {summary['model']['order']}, log evidence "
-            f"{summary['model']['log_evidence']:.6g}, noise std "
-            f"{report.noise_std:.4g}")
-    if summary["model"]["noise"]["model"] != "white":
-        line += f", disturbance std {math.sqrt(summary['model']['noise']['disturbance_level']):.4g}"
-    if "validation" in summary:
-        line += f", validation GoF {summary['validation']['gof_percent']:.2f} %"
-    print(line)
+    print(report.headline())
     for note in report.notes:
         _say(args, f"note: {note}")
     _say(args, f"done in {time.perf_counter() - started:.1f} s")
     return 0
-
-
-def _check_out(parser, action) -> None:
-    """Run ``action`` on ``--out``; a file that is in the way or an OS error ends the command."""
-    try:
-        action()
-    except FileExistsError as error:
-        hint = "; use --force to overwrite" if str(error).endswith(" exists") else ""
-        parser.error(f"argument --out: {error}{hint}")
-    except OSError as error:
-        parser.error(f"argument --out: cannot write to {_shorten(error.filename or '')!r} "
-                     f"({error.strerror or error})")
 
 
 def _predict(parser, args) -> int:
@@ -554,7 +533,7 @@ def _predict(parser, args) -> int:
     if len(args.inputs) != model.n_inputs_:
         parser.error(f"argument --input: the model of {args.model} has {model.n_inputs_} "
                      f"input(s); got {len(args.inputs)} column(s)")
-    _check_slow(parser, args)
+    check_slow_log(parser, args)
     u, _ = read_record(args.data, args.inputs)
     log = None if args.slow is None else read_slow_log(
         args.slow, args.time, sample_time=getattr(model, "sample_time", None) or 1.0, n_samples=u.shape[0])
@@ -562,37 +541,9 @@ def _predict(parser, args) -> int:
         table = prediction_csv(model, u, None if log is None else log.sample_times)
     except ValueError as error:
         parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
-    _check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
+    check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
     _say(args, f"wrote {out} ({table.count(chr(10)) - 1} fast samples)")
     return 0
-
-
-def _check_slow(parser, args) -> None:
-    if (args.slow is None) != (args.time is None):
-        parser.error("argument --slow/--time: a slow log needs both: --slow FILE --time COL")
-    wrong = ("--exposure/--latency", getattr(args, "exposure", 0) or getattr(args, "latency", 0))
-    if args.slow is not None:
-        wrong = ("--factor/--offset", getattr(args, "factor", None) is not None
-                 or getattr(args, "offset", None) is not None)
-    if wrong[1]:
-        parser.error(f"argument {wrong[0]}: " + ("not with --slow (the stamps place the "
-                     "readings)" if args.slow else "only with a slow log (--slow)"))
-
-
-def _shorten(text: str, limit: int = 80) -> str:
-    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]}"
-
-
-def _one_line(error: BaseException) -> str:
-    """An exception as one line that names the file (shortened) for an OS error."""
-    if isinstance(error, OSError) and error.strerror:
-        names = [_shorten(os.fsdecode(name)) for name in (error.filename, error.filename2)
-                 if name is not None]
-        return ": ".join([*names, error.strerror])
-    text = " ".join(str(error).split())
-    if isinstance(error, MemoryError):  # the memory guard's refusal says how much and why
-        return text or "out of memory"
-    return text if isinstance(error, ValueError) else f"{type(error).__name__}: {text}"
 
 
 def main(argv=None) -> int:
@@ -624,7 +575,7 @@ def main(argv=None) -> int:
               file=sys.stderr, flush=True)
         return 130
     except Exception as error:  # every error is one line, not a traceback
-        message = _one_line(error)
+        message = one_line(error)
         if command is None:
             print(f"gpmultirate: error: {message}", file=sys.stderr, flush=True)
             return 2

@@ -182,6 +182,24 @@ class FitReport:
         std = self.model.get("noise_std")
         return math.sqrt(self.model["noise_level"]) if std is None else float(std)
 
+    def headline(self) -> str:
+        """One line: the order, the log evidence, the noise and the validation fit, if any.
+
+        Examples
+        --------
+        >>> FitReport(data={}, model={"order": 30, "log_evidence": 12.5,
+        ...                           "noise_level": 0.04}).headline()
+        'order 30, log evidence 12.5, noise std 0.2'
+        """
+        line = (f"order {self.model['order']}, log evidence "
+                f"{self.model['log_evidence']:.6g}, noise std {self.noise_std:.4g}")
+        noise = self.model.get("noise") or {"model": "white"}
+        if noise["model"] != "white":
+            line += f", disturbance std {math.sqrt(noise['disturbance_level']):.4g}"
+        if self.validation is not None:
+            line += f", validation GoF {self.validation['gof_percent']:.2f} %"
+        return line
+
     def to_json(self) -> str:
         """The report as indented JSON text, ending with a newline."""
         return json.dumps(self.to_dict(), indent=2) + "\n"

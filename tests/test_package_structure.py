@@ -393,3 +393,10 @@ def test_tests_docs_and_examples_use_the_new_homes():
                 continue
             found += [f"{relative}:{number}: {old}" for old in _OLD_NAMES if old in line]
     assert found == []
+
+
+def test_command_line_module_stays_thin():
+    # the command parses arguments and calls library functions (io, report, export,
+    # arguments, progress): its module stays short enough to read in one sitting
+    source = Path(gpmultirate.__file__).parent / "cli.py"
+    assert len(source.read_text().splitlines()) <= 600
