@@ -389,17 +389,9 @@ def plot_intersample(
         (fast_line,) = ax.plot(prediction.time, prediction.y_fast, color="k", linestyle="--",
                                linewidth=1.0, label="true fast-rate output", zorder=2.5)
     if prediction.y_slow is not None:
-        (slow_markers,) = ax.plot(
-            prediction.slow_time, prediction.y_slow, linestyle="none", marker="o",
-            markersize=5, markerfacecolor="none", markeredgewidth=1.2, color="k",
-            label="slow-rate samples", zorder=4)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("output")
-    ax.margins(x=0)
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize="small", loc="upper right")
-    return IntersamplePlot(ax=ax, mean_line=mean_line, band=band, fast_line=fast_line,
-                           slow_markers=slow_markers)
+        slow_markers = _slow_markers(ax, prediction.slow_time, prediction.y_slow,
+                                     "slow-rate samples")
+    return _finish_intersample(ax, mean_line, band, fast_line, slow_markers)
 
 
 def _continuous(model, sample_times, between) -> bool:
@@ -465,10 +457,21 @@ def _plot_between(model, u, y_fast, y_slow, sample_times, sample_time, ax, level
                                zorder=2.5)
     if y_slow is not None:
         shown = (times >= start) & (times < stop) & np.isfinite(y_slow)
-        (slow_markers,) = ax.plot(
-            times[shown] * sample_time, y_slow[shown], linestyle="none", marker="o",
-            markersize=5, markerfacecolor="none", markeredgewidth=1.2, color="k",
-            label="slow samples at their instants", zorder=4)
+        slow_markers = _slow_markers(ax, times[shown] * sample_time, y_slow[shown],
+                                     "slow samples at their instants")
+    return _finish_intersample(ax, mean_line, band, fast_line, slow_markers)
+
+
+def _slow_markers(ax, times, values, label: str):
+    """The slow samples as open circles at their instants (in seconds)."""
+    (markers,) = ax.plot(times, values, linestyle="none", marker="o", markersize=5,
+                         markerfacecolor="none", markeredgewidth=1.2, color="k", label=label,
+                         zorder=4)
+    return markers
+
+
+def _finish_intersample(ax, mean_line, band, fast_line, slow_markers) -> IntersamplePlot:
+    """Labels, margins and legend of an intersample plot, and what it drew."""
     ax.set_xlabel("time [s]")
     ax.set_ylabel("output")
     ax.margins(x=0)
