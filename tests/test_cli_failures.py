@@ -137,6 +137,7 @@ def test_other_errors_are_one_line(error, tmp_path, capsys, monkeypatch):
     pytest.param("rename", errno.EACCES, False, marks=SLOW),
     pytest.param("rename", errno.EACCES, True, marks=SLOW),
 ])
+@pytest.mark.slow
 def test_os_errors_while_writing_leave_the_old_folder(where, code, existing, tmp_path, capsys,
                                                       monkeypatch):
     """A full disk, a size limit or a refused rename: one line, and --out as it was."""
@@ -248,6 +249,7 @@ def test_interrupt_during_the_fit_is_one_line_and_writes_nothing(tmp_path, capsy
 @pytest.mark.parametrize("moment", [pytest.param(1, marks=SLOW), pytest.param(4, marks=SLOW),
                                     pytest.param(7, marks=SLOW),
                                     pytest.param("aside", marks=SLOW), "in"])
+@pytest.mark.slow
 def test_interrupt_while_writing_keeps_the_old_results(moment, tmp_path, capsys,
                                                        monkeypatch):
     """Ctrl-C after some files, or between the renames: the earlier folder, whole."""

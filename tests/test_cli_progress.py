@@ -34,6 +34,7 @@ def _long_record(path, n=2400, factor=3):
     return path
 
 
+@pytest.mark.slow
 def test_fit_shows_progress_with_the_time_left_on_stderr(tmp_path, capsys):
     data = _long_record(tmp_path / "data.csv")
     assert main(["fit", str(data), "--input", "u", "--output", "y",
@@ -48,6 +49,7 @@ def test_fit_shows_progress_with_the_time_left_on_stderr(tmp_path, capsys):
     assert logging.getLogger(FIT_LOGGER).handlers == []  # detached after the fit
 
 
+@pytest.mark.slow
 def test_fit_quiet_shows_nothing(tmp_path, capsys):
     data = _long_record(tmp_path / "data.csv")
     assert main(["fit", str(data), "--input", "u", "--output", "y", "--quiet",

@@ -111,6 +111,7 @@ def test_noise_kernel_is_checked():
         FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y).predict(u, include_noise=True)
 
 
+@pytest.mark.slow
 def test_measurement_band_is_calibrated_with_disturbances_drawn_from_the_model():
     """Systems drawn from the prior, disturbances from the noise kernel: a new record's
     measured samples fall in the 95 % measurement band 95 % of the time, and the
@@ -146,6 +147,7 @@ def test_measurement_band_is_calibrated_with_disturbances_drawn_from_the_model()
     assert np.mean(np.abs(z_output) < 1.959964) < 0.8
 
 
+@pytest.mark.slow
 def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
     rng = np.random.default_rng(3)
     u = rng.standard_normal(300)
@@ -202,6 +204,7 @@ def test_multi_output_passes_the_noise_kernel_through():
         assert not isinstance(estimator.noise_kernel_, str)
 
 
+@pytest.mark.slow
 def test_command_line_noise_option_summary_and_residual_figure(tmp_path, capsys):
     import json
 

@@ -141,6 +141,7 @@ def test_default_order_keeps_p_equal_n_for_the_paper_size_record():
         np.testing.assert_array_equal(model.coef_, direct.coef_)
 
 
+@pytest.mark.slow
 def test_default_order_of_a_longer_record_is_read_from_the_tuned_prior():
     g = 0.9 ** np.arange(200)  # negligible against 40 dB noise well before lag 200
     u, y_slow, u_val, y_val = _record(2400, g)

@@ -304,6 +304,7 @@ for name in sys.argv[1:]:
 """
 
 
+@pytest.mark.slow
 def test_importing_a_deprecated_module_fails_under_error_filters():
     # python -W error::DeprecationWarning -c "import gpmultirate.operator" fails, for each module
     done = _python("-W", "error::DeprecationWarning", "-c", _EACH_IMPORT_FAILS,

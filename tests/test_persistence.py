@@ -643,6 +643,7 @@ def _drop_capabilities():
             raise OSError(ctypes.get_errno(), "cannot drop capabilities")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="resource limits are POSIX")
 def test_a_file_size_limit_keeps_the_old_file(saved, tmp_path):
     before = saved.read_bytes()
@@ -659,6 +660,7 @@ def test_a_file_size_limit_keeps_the_old_file(saved, tmp_path):
     _only_the_model_file(tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="permissions are POSIX")
 def test_an_unwritable_folder_keeps_the_old_file(saved, tmp_path):
     before = saved.read_bytes()

@@ -157,6 +157,7 @@ def _plain_match(got, expected):
         assert got == expected
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["grid", "irregular"])
 def test_fit_files_equal_what_the_command_wrote(case, tmp_path):
     """The library gives the files the command line wrote before it was thinned."""

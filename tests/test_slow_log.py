@@ -77,6 +77,7 @@ def test_slow_log_arguments(tmp_path):
         read_slow_log(slow, "t", "y", sample_time=T, n_samples=N, exposure=-1.0)
 
 
+@pytest.mark.slow
 def test_fit_and_predict_a_camera_from_the_command_line(tmp_path, capsys):
     u, y, times, fast, slow = _camera(tmp_path)
     out = tmp_path / "fit"

@@ -146,6 +146,7 @@ def test_the_fit_report_gives_a_noise_std_whose_variance_overflows():
     assert f"(std {std:.6g})" in report.to_markdown()
 
 
+@pytest.mark.slow
 def test_the_command_line_prints_the_noise_std_in_the_data_units(tmp_path, capsys):
     from gpmultirate.cli import main
 
@@ -180,6 +181,7 @@ def _long_record():
     return u, y_slow
 
 
+@pytest.mark.slow
 def test_the_default_order_of_a_long_record_does_not_depend_on_the_units():
     u, y = _long_record()
     fit = lambda a, b: _quiet(lambda: gm.FIRGaussianProcess(factor=4).fit(a, b))  # noqa: E731
