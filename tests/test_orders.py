@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from sklearn.gaussian_process.kernels import ConstantKernel as C
@@ -226,3 +228,19 @@ def test_default_order_with_the_resonance_search_runs_the_search_once_at_the_cho
     assert model.coef_.shape == (model.order_selection_["best_order"],)
     assert hasattr(model, "resonances_")
     assert model.score(u_val, y_val) >= plain.score(u_val, y_val) - 1.0
+
+
+def test_the_study_drops_the_order_warning_of_its_short_orders():
+    from gpmultirate.study import simulate_run
+    from gpmultirate.study.runner import fit_method
+
+    data = simulate_run(0, n_samples=600)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model, _, _ = fit_method("DC", 50, data)
+    assert model is not None
+    assert not any(issubclass(w.category, gm.OrderWarning) for w in caught)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gm.FIRGaussianProcess(factor=data.factor, order=50).fit(data.u, data.y_slow)
+    assert any(issubclass(w.category, gm.OrderWarning) for w in caught)
