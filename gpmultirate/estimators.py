@@ -382,9 +382,8 @@ _PREDICT_BLOCK_ENTRIES = 2**22
 
 def _unit_scales(experiment) -> list[float]:
     """Output power per unit input power, one per input: the data's units for the prior."""
-    inputs = np.vstack(_record_inputs(experiment))
     power_y = float(np.mean(experiment.y**2)) or 1.0
-    return [power_y / (float(np.mean(inputs[:, k] ** 2)) or 1.0) for k in range(inputs.shape[1])]
+    return [power_y / power for power in _input_powers(experiment)]
 
 
 def _initial_kernel(kernel, experiment, normalize: bool = True):

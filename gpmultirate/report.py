@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate.io import SlowSamples, model_slow_samples, read_slow_samples
+from gpmultirate.io import SlowSamples, model_slow_samples
 
 __all__ = ["FIT_KERNELS", "FitReport", "fit_files", "fit_report", "kernel_option",
            "model_slow_samples", "noise_summary", "prediction_csv", "study_header", "write_study"]
