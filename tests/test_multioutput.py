@@ -243,12 +243,13 @@ def test_bad_estimator_refused(data, estimator):
         MultiOutputFIR(estimator).fit(data[0], data[1])
 
 
-def test_an_output_that_fails_is_named(data):
+@pytest.mark.parametrize("n_jobs", [1, pytest.param(2, marks=pytest.mark.slow)])
+def test_an_output_that_fails_is_named(data, n_jobs):
     u, y_slow, _ = data
     y = y_slow.copy()
     y[:, 2] = np.nan
     with pytest.raises(ValueError, match="no finite sample") as info:
-        MultiOutputFIR(ESTIMATORS["ls"](), n_jobs=2).fit(u, y)
+        MultiOutputFIR(ESTIMATORS["ls"](), n_jobs=n_jobs).fit(u, y)
     if sys.version_info >= (3, 11):  # exceptions carry notes
         assert "while fitting output 2 (column 2 of y_slow)" in info.value.__notes__
 
