@@ -36,7 +36,7 @@ def test_readme_python_block_runs_as_printed(code, tmp_path, monkeypatch):
 
 def test_ci_runs_the_readme_test_command():
     """The README's install-and-test command is the one continuous integration runs."""
-    command = re.search(r'pip install "(\.\[[^\]]*\])" && (python -m pytest)\n',
+    command = re.search(r'pip install "(\.\[[^\]]*\])" && (python -m pytest[^\n]*)\n',
                         README.read_text(encoding="utf-8"))
     assert command, "the README gives no install-and-test command"
     ci = (README.parent / ".ci" / "run").read_text(encoding="utf-8").splitlines()
