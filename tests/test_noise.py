@@ -324,3 +324,42 @@ def test_make_noise_builds_each_choice():
         make_noise(3, 0.2, "fixed", t)
     with pytest.raises(ValueError, match="noise_level"):
         make_noise("white", -1.0, "fixed", t)
+
+
+def test_disturbance_evidence_gain_is_the_best_grid_point_against_scipy_densities():
+    from scipy.stats import multivariate_normal
+    from sklearn.gaussian_process.kernels import Matern
+
+    from gpmultirate.noise import (
+        GAIN_LENGTH_SCALES,
+        GAIN_SCALES,
+        GAIN_SHARES,
+        disturbance_evidence_gain,
+    )
+
+    rng = np.random.default_rng(7)
+    blocks = [3.0 * np.arange(25), 3.0 * np.arange(15) + 1.0]  # two records
+    M = 40
+    A = rng.standard_normal((M, 3))
+    S = A @ A.T
+    y = rng.standard_normal(M) + np.repeat([0.8, -0.5], [25, 15])
+    gamma = 0.7
+    white = multivariate_normal(np.zeros(M), S + gamma * np.eye(M)).logpdf(y)
+    best = -np.inf
+    for ell in 3.0 * np.asarray(GAIN_LENGTH_SCALES):
+        for nu in (0.5, 1.5):
+            R = np.zeros((M, M))
+            R[:25, :25] = Matern(ell, nu=nu)(blocks[0][:, None])
+            R[25:, 25:] = Matern(ell, nu=nu)(blocks[1][:, None])
+            for w in GAIN_SHARES:
+                for s in GAIN_SCALES:
+                    N = s * gamma * ((1 - w) * np.eye(M) + w * R)
+                    best = max(best, multivariate_normal(np.zeros(M), S + N).logpdf(y) - white)
+    S_before = S.copy()
+    gain = disturbance_evidence_gain(S, y, gamma, blocks)
+    assert gain == pytest.approx(best, rel=1e-10)
+    np.testing.assert_array_equal(S, S_before)
+    with pytest.raises(ValueError, match="S must"):
+        disturbance_evidence_gain(S[:3, :3], y, gamma, blocks)
+    with pytest.raises(ValueError, match="instants"):
+        disturbance_evidence_gain(S, y, gamma, blocks[:1])

@@ -89,7 +89,7 @@ def test_fitted_evidence_gradient_and_posterior_against_dense_formulas(noise_ker
 
 def test_tuning_raises_the_evidence_over_white_on_a_drifting_record():
     u, y = _data(1)
-    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     coloured = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern12").fit(u, y)
     assert white.noise_kernel_ == "white"
     assert isinstance(coloured.noise_kernel_, type(WhiteKernel() + Matern()))
@@ -107,8 +107,10 @@ def test_noise_kernel_is_checked():
                            tuning="cross_validation").fit(u, y)
     model = FIRGaussianProcess(noise_kernel="matern32")
     assert model.get_params()["noise_kernel"] == "matern32"
+    assert FIRGaussianProcess().get_params()["noise_kernel"] == "auto"
     with pytest.raises(ValueError, match="return_std"):
-        FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y).predict(u, include_noise=True)
+        FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y).predict(
+            u, include_noise=True)
 
 
 @pytest.mark.slow
@@ -153,8 +155,8 @@ def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
     u = rng.standard_normal(300)
     y = np.convolve(u, 0.85 ** np.arange(ORDER))[:300][::FACTOR]
     y = y + 0.05 * rng.standard_normal(y.shape[0])
-    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
-    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     assert auto.noise_kernel_ == "white"
     np.testing.assert_array_equal(auto.coef_, white.coef_)
     assert auto.log_marginal_likelihood_value_ == white.log_marginal_likelihood_value_
@@ -165,7 +167,7 @@ def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
 
     u, y = _data(1)
     auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
-    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     fits = {name: FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=name).fit(u, y)
             for name in ("matern12", "matern32")}
     best = max(fits, key=lambda name: fits[name].log_marginal_likelihood_value_)
@@ -233,6 +235,32 @@ def test_command_line_noise_option_summary_and_residual_figure(tmp_path, capsys)
     with pytest.raises(SystemExit):
         main(["fit", str(data), "--input", "u", "--output", "y", "--noise", "matern52",
               "--out", str(out)])
+
+
+def test_auto_is_white_under_cross_validation():
+    u, y = _data(1)
+    cv = FIRGaussianProcess(factor=FACTOR, order=ORDER, tuning="cross_validation").fit(u, y)
+    assert cv.noise_kernel_ == "white"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [100, 600])
+def test_auto_keeps_the_paper_study_white_at_a_cut_order_and_at_n(order):
+    from gpmultirate.study import paper_kernels, simulate_run
+
+    data = simulate_run(3)
+    kernel, noise = paper_kernels(0.1)["DC"]
+    fits = {name: FIRGaussianProcess(kernel, factor=3, order=order, noise_level=noise,
+                                     noise_kernel=name).fit(data.u, data.y_slow)
+            for name in ("auto", "white")}
+    assert fits["auto"].noise_kernel_ == "white"
+    np.testing.assert_array_equal(fits["auto"].coef_, fits["white"].coef_)
+    if order == 100:
+        # the cut tail colours the residuals: a disturbance would win, the tail rule keeps white
+        coloured = FIRGaussianProcess(kernel, factor=3, order=order, noise_level=noise,
+                                      noise_kernel="matern32").fit(data.u, data.y_slow)
+        assert (coloured.log_marginal_likelihood_value_
+                > fits["white"].log_marginal_likelihood_value_ + 10)
 
 
 def test_held_out_predictions_under_a_disturbance_against_dense_conditioning():
