@@ -498,9 +498,6 @@ AUTO_NOISE_MARGIN = 10.0
 #: nats of log evidence a fixed disturbance must gain over the tuned white-noise
 #: fit for ``noise_kernel="auto"`` to tune disturbances at all
 AUTO_NOISE_GATE = 3.0
-#: the share of the noise variance the prior's tail beyond the order (to twice
-#: the order) may carry for ``noise_kernel="auto"`` to consider a disturbance
-AUTO_NOISE_CUT_TAIL = 0.1
 
 
 def _check_noise_kernel(noise_kernel):
@@ -1196,8 +1193,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
 
         * the order covers the data's memory: it reaches the longest record,
           or the output variance the tuned prior gives the lags from the
-          order to twice the order is below ``AUTO_NOISE_CUT_TAIL`` times the
-          noise variance (:func:`~gpmultirate.orders.prior_tail_lag`).
+          order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
+          times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
+          the measure of the order check).
           Otherwise the colour of the residuals may be the response's tail
           cut by the order, which a longer order explains, not a disturbance
           (the paper's study at orders below ``N``);
@@ -1212,11 +1210,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         longest = max(np.asarray(r.u).shape[0] for r in operator.records)
         if order < longest:
             powers = _input_powers(experiment)
-            if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order,
-                                     tolerance=AUTO_NOISE_CUT_TAIL) >= order:
-                _LOG.info("noise: white (the prior's tail beyond order %d carries a tenth of the "
-                          "noise variance or more: the residuals' colour may be the cut tail)",
-                          order)
+            if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
+                _LOG.info("noise: white (the prior has not decayed against the noise by order "
+                          "%d: the residuals' colour may be the cut tail)", order)
                 return False
         if n_samples > MAX_CHECKED_SAMPLES:
             _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",

@@ -2,6 +2,8 @@
 against the dense formulas with the disturbance covariance, finite differences, the
 measurement band by Monte Carlo with disturbances drawn from the model, and the checks."""
 
+import warnings
+
 import numpy as np
 import pytest
 from sklearn.gaussian_process.kernels import (
@@ -165,7 +167,7 @@ def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
 def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
     from gpmultirate.estimators import AUTO_NOISE_MARGIN
 
-    u, y = _data(1)
+    u, y = _data(0)  # the prior decays within the order: a disturbance is considered
     auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
     white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     fits = {name: FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=name).fit(u, y)
@@ -281,3 +283,37 @@ def test_held_out_predictions_under_a_disturbance_against_dense_conditioning():
         np.testing.assert_allclose(mean[B], weights.T @ y[R], rtol=1e-8, atol=1e-10)
         expected = np.diag(Ky[np.ix_(B, B)] - Ky[np.ix_(B, R)] @ weights)
         np.testing.assert_allclose(variance[B], expected, rtol=1e-8)
+
+
+@pytest.mark.slow
+def test_default_band_of_the_impulse_response_holds_under_an_ar1_disturbance():
+    """Monte Carlo over paper-like systems with an AR(1) disturbance (pole 0.99, 20 dB)."""
+    from gpmultirate.simulation import multisine, paper_system
+
+    n, factor, pole = 600, 3, 0.99
+    coverage, gof = {"auto": [], "white": []}, {"auto": [], "white": []}
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        system = paper_system(0.1, perturbation=0.1, random_state=rng)
+        u = multisine(n, 0.1, random_state=rng)
+        u_val = multisine(n, 0.1, random_state=rng)
+        y = system.simulate(u)
+        e = rng.standard_normal(n)
+        v = np.empty(n)
+        v[0] = e[0]
+        for k in range(1, n):
+            v[k] = pole * v[k - 1] + np.sqrt(1 - pole**2) * e[k]
+        y_slow = (y + v * np.sqrt(np.var(y) / 100.0))[::factor]
+        impulse = np.zeros(n)
+        impulse[0] = 1.0
+        g = system.simulate(impulse)
+        for name in coverage:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                model = FIRGaussianProcess(factor=factor, noise_kernel=name).fit(u, y_slow)
+            mean, std = model.impulse_response(return_std=True)
+            coverage[name].append(np.mean(np.abs(g[: mean.shape[0]] - mean) <= 1.959964 * std))
+            gof[name].append(model.score(u_val, system.simulate(u_val)))
+    assert 0.9 <= np.mean(coverage["auto"]) <= 0.99
+    assert np.mean(coverage["auto"]) > np.mean(coverage["white"]) + 0.05
+    assert np.mean(gof["auto"]) >= np.mean(gof["white"])
