@@ -51,6 +51,7 @@ from gpmultirate.kernels import (
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.noise import (
     NAMED_DISTURBANCES,
+    ar1_evidence_gain,
     disturbance_evidence_gain,
     make_noise,
     noise_instants,
@@ -498,6 +499,9 @@ AUTO_NOISE_MARGIN = 10.0
 #: nats of log evidence a fixed disturbance must gain over the tuned white-noise
 #: fit for ``noise_kernel="auto"`` to tune disturbances at all
 AUTO_NOISE_GATE = 3.0
+#: beyond this many slow samples the check of ``noise_kernel="auto"`` takes the
+#: AR(1) route (``P x P`` per point) instead of ``M x M`` factorizations
+AUTO_NOISE_DENSE_GATE = 1000
 
 
 def _check_noise_kernel(noise_kernel):
@@ -1203,7 +1207,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
           with the ``M x M`` data covariance);
         * a fixed Matérn disturbance, with the tuned prior held, gains at
           least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
-          (:func:`~gpmultirate.noise.disturbance_evidence_gain`).
+          (:func:`~gpmultirate.noise.disturbance_evidence_gain`; beyond
+          ``AUTO_NOISE_DENSE_GATE`` slow samples an AR(1) one on a uniform
+          grid, :func:`~gpmultirate.noise.ar1_evidence_gain`, and white
+          noise elsewhere).
         """
         operator, y = experiment.observation, experiment.y
         order, n_samples = operator.order, y.shape[0]
@@ -1218,8 +1225,16 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
                       n_samples, MAX_CHECKED_SAMPLES)
             return False
-        S = observe(kernel, operator).covariance()
-        gain = disturbance_evidence_gain(S, y, noise_level, noise_instants(operator))
+        term = observe(kernel, operator)
+        if n_samples <= AUTO_NOISE_DENSE_GATE:
+            gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
+                                             noise_instants(operator))
+        else:  # the AR(1) form: O(M P^2) once, then P x P per grid point
+            gain = ar1_evidence_gain(operator.matrix, term.kernel_matrix(), y, noise_level,
+                                     noise_instants(operator))
+            if gain is None:
+                _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
+                return False
         _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
         return gain >= AUTO_NOISE_GATE
 
