@@ -550,6 +550,7 @@ class _Settings:
     tuned: bool
     scale: object = None  # the DataScale of the data (units.normalize), set by fit
     noise_kernel: object = "white"
+    order_from_data: bool = False  # the order is the default order's: it covers the memory
 
 
 @dataclass
@@ -921,7 +922,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 order, fitted = rule.order, rule.fit
         if fitted is None:
             start = time.perf_counter()
-            fitted = self._fit_at(data, order, settings)
+            fitted = self._fit_at(data, order, settings if rule is None else replace(
+                settings, order_from_data=True))
             if rule is not None:
                 _LOG.info("fitted order %d in %.1f s", fitted.observation_.order,
                           time.perf_counter() - start)
@@ -968,7 +970,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
                                     whole.n_inputs, log=_LOG.info)
         if rule.fit is not None and (settings.auto or settings.criterion != "evidence"
-                                     or settings.noise_kernel != "white"):
+                                     or settings.noise_kernel not in ("white", "auto")
+                                     or (settings.noise_kernel == "auto"
+                                         and self._calls_for_disturbance(
+                                             rule.fit.experiment, rule.fit.kernel_,
+                                             rule.fit.noise_level_, check_tail=False))):
             rule = replace(rule, fit=None)  # the fit at that order goes on from here
             _LOG.info("default order: %d, fitting it with the full settings", rule.order)
         if rule.fit is not None:
@@ -1150,7 +1156,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             noise_model = None
             if settings.noise_kernel != "white" and (
                     settings.noise_kernel != "auto" or self._calls_for_disturbance(
-                        experiment, kernel, noise)):
+                        experiment, kernel, noise, check_tail=not settings.order_from_data)):
                 # the disturbance is tuned with everything else, from the white fit
                 check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
                 choices = (list(NAMED_DISTURBANCES) if settings.noise_kernel == "auto"
@@ -1190,12 +1196,14 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             noise_model=noise_model,
         )
 
-    def _calls_for_disturbance(self, experiment, kernel, noise_level: float) -> bool:
+    def _calls_for_disturbance(self, experiment, kernel, noise_level: float,
+                               check_tail: bool = True) -> bool:
         """Whether ``noise_kernel="auto"`` goes on to tune disturbances after the white fit.
 
         Three cheap checks on the tuned white-noise fit, in order:
 
-        * the order covers the data's memory: it reaches the longest record,
+        * the order covers the data's memory: it is the default order read
+          from the data (``check_tail=False``), it reaches the longest record,
           or the output variance the tuned prior gives the lags from the
           order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
           times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
@@ -1215,7 +1223,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         operator, y = experiment.observation, experiment.y
         order, n_samples = operator.order, y.shape[0]
         longest = max(np.asarray(r.u).shape[0] for r in operator.records)
-        if order < longest:
+        if check_tail and order < longest:
             powers = _input_powers(experiment)
             if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
                 _LOG.info("noise: white (the prior has not decayed against the noise by order "
