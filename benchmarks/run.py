@@ -219,10 +219,11 @@ def paper_kernel(name, T=0.1):
 
 
 # -------------------------------------------------------------- estimators
-def fit_ours(kernel, u, y, factor, order, noise=1e-5):
+def fit_ours(kernel, u, y, factor, order, noise=1e-5, noise_kernel="auto"):
     import gpmultirate as gm
 
-    model = gm.FIRGaussianProcess(kernel, factor=factor, order=order, noise_level=noise)
+    model = gm.FIRGaussianProcess(kernel, factor=factor, order=order, noise_level=noise,
+                                  noise_kernel=noise_kernel)
     model.fit(u, y)
     return model.predict
 
@@ -279,12 +280,12 @@ FITTERS = {"ours": fit_ours, "reference": fit_reference, "sklearn": fit_sklearn}
 
 
 # ------------------------------------------------------------------- cases
-def paper_case(kernel_name, implementation, n_samples=600):
+def paper_case(kernel_name, implementation, n_samples=600, **options):
     from gpmultirate import goodness_of_fit
 
     u, y, u_val, y_val = paper_problem(n_samples)
     start = time.perf_counter()
-    predict = FITTERS[implementation](paper_kernel(kernel_name), u, y, 3, n_samples)
+    predict = FITTERS[implementation](paper_kernel(kernel_name), u, y, 3, n_samples, **options)
     seconds = time.perf_counter() - start
     return {"seconds": seconds, "gof": goodness_of_fit(y_val, predict(u_val))}
 
@@ -543,6 +544,11 @@ CASES = {
     "paper_pk": ("paper size, DC + 2 PK", ["ours", "reference"]),
     "paper_default": ("paper size, default kernel (C * DC)", ["ours"]),
     "paper_auto": ("paper size, kernel='auto' (vs default)", ["ours"]),
+    "paper_dc_white": ("paper size, DC, noise_kernel='white'", ["ours"]),
+    "paper_dc_auto": ("paper size, DC, noise_kernel='auto' (vs white)", ["ours"]),
+    "paper_default_white": ("paper size, default kernel, noise_kernel='white'", ["ours"]),
+    "paper_default_auto": ("paper size, default kernel, noise_kernel='auto' (vs white)",
+                           ["ours"]),
     "study_100": ("100-run Monte Carlo study", ["ours"]),
     "long_record": ("long record N = 50,000, P = 2,000, DC", ["ours", "previous"]),
     "reduction_50k": ("reduction alone, N = 50,000, P = 2,000", ["ours", "previous"]),
@@ -577,6 +583,7 @@ BASELINES = {"multi_output_28": "serial"}
 WIDE_REFERENCES = {
     "two_inputs": "paper_dc", "missing_20": "paper_dc", "four_records": "uniform_2400",
     "long_irregular": "long_record", "paper_auto": "paper_default",
+    "paper_dc_auto": "paper_dc_white", "paper_default_auto": "paper_default_white",
     "timed_instants": "timed_ticks", "timed_exposure": "timed_ticks",
 }
 
@@ -588,6 +595,10 @@ def run_case(name, implementation, n_samples=None, order=None):
         return paper_case("auto", implementation, n_samples or 600)
     if name == "paper_default":
         return paper_case("default", implementation, n_samples or 600)
+    if name in ("paper_dc_white", "paper_dc_auto", "paper_default_white", "paper_default_auto"):
+        kernel_name, _, noise_kernel = name[len("paper_"):].partition("_")
+        return paper_case(kernel_name.upper() if kernel_name == "dc" else kernel_name,
+                          implementation, n_samples or 600, noise_kernel=noise_kernel)
     if name == "paper_pk":
         return paper_case("PK", implementation, n_samples or 600)
     if name == "p_equals_n_6000":

@@ -129,11 +129,11 @@ def _add_fit_parser(commands) -> None:
                      help="prior of the impulse response: dc, tc or ss with a data-scaled "
                           "amplitude, or auto (resonances found from the data) "
                           "(default: dc)")
-    fit.add_argument("--noise", choices=FIT_NOISES, default="white",
+    fit.add_argument("--noise", choices=FIT_NOISES, default="auto",
                      help="noise of the slow samples: white, or white plus a Matern 1/2 or "
                           "3/2 disturbance over time tuned by the evidence; auto keeps a "
                           "disturbance only where the evidence clearly calls for it "
-                          "(default: white)")
+                          "(default: auto)")
     fit.add_argument("--initial-conditions", choices=("zero", "discard", "periodic"),
                      default="zero",
                      help="zero: at rest before the record; discard: use only outputs that "

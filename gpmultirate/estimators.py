@@ -45,10 +45,17 @@ from gpmultirate.kernels import (
     input_kernels,
     kernel_for_inputs,
     like_inputs,
+    observe,
     rescaled,
 )
 from gpmultirate.metrics import goodness_of_fit
-from gpmultirate.noise import NAMED_DISTURBANCES, make_noise, noise_instants
+from gpmultirate.noise import (
+    NAMED_DISTURBANCES,
+    ar1_evidence_gain,
+    disturbance_evidence_gain,
+    make_noise,
+    noise_instants,
+)
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import check_records, is_record_list
 from gpmultirate.observations.sampled import check_initial_conditions
@@ -489,6 +496,12 @@ HELD_OUT_MARGIN = 5.0
 #: nats of log evidence a disturbance model must gain over white noise for
 #: ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
 AUTO_NOISE_MARGIN = 10.0
+#: nats of log evidence a fixed disturbance must gain over the tuned white-noise
+#: fit for ``noise_kernel="auto"`` to tune disturbances at all
+AUTO_NOISE_GATE = 3.0
+#: beyond this many slow samples the check of ``noise_kernel="auto"`` takes the
+#: AR(1) route (``P x P`` per point) instead of ``M x M`` factorizations
+AUTO_NOISE_DENSE_GATE = 1000
 
 
 def _check_noise_kernel(noise_kernel):
@@ -537,6 +550,7 @@ class _Settings:
     tuned: bool
     scale: object = None  # the DataScale of the data (units.normalize), set by fit
     noise_kernel: object = "white"
+    order_from_data: bool = False  # the order is the default order's: it covers the memory
 
 
 @dataclass
@@ -650,7 +664,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
         the output at ``t - latency`` (fast sample periods).
-    noise_kernel : "white", "matern12", "matern32", "auto" or sklearn Kernel, default="white"
+    noise_kernel : "auto", "white", "matern12", "matern32" or sklearn Kernel, default="auto"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
         ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the samples'
@@ -660,9 +674,14 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         ``WhiteKernel``.  A disturbance is tuned with everything else by the
         evidence, starting from the white fit, on the samples themselves
         (the data-space route: ``O(M^3)`` per evaluation).  ``"auto"`` fits
-        white, Matérn 1/2 and 3/2 and keeps a disturbance only when its log
-        evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.  Not with
-        ``tuning="cross_validation"``.  See :doc:`/disturbances`.
+        white first and keeps it unless the data call for more: when the
+        order covers the data's memory and a fixed Matérn disturbance at the
+        tuned prior gains ``AUTO_NOISE_GATE`` (3) nats of evidence, it tunes
+        Matérn 1/2 and 3/2 disturbances and keeps the better one only when
+        its log evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
+        An explicit disturbance is not allowed with
+        ``tuning="cross_validation"`` (``"auto"`` is white there).  See
+        :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -798,7 +817,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         cv: int = 5,
         exposure: float = 0.0,
         latency: float = 0.0,
-        noise_kernel="white",
+        noise_kernel="auto",
     ):
         self.kernel = kernel
         self.factor = factor
@@ -903,7 +922,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 order, fitted = rule.order, rule.fit
         if fitted is None:
             start = time.perf_counter()
-            fitted = self._fit_at(data, order, settings)
+            fitted = self._fit_at(data, order, settings if rule is None else replace(
+                settings, order_from_data=True))
             if rule is not None:
                 _LOG.info("fitted order %d in %.1f s", fitted.observation_.order,
                           time.perf_counter() - start)
@@ -932,7 +952,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if longest <= orders.SHORT_RECORD:
             return None
         powers = _input_powers(whole)
-        pilot = replace(settings, auto=False, criterion="evidence")
+        pilot = replace(settings, auto=False, criterion="evidence", noise_kernel="white")
         caught = {}
 
         def fit_at(order):
@@ -949,7 +969,12 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
 
         rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
                                     whole.n_inputs, log=_LOG.info)
-        if rule.fit is not None and (settings.auto or settings.criterion != "evidence"):
+        if rule.fit is not None and (settings.auto or settings.criterion != "evidence"
+                                     or settings.noise_kernel not in ("white", "auto")
+                                     or (settings.noise_kernel == "auto"
+                                         and self._calls_for_disturbance(
+                                             rule.fit.experiment, rule.fit.kernel_,
+                                             rule.fit.noise_level_, check_tail=False))):
             rule = replace(rule, fit=None)  # the fit at that order goes on from here
             _LOG.info("default order: %d, fitting it with the full settings", rule.order)
         if rule.fit is not None:
@@ -1040,6 +1065,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
         noise_kernel = _check_noise_kernel(self.noise_kernel)
+        if criterion == "cross_validation" and noise_kernel == "auto":
+            noise_kernel = "white"  # cross-validation tunes the white-noise model only
         if noise_kernel != "white" and criterion == "cross_validation":
             raise ValueError(
                 "tuning='cross_validation' does not take a disturbance model: use "
@@ -1127,7 +1154,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 moved = objective.moved_to(kernel, noise)
                 cv_value = float(moved(moved.theta))
             noise_model = None
-            if settings.noise_kernel != "white":
+            if settings.noise_kernel != "white" and (
+                    settings.noise_kernel != "auto" or self._calls_for_disturbance(
+                        experiment, kernel, noise, check_tail=not settings.order_from_data)):
                 # the disturbance is tuned with everything else, from the white fit
                 check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
                 choices = (list(NAMED_DISTURBANCES) if settings.noise_kernel == "auto"
@@ -1166,6 +1195,56 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             noise_kernel_="white" if noise_model is None else noise_model.kernel,
             noise_model=noise_model,
         )
+
+    def _calls_for_disturbance(self, experiment, kernel, noise_level: float,
+                               check_tail: bool = True) -> bool:
+        """Whether ``noise_kernel="auto"`` goes on to tune disturbances after the white fit.
+
+        Three cheap checks on the tuned white-noise fit, in order:
+
+        * the order covers the data's memory: it is the default order read
+          from the data (``check_tail=False``), it reaches the longest record,
+          or the output variance the tuned prior gives the lags from the
+          order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
+          times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
+          the measure of the order check).
+          Otherwise the colour of the residuals may be the response's tail
+          cut by the order, which a longer order explains, not a disturbance
+          (the paper's study at orders below ``N``);
+        * at most ``MAX_CHECKED_SAMPLES`` slow samples (a disturbance is tuned
+          with the ``M x M`` data covariance);
+        * a fixed Matérn disturbance, with the tuned prior held, gains at
+          least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
+          (:func:`~gpmultirate.noise.disturbance_evidence_gain`; beyond
+          ``AUTO_NOISE_DENSE_GATE`` slow samples an AR(1) one on a uniform
+          grid, :func:`~gpmultirate.noise.ar1_evidence_gain`, and white
+          noise elsewhere).
+        """
+        operator, y = experiment.observation, experiment.y
+        order, n_samples = operator.order, y.shape[0]
+        longest = max(np.asarray(r.u).shape[0] for r in operator.records)
+        if check_tail and order < longest:
+            powers = _input_powers(experiment)
+            if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
+                _LOG.info("noise: white (the prior has not decayed against the noise by order "
+                          "%d: the residuals' colour may be the cut tail)", order)
+                return False
+        if n_samples > MAX_CHECKED_SAMPLES:
+            _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
+                      n_samples, MAX_CHECKED_SAMPLES)
+            return False
+        term = observe(kernel, operator)
+        if n_samples <= AUTO_NOISE_DENSE_GATE:
+            gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
+                                             noise_instants(operator))
+        else:  # the AR(1) form: O(M P^2) once, then P x P per grid point
+            gain = ar1_evidence_gain(operator.matrix, term.kernel_matrix(), y, noise_level,
+                                     noise_instants(operator))
+            if gain is None:
+                _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
+                return False
+        _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
+        return gain >= AUTO_NOISE_GATE
 
     def _noise_kernel_in_fit_units(self, settings: _Settings):
         """The noise choice in the units of the normalized data (a kernel is given in the data's)."""

@@ -486,11 +486,24 @@ def rescale_least_squares(model, scale: DataScale, rebuild) -> None:
 
 def evidence_in_data_units(evidence, scale):
     """The normalized ``evidence`` at its kernel and noise level in the data's units, for the
-    messages that name their values (the normalized one where they are not representable,
-    and under a disturbance model)."""
-    if scale is None or scale.identity or not evidence.noise.white:
+    messages that name their values (the normalized one where they are not representable).
+    A disturbance's variances (and their bounds) are scaled as the output's
+    (:func:`scaled_noise_kernel`); its time scales do not depend on the units."""
+    if scale is None or scale.identity:
         return evidence
     kernel = scale.kernel(evidence.kernel)
+    if not evidence.noise.white:
+        noise_kernel = getattr(evidence.noise, "kernel", None)
+        if kernel is None or noise_kernel is None:
+            return evidence
+        from gpmultirate.noise import KernelNoise
+
+        noise = KernelNoise(scaled_noise_kernel(noise_kernel, scale.variance(1.0)),
+                            evidence.noise.instants)
+        values = np.exp(np.append(kernel.bounds.ravel(), noise.bounds.ravel()))
+        if not np.all((values >= _TINY) & (values < np.inf)):
+            return evidence
+        return evidence.moved_to(kernel, noise)
     noise = scale.variance(evidence.noise_level)
     bounds = evidence.noise_bounds
     if not isinstance(bounds, str):

@@ -324,3 +324,87 @@ def test_make_noise_builds_each_choice():
         make_noise(3, 0.2, "fixed", t)
     with pytest.raises(ValueError, match="noise_level"):
         make_noise("white", -1.0, "fixed", t)
+
+
+def test_disturbance_evidence_gain_is_the_best_grid_point_against_scipy_densities():
+    from scipy.stats import multivariate_normal
+    from sklearn.gaussian_process.kernels import Matern
+
+    from gpmultirate.noise import (
+        GAIN_LENGTH_SCALES,
+        GAIN_SCALES,
+        GAIN_SHARES,
+        disturbance_evidence_gain,
+    )
+
+    rng = np.random.default_rng(7)
+    blocks = [3.0 * np.arange(25), 3.0 * np.arange(15) + 1.0]  # two records
+    M = 40
+    A = rng.standard_normal((M, 3))
+    S = A @ A.T
+    y = rng.standard_normal(M) + np.repeat([0.8, -0.5], [25, 15])
+    gamma = 0.7
+    white = multivariate_normal(np.zeros(M), S + gamma * np.eye(M)).logpdf(y)
+    best = -np.inf
+    for ell in 3.0 * np.asarray(GAIN_LENGTH_SCALES):
+        for nu in (0.5, 1.5):
+            R = np.zeros((M, M))
+            R[:25, :25] = Matern(ell, nu=nu)(blocks[0][:, None])
+            R[25:, 25:] = Matern(ell, nu=nu)(blocks[1][:, None])
+            for w in GAIN_SHARES:
+                for s in GAIN_SCALES:
+                    N = s * gamma * ((1 - w) * np.eye(M) + w * R)
+                    best = max(best, multivariate_normal(np.zeros(M), S + N).logpdf(y) - white)
+    S_before = S.copy()
+    gain = disturbance_evidence_gain(S, y, gamma, blocks)
+    assert gain == pytest.approx(best, rel=1e-10)
+    np.testing.assert_array_equal(S, S_before)
+    with pytest.raises(ValueError, match="S must"):
+        disturbance_evidence_gain(S[:3, :3], y, gamma, blocks)
+    with pytest.raises(ValueError, match="instants"):
+        disturbance_evidence_gain(S, y, gamma, blocks[:1])
+
+
+def test_ar1_evidence_gain_is_the_best_grid_point_against_scipy_densities():
+    from scipy.stats import multivariate_normal
+
+    from gpmultirate.noise import GAIN_LENGTH_SCALES, GAIN_SCALES, ar1_evidence_gain
+
+    rng = np.random.default_rng(8)
+    counts = [30, 1, 19]  # a lone sample is a record too
+    blocks = [3.0 * np.arange(n) + 7.0 * i for i, n in enumerate(counts)]
+    M, P = sum(counts), 5
+    Phi = rng.standard_normal((M, P))
+    A = rng.standard_normal((P, P))
+    K = A @ A.T
+    y = Phi @ rng.standard_normal(P) + rng.standard_normal(M)
+    gamma = 0.8
+    S = Phi @ K @ Phi.T
+    white = multivariate_normal(np.zeros(M), S + gamma * np.eye(M)).logpdf(y)
+    best = -np.inf
+    for ell in 3.0 * np.asarray(GAIN_LENGTH_SCALES):
+        for s in GAIN_SCALES:
+            N = linalg.block_diag(*(s * gamma * np.exp(-np.abs(t[:, None] - t[None, :]) / ell)
+                                    for t in blocks))
+            best = max(best, multivariate_normal(np.zeros(M), S + N).logpdf(y) - white)
+    Phi_before = Phi.copy()
+    assert ar1_evidence_gain(Phi, K, y, gamma, blocks) == pytest.approx(best, rel=1e-9)
+    np.testing.assert_array_equal(Phi, Phi_before)
+    assert ar1_evidence_gain(Phi, K, y, gamma, [np.sort(rng.uniform(0, 200, M))]) is None
+
+
+def test_ar1_evidence_gain_tells_a_drifting_long_record_from_a_white_one():
+    from gpmultirate.noise import ar1_evidence_gain
+
+    rng = np.random.default_rng(9)
+    M, P = 1500, 4
+    Phi = rng.standard_normal((M, P))
+    g = rng.standard_normal(P)
+    drift = np.zeros(M)
+    for m in range(1, M):
+        drift[m] = 0.95 * drift[m - 1] + 0.3 * rng.standard_normal()
+    white = rng.standard_normal(M)
+    t = 3.0 * np.arange(M)
+    assert ar1_evidence_gain(Phi, np.eye(P), Phi @ g + white, 1.0, t) < 3.0
+    coloured = Phi @ g + 0.3 * white + drift
+    assert ar1_evidence_gain(Phi, np.eye(P), coloured, np.var(coloured - Phi @ g), t) > 50.0

@@ -2,6 +2,8 @@
 against the dense formulas with the disturbance covariance, finite differences, the
 measurement band by Monte Carlo with disturbances drawn from the model, and the checks."""
 
+import warnings
+
 import numpy as np
 import pytest
 from sklearn.gaussian_process.kernels import (
@@ -89,7 +91,7 @@ def test_fitted_evidence_gradient_and_posterior_against_dense_formulas(noise_ker
 
 def test_tuning_raises_the_evidence_over_white_on_a_drifting_record():
     u, y = _data(1)
-    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     coloured = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="matern12").fit(u, y)
     assert white.noise_kernel_ == "white"
     assert isinstance(coloured.noise_kernel_, type(WhiteKernel() + Matern()))
@@ -107,8 +109,10 @@ def test_noise_kernel_is_checked():
                            tuning="cross_validation").fit(u, y)
     model = FIRGaussianProcess(noise_kernel="matern32")
     assert model.get_params()["noise_kernel"] == "matern32"
+    assert FIRGaussianProcess().get_params()["noise_kernel"] == "auto"
     with pytest.raises(ValueError, match="return_std"):
-        FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y).predict(u, include_noise=True)
+        FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y).predict(
+            u, include_noise=True)
 
 
 @pytest.mark.slow
@@ -153,8 +157,8 @@ def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
     u = rng.standard_normal(300)
     y = np.convolve(u, 0.85 ** np.arange(ORDER))[:300][::FACTOR]
     y = y + 0.05 * rng.standard_normal(y.shape[0])
-    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
-    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    auto = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     assert auto.noise_kernel_ == "white"
     np.testing.assert_array_equal(auto.coef_, white.coef_)
     assert auto.log_marginal_likelihood_value_ == white.log_marginal_likelihood_value_
@@ -163,9 +167,9 @@ def test_auto_keeps_white_noise_where_the_data_do_not_call_for_more():
 def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
     from gpmultirate.estimators import AUTO_NOISE_MARGIN
 
-    u, y = _data(1)
+    u, y = _data(0)  # the prior decays within the order: a disturbance is considered
     auto = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="auto").fit(u, y)
-    white = FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="white").fit(u, y)
     fits = {name: FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel=name).fit(u, y)
             for name in ("matern12", "matern32")}
     best = max(fits, key=lambda name: fits[name].log_marginal_likelihood_value_)
@@ -235,6 +239,32 @@ def test_command_line_noise_option_summary_and_residual_figure(tmp_path, capsys)
               "--out", str(out)])
 
 
+def test_auto_is_white_under_cross_validation():
+    u, y = _data(1)
+    cv = FIRGaussianProcess(factor=FACTOR, order=ORDER, tuning="cross_validation").fit(u, y)
+    assert cv.noise_kernel_ == "white"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [100, 600])
+def test_auto_keeps_the_paper_study_white_at_a_cut_order_and_at_n(order):
+    from gpmultirate.study import paper_kernels, simulate_run
+
+    data = simulate_run(3)
+    kernel, noise = paper_kernels(0.1)["DC"]
+    fits = {name: FIRGaussianProcess(kernel, factor=3, order=order, noise_level=noise,
+                                     noise_kernel=name).fit(data.u, data.y_slow)
+            for name in ("auto", "white")}
+    assert fits["auto"].noise_kernel_ == "white"
+    np.testing.assert_array_equal(fits["auto"].coef_, fits["white"].coef_)
+    if order == 100:
+        # the cut tail colours the residuals: a disturbance would win, the tail rule keeps white
+        coloured = FIRGaussianProcess(kernel, factor=3, order=order, noise_level=noise,
+                                      noise_kernel="matern32").fit(data.u, data.y_slow)
+        assert (coloured.log_marginal_likelihood_value_
+                > fits["white"].log_marginal_likelihood_value_ + 10)
+
+
 def test_held_out_predictions_under_a_disturbance_against_dense_conditioning():
     from gpmultirate import DownsampledConvolution
     from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
@@ -253,3 +283,55 @@ def test_held_out_predictions_under_a_disturbance_against_dense_conditioning():
         np.testing.assert_allclose(mean[B], weights.T @ y[R], rtol=1e-8, atol=1e-10)
         expected = np.diag(Ky[np.ix_(B, B)] - Ky[np.ix_(B, R)] @ weights)
         np.testing.assert_allclose(variance[B], expected, rtol=1e-8)
+
+
+@pytest.mark.slow
+def test_default_band_of_the_impulse_response_holds_under_an_ar1_disturbance():
+    """Monte Carlo over paper-like systems with an AR(1) disturbance (pole 0.99, 20 dB)."""
+    from gpmultirate.simulation import multisine, paper_system
+
+    n, factor, pole = 600, 3, 0.99
+    coverage, gof = {"auto": [], "white": []}, {"auto": [], "white": []}
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        system = paper_system(0.1, perturbation=0.1, random_state=rng)
+        u = multisine(n, 0.1, random_state=rng)
+        u_val = multisine(n, 0.1, random_state=rng)
+        y = system.simulate(u)
+        e = rng.standard_normal(n)
+        v = np.empty(n)
+        v[0] = e[0]
+        for k in range(1, n):
+            v[k] = pole * v[k - 1] + np.sqrt(1 - pole**2) * e[k]
+        y_slow = (y + v * np.sqrt(np.var(y) / 100.0))[::factor]
+        impulse = np.zeros(n)
+        impulse[0] = 1.0
+        g = system.simulate(impulse)
+        for name in coverage:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                model = FIRGaussianProcess(factor=factor, noise_kernel=name).fit(u, y_slow)
+            mean, std = model.impulse_response(return_std=True)
+            coverage[name].append(np.mean(np.abs(g[: mean.shape[0]] - mean) <= 1.959964 * std))
+            gof[name].append(model.score(u_val, system.simulate(u_val)))
+    assert 0.9 <= np.mean(coverage["auto"]) <= 0.99
+    assert np.mean(coverage["auto"]) > np.mean(coverage["white"]) + 0.05
+    assert np.mean(gof["auto"]) >= np.mean(gof["white"])
+
+
+def test_auto_on_a_long_white_record_takes_the_ar1_check_and_keeps_white(monkeypatch):
+    import gpmultirate.estimators as estimators
+
+    rng = np.random.default_rng(11)
+    n = 3 * 1100  # M = 1100 slow samples: beyond the dense check
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.6 ** np.arange(20))[:n][::FACTOR] + 0.05 * rng.standard_normal(1100)
+    seen = []
+    original = estimators.ar1_evidence_gain
+    monkeypatch.setattr(estimators, "ar1_evidence_gain",
+                        lambda *args: seen.append(original(*args)) or seen[-1])
+    auto = FIRGaussianProcess(factor=FACTOR, order=40).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=40, noise_kernel="white").fit(u, y)
+    assert len(seen) == 1 and seen[0] < estimators.AUTO_NOISE_GATE
+    assert auto.noise_kernel_ == "white"
+    np.testing.assert_array_equal(auto.coef_, white.coef_)

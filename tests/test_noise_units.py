@@ -62,3 +62,22 @@ def test_disturbance_model_file_keeps_the_data_units(drifting, tmp_path):
     mean2, std2 = loaded.predict(u, return_std=True, include_noise=True)
     np.testing.assert_allclose(mean2, mean, rtol=1e-10, atol=1e-10 * np.abs(mean).max())
     np.testing.assert_allclose(std2, std, rtol=1e-10)
+
+
+def test_bound_warning_of_a_disturbance_names_the_data_units(drifting):
+    from sklearn.exceptions import ConvergenceWarning
+
+    u, y_slow = drifting
+    for scale in (1000.0,):
+        hi = 1e-6 * scale**2  # far too small a disturbance for the drift: it ends on the bound
+        kernel = WhiteKernel(1e-4 * scale**2) + C(0.5 * hi, (1e-3 * hi, hi)) * Matern(
+            20.0, (1.0, 1e4), nu=1.5)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = gm.FIRGaussianProcess(order=30, factor=3, noise_kernel=kernel).fit(
+                u, scale * y_slow)
+        messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
+        named = [m for m in messages if "noise_kernel__k2__k1__constant_value" in m]
+        assert named, messages
+        assert f"upper bound {hi:.4g}" in named[0]
+        assert model.noise_kernel_.k2.k1.constant_value == pytest.approx(hi, rel=1e-6)
