@@ -680,7 +680,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Matérn 1/2 and 3/2 disturbances and keeps the better one only when
         its log evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
         An explicit disturbance is not allowed with
-        ``tuning="cross_validation"`` (``"auto"`` is white there).  See
+        ``tuning="cross_validation"`` (``"auto"`` is white there, and with
+        ``optimizer=None``, where nothing is tuned).  See
         :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
@@ -1065,8 +1066,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
         noise_kernel = _check_noise_kernel(self.noise_kernel)
-        if criterion == "cross_validation" and noise_kernel == "auto":
-            noise_kernel = "white"  # cross-validation tunes the white-noise model only
+        if noise_kernel == "auto" and (criterion == "cross_validation" or self.optimizer is None):
+            # cross-validation tunes the white-noise model only; without an optimizer
+            # the hyperparameters are the user's and nothing is tuned
+            noise_kernel = "white"
         if noise_kernel != "white" and criterion == "cross_validation":
             raise ValueError(
                 "tuning='cross_validation' does not take a disturbance model: use "

@@ -92,12 +92,19 @@ def test_sample_time_whose_rate_overflows_is_refused_by_name(sample_time):
 
 @pytest.mark.parametrize("order", [None, 60])
 @pytest.mark.parametrize("value", [1.0, 0.0, -3e5])
-def test_constant_output_fits(order, value):
-    model = quiet_fit(gm.FIRGaussianProcess(factor=3, order=order), U, np.full(40, value))
+@pytest.mark.parametrize("noise_kernel", ["white", "auto"])
+def test_constant_output_fits(order, value, noise_kernel):
+    model = quiet_fit(gm.FIRGaussianProcess(factor=3, order=order, noise_kernel=noise_kernel),
+                      U, np.full(40, value))
     assert np.all(np.isfinite(model.coef_))
-    # the model predicts the slow samples it was given, to within its noise level
-    fitted = model.predict(U)[::3]
-    assert np.max(np.abs(fitted - value)) <= 3 * np.sqrt(model.noise_level_) + 1e-9 * abs(value)
+    fitted, std = model.predict(U, return_std=True, include_noise=True)
+    assert np.all(np.isfinite(fitted)) and np.all(np.isfinite(std))
+    if model.noise_kernel_ == "white":
+        # the model predicts the slow samples it was given, to within its noise level
+        bound = 3 * np.sqrt(model.noise_level_) + 1e-9 * abs(value)
+        assert np.max(np.abs(fitted[::3] - value)) <= bound
+    else:  # "auto" may read a constant as a slow disturbance, never as noise of the system
+        assert noise_kernel == "auto" and value != 0.0
 
 
 def test_an_all_zero_input_is_refused_by_name():
