@@ -396,13 +396,6 @@ def test_checks():
     assert model.get_params()["exposure"] == 0.5
 
 
-def test_saving_a_model_between_the_ticks_is_refused(tmp_path):
-    u, y, _, times = _fit_data()
-    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT).fit(u, y, sample_times=times)
-    with pytest.raises(ValueError, match="cannot be saved yet"):
-        gm.save_model(model, tmp_path / "model.npz")
-
-
 # ------------------------------------------------------- the band between the ticks
 def test_plot_intersample_draws_the_band_between_the_ticks():
     import matplotlib
