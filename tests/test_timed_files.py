@@ -184,3 +184,75 @@ def test_other_quadrature_is_reported():
     buffer, _ = _saved_and_loaded(model)
     with pytest.warns(UserWarning, match="quadrature nodes"):
         gm.load_model(_forge(buffer, lambda h, m: h["fitted"].update(quadrature_nodes=8)))
+
+
+# ------------------------------------------------------------------ the command line
+T = 0.001
+
+
+def _camera_files(tmp_path, n=300):
+    """A fast input file and a camera log: frames off the ticks, exposure, latency."""
+    rng = np.random.default_rng(11)
+    u = rng.standard_normal(n)
+    g = 0.8 ** np.arange(P) * np.cos(0.6 * np.arange(P))
+    ticks = np.arange(2, n - 3, F)
+    stamps = ticks + rng.uniform(0.0, 1.0, ticks.shape[0])
+    y = np.convolve(u, g)[:n][ticks] + 1e-2 * rng.standard_normal(ticks.shape[0])
+    fast = tmp_path / "fast.csv"
+    fast.write_text("u\n" + "".join(f"{v:.17g}\n" for v in u))
+    slow = tmp_path / "camera.csv"
+    slow.write_text("t,y\n" + "".join(f"{t * T:.17g},{v:.17g}\n" for t, v in zip(stamps, y)))
+    return u, y, stamps, fast, slow
+
+
+@pytest.mark.slow  # the figures of the fit take most of its 15 s
+def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
+    from gpmultirate.io import read_slow_log
+
+    u, y, _, fast, slow = _camera_files(tmp_path)
+    out = tmp_path / "fit"
+    assert main(["fit", str(fast), "--input", "u", "--sample-time", str(T), "--slow", str(slow),
+                 "--output", "y", "--time", "t", "--exposure", "0.0005", "--latency", "0.0002",
+                 "--order", str(P), "--kernel", "dc", "--out", str(out), "--quiet"]) == 0
+    assert "not written" not in capsys.readouterr().err
+    model = gm.load_model(out / "model.npz")
+    assert (model.exposure, model.latency, model.sample_time) == (0.5, 0.2, T)
+    # the saved model is the fit of the library on the same data
+    stamps = read_slow_log(slow, "t", sample_time=T, n_samples=u.shape[0]).sample_times
+    direct = gm.FIRGaussianProcess(order=P, sample_time=T, exposure=0.5, latency=0.2).fit(
+        u, y, sample_times=stamps)
+    summary = json.loads((out / "summary.json").read_text())
+    assert np.isclose(summary["model"]["log_evidence"], direct.log_marginal_likelihood_value_,
+                      rtol=1e-9)
+    np.testing.assert_allclose(model.coef_, direct.coef_, rtol=1e-7, atol=1e-9)
+    # readings at the instants of another log, with their bands, as the library gives them
+    other = tmp_path / "frames.csv"
+    instants = np.array([10.25, 57.5, 123.875, 250.0])
+    other.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
+    table_file = tmp_path / "readings.csv"
+    assert main(["predict", str(out / "model.npz"), str(fast), "--input", "u", "--slow",
+                 str(other), "--time", "t", "--out", str(table_file), "--quiet"]) == 0
+    table = np.genfromtxt(table_file, delimiter=",", names=True)
+    mean, std = model.predict(u, return_std=True, sample_times=instants)
+    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
+    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+    assert table.shape == (4,) and np.all(table["y_std"] > 0)
+
+
+def test_predict_readings_of_a_saved_camera_model(tmp_path):
+    u, y, stamps, fast, _ = _camera_files(tmp_path, n=120)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, sample_time=T, exposure=0.5,
+                                  latency=0.2, optimizer=None, noise_level=1e-4)
+    gm.save_model(model.fit(u, y, sample_times=stamps), tmp_path / "model.npz")
+    frames = tmp_path / "frames.csv"
+    instants = np.array([10.25, 57.5, 100.875])
+    frames.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
+    target = tmp_path / "readings.csv"
+    assert main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--slow",
+                 str(frames), "--time", "t", "--out", str(target), "--quiet"]) == 0
+    table = np.genfromtxt(target, delimiter=",", names=True)
+    mean, std = model.predict(u, return_std=True, sample_times=instants)
+    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
+    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
