@@ -256,3 +256,75 @@ def test_predict_readings_of_a_saved_camera_model(tmp_path):
     np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
     np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
     np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+
+
+# ------------------------------------------------ tuning by cross-validation between the ticks
+def _dense_held_out_density(S, noise, y, folds):
+    """``sum_k log p(y_B | y_rest)`` by conditioning the dense Gaussian, fold by fold."""
+    from scipy.stats import multivariate_normal
+
+    K = S + noise * np.eye(y.shape[0])
+    total = 0.0
+    for B in folds:
+        R = np.setdiff1d(np.arange(y.shape[0]), B)
+        gain = np.linalg.solve(K[np.ix_(R, R)], K[np.ix_(R, B)]).T
+        mean = gain @ y[R]
+        cov = K[np.ix_(B, B)] - gain @ K[np.ix_(R, B)]
+        total += multivariate_normal(mean, cov).logpdf(y[B])
+    return total
+
+
+def _brute_force_covariance(kernel, u, stamps, latency):
+    """Readings without exposure: ``sum_ij u[i] u[j] k(t_m - L - i, t_n - L - j)``, lags in [0, P)."""
+    ends = np.asarray(stamps) - latency
+    lags = ends[:, None] - np.arange(u.shape[0])[None, :]
+    inside = (lags >= 0) & (lags < P)
+    S = np.zeros((ends.shape[0], ends.shape[0]))
+    for m in range(ends.shape[0]):
+        for n in range(ends.shape[0]):
+            a, b = np.flatnonzero(inside[m]), np.flatnonzero(inside[n])
+            k = kernel(lags[m, a][:, None], lags[n, b][:, None])
+            S[m, n] = u[a] @ k @ u[b]
+    return S
+
+
+@pytest.mark.parametrize("exposure", [0.0, 0.5])
+def test_cross_validation_between_the_ticks_is_the_dense_held_out_density(exposure):
+    from gpmultirate.crossvalidation import contiguous_folds
+    from gpmultirate.kernels import observe
+
+    u, y, stamps = _record(12)
+    measured = np.isfinite(y)
+    y, stamps = y[measured], stamps[measured]
+    kernel = C(1.5) * DC(0.8, 0.5)
+    model = gm.FIRGaussianProcess(kernel, order=P, exposure=exposure, latency=0.3,
+                                  tuning="cross_validation", cv=4, optimizer=None,
+                                  noise_level=1e-3)
+    model.fit(u, y, sample_times=stamps)
+    assert isinstance(model.observation_, gm.TimedConvolution)
+    folds = contiguous_folds([y.shape[0]], 4)
+    if exposure == 0.0:
+        S = _brute_force_covariance(kernel, u, stamps, 0.3)
+    else:  # the readings' covariance, tested against dense quadrature in test_timed
+        S = observe(kernel, model.observation_).covariance()
+    expected = _dense_held_out_density(S, 1e-3, y, folds)
+    assert abs(model.cv_log_predictive_likelihood_ - expected) < 1e-8 * max(1.0, abs(expected))
+
+
+@pytest.mark.slow  # 2 s: tuning by cross-validation
+def test_tuning_by_cross_validation_between_the_ticks():
+    from gpmultirate.crossvalidation import contiguous_folds
+
+    u, y, stamps = _record(12)
+    measured = np.isfinite(y)
+    y, stamps = y[measured], stamps[measured]
+    start = C(1.5) * DC(0.8, 0.5)
+    model = gm.FIRGaussianProcess(start, order=P, latency=0.3, tuning="cross_validation", cv=4)
+    model.fit(u, y, sample_times=stamps)
+    folds = contiguous_folds([y.shape[0]], 4)
+    tuned = _dense_held_out_density(_brute_force_covariance(model.kernel_, u, stamps, 0.3),
+                                    model.noise_level_, y, folds)
+    assert abs(model.cv_log_predictive_likelihood_ - tuned) < 1e-8 * abs(tuned)
+    # the tuning raised the held-out density above that of the start
+    assert tuned > _dense_held_out_density(_brute_force_covariance(start, u, stamps, 0.3),
+                                           1e-2, y, folds) + 1.0
