@@ -252,7 +252,10 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     >>> round(float(omegas[np.argmax(gain.max(axis=0))]), 1)
     2.0
     """
-    Phi = observation.input_block(input).matrix
+    # readings at their own instants see the bases between the integer lags: observed
+    # through the readings' functionals; their regressor at the ticks gauges the excitation
+    timed = hasattr(observation, "damped_spectrum")
+    Phi = _tick_regressor(observation, input) if timed else observation.input_block(input).matrix
     P = Phi.shape[1]
     lags = np.arange(P, dtype=float)
     n_fft = None
@@ -271,7 +274,7 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         warnings.simplefilter("ignore", NumericalWarning)
         covariance = DenseCovariance.of(kernel, observation, WhiteNoise(noise_level))
     w = covariance.whiten(y)
-    white = covariance.whiten(Phi)  # L^{-1} Phi
+    white = None if timed else covariance.whiten(Phi)  # L^{-1} Phi
     if amplitudes is None:
         # the size of an impulse response that explains the data's power
         power_u = float(np.mean(Phi**2)) * P or 1.0
@@ -281,7 +284,10 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     sigma = np.empty_like(gain)
     for a, alpha in enumerate(alphas):
         envelope = alpha ** (0.5 * lags)
-        if n_fft is None:
+        if timed:
+            Ac, As = _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft,
+                                      None if n_fft is None else index)
+        elif n_fft is None:
             cos, sin = damped_sinusoids(lags, omegas, envelope)  # PK's basis, per frequency
             Ac, As = white @ cos, white @ sin
         else:
@@ -309,6 +315,23 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     # a large amplitude there only fits noise, and the response beyond the record
     gain[:, excitation(Phi, omegas) < MIN_EXCITATION] = 0.0
     return gain, sigma, omegas, alphas
+
+
+def _tick_regressor(observation, input: int) -> np.ndarray:
+    """Timed readings: the regressor of a response constant between integer lags, ``(M, P)``."""
+    P = observation.order
+    return observation.weighted_rows()[:, input * P:(input + 1) * P]
+
+
+def _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft, index):
+    """Whitened readings of PK's cosine and sine bases at every frequency (timed readings)."""
+    if index is not None:
+        spectrum = observation.damped_spectrum(alpha, n_fft, index, input)
+        return covariance.whiten(spectrum.real), covariance.whiten(-spectrum.imag)
+    observed = observation.lag_functionals(
+        lambda x: np.hstack(damped_sinusoids(x, omegas, alpha ** (0.5 * x))), input)
+    return (covariance.whiten(observed[:, :omegas.size]),
+            covariance.whiten(observed[:, omegas.size:]))
 
 
 def excitation(Phi: np.ndarray, omegas) -> np.ndarray:
@@ -578,6 +601,21 @@ class _ResonantModel:
             self._blocks[k] = self._spectral.rotate(self.evidence.data.input_block(k).matrix)
         return self._blocks[k]
 
+    def _observed_basis(self, k, lags, rate, omega, eval_gradient):
+        """The rotated data of the term's basis ``[e cos, e sin]`` (and ``t e cos, t e sin``).
+
+        Readings at their own instants see the basis at real lags, through
+        their functionals; other data through the regressor on ``lags``.
+        """
+        def basis(t):
+            ec, es = damped_sinusoids(t, omega, np.exp(-rate * t))
+            return np.column_stack([ec, es, t * ec, t * es] if eval_gradient else [ec, es])
+
+        data = self.evidence.data
+        if hasattr(data, "lag_functionals"):
+            return self._spectral.rotate(data.lag_functionals(basis, k))
+        return self._rotated_regressor(k) @ basis(lags)
+
     def _log_evidence(self, x, eval_gradient: bool = False):
         """The log evidence at ``x`` and, with ``eval_gradient``, its gradient.
 
@@ -598,9 +636,7 @@ class _ResonantModel:
         for r, (k, _) in enumerate(self.terms):
             rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
             s1, s2 = np.exp(x[4 + 4 * r]), np.exp(x[5 + 4 * r])
-            ec, es = damped_sinusoids(lags, omega, np.exp(-rate * lags))
-            columns = [ec, es, lags * ec, lags * es] if eval_gradient else [ec, es]
-            rotated = self._rotated_regressor(k) @ np.column_stack(columns)
+            rotated = self._observed_basis(k, lags, rate, omega, eval_gradient)
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
             raw.append((rotated, rate, s1, s2))
         if r_terms:

@@ -328,3 +328,129 @@ def test_tuning_by_cross_validation_between_the_ticks():
     # the tuning raised the held-out density above that of the start
     assert tuned > _dense_held_out_density(_brute_force_covariance(start, u, stamps, 0.3),
                                            1e-2, y, folds) + 1.0
+
+
+# ------------------------------------------------ the resonance search between the ticks
+def _response(x):
+    """A smooth response over continuous lag and its basis-like partner: ``(n, 2)``."""
+    return np.column_stack([0.8 ** x * np.cos(1.3 * x), 0.9 ** x * np.sin(2.4 * x)])
+
+
+def _brute_force_readings(f, u, stamps, exposure, latency, nodes=40):
+    """``(1/E) int y`` with ``y(t) = sum_j u[j] f(t - j)``, Gauss-Legendre on every piece."""
+    xi, w = np.polynomial.legendre.leggauss(nodes)
+    out = []
+    for t in stamps:
+        end, start = t - latency, t - latency - exposure
+        edges = [start] + [k for k in range(int(np.ceil(start)), int(np.ceil(end)))
+                           if start < k < end] + [end]
+        total = 0.0
+        for a, b in zip(edges[:-1], edges[1:]):
+            for s, weight in zip(a + (b - a) * (xi + 1) / 2, w * (b - a) / 2):
+                j = np.arange(u.shape[0])
+                inside = (s - j >= 0) & (s - j < P)
+                total += weight * (u[inside] @ f(s - j[inside]))
+        out.append(total / exposure)
+    return np.array(out)
+
+
+def test_readings_of_responses_given_as_functions():
+    u2, _, stamps = _record(13, n_inputs=2)
+    timed = gm.TimedConvolution(u2, stamps, order=P, exposure=0.5, latency=0.3)
+    for k in (0, 1):
+        expected = _brute_force_readings(_response, u2[:, k], stamps, 0.5, 0.3)
+        np.testing.assert_allclose(timed.lag_functionals(_response, input=k), expected,
+                                   rtol=1e-10, atol=1e-12)
+    # the damped exponentials of the scan: one FFT for every frequency
+    alpha, n_fft, index = 0.85, 16, np.arange(1, 17)
+    omegas = np.pi * index / n_fft
+    spectrum = timed.damped_spectrum(alpha, n_fft, index, input=1)
+    basis = timed.lag_functionals(lambda x: np.hstack([
+        alpha ** (x[:, None] / 2) * np.cos(np.outer(x, omegas)),
+        alpha ** (x[:, None] / 2) * np.sin(np.outer(x, omegas))]), input=1)
+    np.testing.assert_allclose(spectrum.real, basis[:, :16], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(-spectrum.imag, basis[:, 16:], rtol=1e-10, atol=1e-12)
+
+
+def test_resonance_scan_of_readings_on_the_ticks_is_that_of_the_fast_samples():
+    from gpmultirate.observations import SampledConvolution
+    from gpmultirate.resonances import resonance_scan
+
+    u, y, _ = _record(14, n=120)
+    ticks = np.arange(2, 117, F)
+    y = np.convolve(u, 0.95 ** np.arange(P) * np.sin(2.4 * np.arange(P)))[:120][ticks]
+    kernel = C(1.0) * DC(0.8, 0.5)
+    timed = gm.TimedConvolution(u, ticks.astype(float), order=P)
+    sampled = SampledConvolution(u, ticks, order=P)
+    a = resonance_scan(timed, y, kernel, 1e-3)
+    b = resonance_scan(sampled, y, kernel, 1e-3)
+    assert a[0].shape == b[0].shape and np.max(b[0]) > 1.0
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(a[1], b[1], rtol=1e-8)
+
+
+def test_resonant_model_between_the_ticks_is_the_evidence_of_its_kernel():
+    from scipy.optimize import approx_fprime
+
+    from gpmultirate.inference import LogEvidence
+    from gpmultirate.kernels import PK
+    from gpmultirate.resonances import _ResonantModel
+
+    u, y, stamps = _record(15)
+    measured = np.isfinite(y)
+    timed = gm.TimedConvolution(u, stamps[measured], order=P, exposure=0.5, latency=0.3)
+    y = y[measured]
+    evidence = LogEvidence(timed, y, C(1.0) * DC(0.8, 0.5), 1e-3, (1e-8, 1.0))
+    model = _ResonantModel(evidence)
+    model.terms = [(0, PK(alpha=0.9, omega=2.0, sigma1=0.5, sigma2=0.3))]
+    x = model._pack() + np.array([0.1, 0.2, 0.0, 0.05, -0.1, 0.2])
+    value, gradient = model._log_evidence(x, eval_gradient=True)
+    model._unpack(x)
+    dense = LogEvidence(timed, y, model.kernel(), model.noise_level, "fixed")
+    assert abs(value - dense(dense.theta)) < 1e-8 * abs(value)
+    numeric = approx_fprime(x, lambda v: model._log_evidence(v), 1e-6)
+    np.testing.assert_allclose(gradient, numeric, rtol=1e-4, atol=1e-4 * np.abs(numeric).max())
+
+
+@pytest.mark.slow  # 3 s: two tuned fits of 100 frames
+def test_auto_kernel_finds_a_resonance_above_the_slow_nyquist_frequency():
+    rng = np.random.default_rng(5)
+    n, order, omega = 300, 60, 2.2  # the slow Nyquist frequency is pi / 3 = 1.05
+
+    def g(x):
+        return 0.3 * 0.9 ** x + 0.97 ** x * np.sin(omega * x)
+
+    def readings(u, stamps, latency):  # the output at t - latency, from g between the lags
+        out = []
+        for t in stamps - latency:
+            j = np.arange(u.shape[0])
+            inside = (t - j >= 0) & (t - j < order)
+            out.append(u[inside] @ g(t - j[inside]))
+        return np.array(out)
+
+    u = rng.standard_normal(n)
+    ticks = np.arange(2, n - 1, F)
+    stamps = ticks + rng.uniform(0.0, 1.0, ticks.shape[0])
+    y = readings(u, stamps, 0.2)
+    y += 10 ** (-45 / 20) * np.std(y) * rng.standard_normal(y.shape[0])
+    u_val = rng.standard_normal(n)
+    y_val = np.convolve(u_val, g(np.arange(order)))[:n]
+
+    def gof(model):
+        error = np.linalg.norm(y_val - model.predict(u_val))
+        return 100.0 * (1.0 - error / np.linalg.norm(y_val - y_val.mean()))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = gm.FIRGaussianProcess(C(1.0) * DC(), order=order, latency=0.2).fit(
+            u, y, sample_times=stamps)
+        auto = gm.FIRGaussianProcess("auto", order=order, latency=0.2).fit(
+            u, y, sample_times=stamps)
+    assert isinstance(auto.observation_, gm.TimedConvolution)
+    found = [2 * np.pi * r.frequency_hz for r in auto.resonances_]
+    assert any(abs(w - omega) < 0.02 for w in found)
+    assert gof(auto) > gof(plain) + 10.0 and gof(auto) > 95.0
+    # the model file keeps the resonances
+    _, loaded = _saved_and_loaded(auto)
+    assert loaded.resonances_ == auto.resonances_
+    np.testing.assert_array_equal(loaded.predict(u_val), auto.predict(u_val))
