@@ -208,7 +208,12 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     Parameters
     ----------
     observation : Observation
-        The (reduced) observation the evidence is computed from.
+        The (reduced) observation the evidence is computed from.  For
+        readings at their own instants (a
+        :class:`~gpmultirate.TimedConvolution`) the bases are observed at
+        real lags through the readings' functionals
+        (:meth:`~gpmultirate.TimedConvolution.damped_spectrum`), and the
+        excitation is judged from the regressor of the readings' ticks.
     y : ndarray of shape (M,)
         Its outputs.
     kernel : sklearn Kernel
