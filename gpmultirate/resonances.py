@@ -333,10 +333,13 @@ def _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft, index
     if index is not None:
         spectrum = observation.damped_spectrum(alpha, n_fft, index, input)
         return covariance.whiten(spectrum.real), covariance.whiten(-spectrum.imag)
-    observed = observation.lag_functionals(
-        lambda x: np.hstack(damped_sinusoids(x, omegas, alpha ** (0.5 * x))), input)
-    return (covariance.whiten(observed[:, :omegas.size]),
-            covariance.whiten(observed[:, omegas.size:]))
+    cos, sin = [], []
+    for part in np.array_split(omegas, max(1, omegas.size // 8)):  # bounded memory
+        observed = observation.lag_functionals(
+            lambda x: np.hstack(damped_sinusoids(x, part, alpha ** (0.5 * x))), input)
+        cos.append(observed[:, :part.size])
+        sin.append(observed[:, part.size:])
+    return covariance.whiten(np.hstack(cos)), covariance.whiten(np.hstack(sin))
 
 
 def excitation(Phi: np.ndarray, omegas) -> np.ndarray:

@@ -454,3 +454,18 @@ def test_auto_kernel_finds_a_resonance_above_the_slow_nyquist_frequency():
     _, loaded = _saved_and_loaded(auto)
     assert loaded.resonances_ == auto.resonances_
     np.testing.assert_array_equal(loaded.predict(u_val), auto.predict(u_val))
+
+
+def test_resonance_scan_of_given_frequencies_between_the_ticks():
+    # given frequencies take the functionals of the bases; the grid takes the FFT
+    from gpmultirate.resonances import resonance_scan
+
+    u, y, stamps = _record(16, n=120)
+    measured = np.isfinite(y)
+    timed = gm.TimedConvolution(u, stamps[measured], order=32, exposure=0.5)
+    kernel = C(1.0) * DC(0.8, 0.5)
+    grid = resonance_scan(timed, y[measured], kernel, 1e-3)
+    chosen = grid[2][::7]
+    given = resonance_scan(timed, y[measured], kernel, 1e-3, omegas=chosen)
+    np.testing.assert_allclose(given[0], grid[0][:, ::7], rtol=1e-9, atol=1e-9)
+    assert np.max(grid[0]) > 0.0
