@@ -620,8 +620,8 @@ class _ResonantModel:
             return np.column_stack([ec, es, t * ec, t * es] if eval_gradient else [ec, es])
 
         data = self.evidence.data
-        if hasattr(data, "lag_functionals"):
-            return self._spectral.rotate(data.lag_functionals(basis, k))
+        if hasattr(data, "damped_sinusoids"):
+            return self._spectral.rotate(data.damped_sinusoids(rate, omega, k, eval_gradient))
         return self._rotated_regressor(k) @ basis(lags)
 
     def _log_evidence(self, x, eval_gradient: bool = False):

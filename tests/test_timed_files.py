@@ -469,3 +469,20 @@ def test_resonance_scan_of_given_frequencies_between_the_ticks():
     given = resonance_scan(timed, y[measured], kernel, 1e-3, omegas=chosen)
     np.testing.assert_allclose(given[0], grid[0][:, ::7], rtol=1e-9, atol=1e-9)
     assert np.max(grid[0]) > 0.0
+
+
+def test_readings_of_damped_sinusoids_by_their_separable_form():
+    u2, _, stamps = _record(17, n_inputs=2)
+    timed = gm.TimedConvolution(u2, stamps, order=P, exposure=0.7, latency=0.3)
+    rate, omega = 0.12, 2.3
+
+    def basis(x):
+        ec, es = np.exp(-rate * x) * np.cos(omega * x), np.exp(-rate * x) * np.sin(omega * x)
+        return np.column_stack([ec, es, x * ec, x * es])
+
+    for k in (0, 1):
+        expected = _brute_force_readings(basis, u2[:, k], stamps, 0.7, 0.3)
+        np.testing.assert_allclose(timed.damped_sinusoids(rate, omega, k, with_lag=True),
+                                   expected, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(timed.damped_sinusoids(rate, omega, k), expected[:, :2],
+                                   rtol=1e-10, atol=1e-12)

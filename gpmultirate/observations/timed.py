@@ -520,6 +520,47 @@ class TimedConvolution(Observation):
             out += self._reading_sum(start, stop) @ (spectrum[self._row_id[start:stop]] * phase)
         return out
 
+    def damped_sinusoids(self, rate: float, omega: float, input: int = 0,
+                         with_lag: bool = False) -> np.ndarray:
+        """The readings of PK's basis ``e^(-rate x) cos(omega x)``, ``e^(-rate x) sin(omega x)``.
+
+        As :meth:`lag_functionals` of these two functions (and, with
+        ``with_lag``, of ``x`` times each), by their separable form: at
+        ``x = j + d`` each is a combination of its values at the integer lag
+        ``j`` with weights of the offset ``d``, so the regressor rows meet
+        the bases once, ``O(R P)``, and each point adds ``O(1)``.
+
+        Returns
+        -------
+        ndarray of shape (M, 2), or (M, 4) with ``with_lag``
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> u = np.random.default_rng(0).standard_normal(20)
+        >>> timed = TimedConvolution(u, [4.5, 9.25, 14.0], order=6, exposure=0.5)
+        >>> f = lambda x: np.column_stack([np.exp(-0.1 * x) * np.cos(2.0 * x),
+        ...                                np.exp(-0.1 * x) * np.sin(2.0 * x)])
+        >>> bool(np.allclose(timed.damped_sinusoids(0.1, 2.0), timed.lag_functionals(f)))
+        True
+        """
+        input = check_int(input, "input", low=0, high=self.n_inputs - 1)
+        P = self.order
+        j = np.arange(P, dtype=float)
+        ec, es = np.exp(-rate * j) * np.cos(omega * j), np.exp(-rate * j) * np.sin(omega * j)
+        columns = [ec, es, j * ec, j * es] if with_lag else [ec, es]
+        at_ticks = self.unique_rows()[:, input * P:(input + 1) * P] @ np.column_stack(columns)
+        at_points = at_ticks[self._row_id]
+        d = self._offsets
+        decay = np.exp(-rate * d)
+        cos, sin = decay * np.cos(omega * d), decay * np.sin(omega * d)
+        C0, S0 = at_points[:, 0], at_points[:, 1]
+        values = [cos * C0 - sin * S0, sin * C0 + cos * S0]
+        if with_lag:  # (j + d) times each: the lag-weighted rows plus d times the plain ones
+            C1, S1 = at_points[:, 2], at_points[:, 3]
+            values += [cos * C1 - sin * S1 + d * values[0], sin * C1 + cos * S1 + d * values[1]]
+        return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
+
     # -------------------------------------------------------- with a kernel
     def observe_kernel(self, kernel, path: str = "") -> ObservedTerm:
         """``kernel`` seen through these readings: the tree of terms (see the module)."""
