@@ -54,6 +54,20 @@ them, and ``arrays``, which maps that file's array names to members
 input) is stored once.  Each output's model is loaded as its own file would
 be, under the one BLAS thread it was fitted with.
 
+File format, version 4
+----------------------
+A :class:`~gpmultirate.FIRGaussianProcess` fitted to readings at their own
+instants (``fit(..., sample_times=t)`` with readings between the fast
+ticks, or with an exposure): the layout of version 2 with ``layout``
+``"timed"`` and ``quadrature_nodes`` (the Gauss-Legendre nodes of an
+exposure window, :data:`~gpmultirate.observations.timed.QUADRATURE_NODES`)
+in ``fitted``, and ``sample_times_<r>`` (the stamps of the used readings,
+in fast sample periods) in place of ``sample_indices_<r>``.  The exposure
+and the latency are constructor parameters (``params``).  Loading fits the
+stored readings again at their stamps, at the stored hyperparameters.  A
+:class:`~gpmultirate.MultiOutputFIR` whose outputs include such a model is
+written as version 4 (otherwise as version 3), with the layout of version 3.
+
 A kernel is a JSON tree such as ``{"class": "Sum", "k1": {...}, "k2": {...}}``
 or ``{"class": "DC", "params": {"alpha": 0.9, ...}}`` whose classes must be
 in :data:`KERNEL_CLASSES`.  Values JSON cannot hold exactly are tagged
@@ -102,7 +116,8 @@ from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
 from gpmultirate.multioutput import MultiOutputFIR, stacked_coefficients
-from gpmultirate.observations import DownsampledConvolution, build_experiment
+from gpmultirate.observations import DownsampledConvolution, TimedConvolution, build_experiment
+from gpmultirate.observations.timed import QUADRATURE_NODES
 from gpmultirate.resonances import Resonance
 from gpmultirate.validation import check_n_jobs
 
@@ -121,7 +136,7 @@ __all__ = [
 PathOrFile = Union[str, os.PathLike, BinaryIO]
 
 FORMAT_NAME = "gpmultirate-model"
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 
 #: The kernel classes a model file may name, by class name; :func:`load_model`
 #: takes further classes of your own as ``kernels=[...]``.
@@ -293,12 +308,24 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         )
     check_is_fitted(model, "coef_")
     operator = model.observation_
-    if not hasattr(operator.records[0], "sample_indices"):
-        raise ValueError(
-            "a model fitted to readings between the fast ticks (sample_times) cannot be "
-            "saved yet: the model file stores fast-sample indices"
-        )
-    if isinstance(operator, DownsampledConvolution):  # the layout of version 1
+    if isinstance(operator, TimedConvolution):  # readings at their own instants
+        version = 4
+        fitted = {
+            "layout": "timed",
+            "n_records": len(operator.records),
+            "several_records": _several(model),
+            "order": int(operator.order),
+            "quadrature_nodes": int(operator.nodes),
+        }
+        arrays = {"coef": model.posterior_.coef}
+        start = 0
+        for r, record in enumerate(operator.records):
+            stop = start + record.n_outputs
+            arrays[f"u_{r}"] = record.u
+            arrays[f"sample_times_{r}"] = record.sample_times
+            arrays[f"y_slow_{r}"] = model.y_slow_[start:stop]
+            start = stop
+    elif isinstance(operator, DownsampledConvolution):  # the layout of version 1
         version = 1
         fitted: dict[str, Any] = {
             "factor": int(operator.factor),
@@ -403,7 +430,8 @@ def _multi_output_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         outputs.append({**{key: header[key] for key in _OUTPUT_ENTRIES}, "arrays": members})
     header = {
         "format": FORMAT_NAME,
-        "format_version": 3,
+        # an output at its readings' own instants needs a reader of version 4
+        "format_version": 4 if any(o["format_version"] == 4 for o in outputs) else 3,
         "library_version": __version__,
         "estimator": "MultiOutputFIR",
         "params": {"n_jobs": _encode(model.n_jobs, "parameter 'n_jobs'")},
@@ -684,7 +712,7 @@ def load_model(
         )
     name = header.get("estimator")
     try:
-        if name == "MultiOutputFIR" and header["format_version"] == 3:
+        if name == "MultiOutputFIR" and header["format_version"] in (3, 4):
             return _load_multi_output(header, members, classes)
         return _load_single(header, members, classes)
     except ModelFileError:
@@ -694,21 +722,24 @@ def load_model(
 
 
 def _load_single(header: dict, members: dict[str, np.ndarray], classes):
-    """A FIRGaussianProcess or LeastSquaresFIR from its header and arrays (versions 1, 2)."""
+    """A FIRGaussianProcess or LeastSquaresFIR from its header and arrays (versions 1, 2, 4)."""
     name = header.get("estimator")
     version = header.get("format_version")
     if name not in _ESTIMATORS:
         raise ModelFileError(f"unknown estimator {name!r} in the model file")
-    if version not in (1, 2):
-        raise ModelFileError(f"a {name} is stored in format version 1 or 2; got {version!r}")
-    expected = _ARRAYS[name] if version == 1 else _record_arrays(header, name)
+    versions = (1, 2, 4) if name == "FIRGaussianProcess" else (1, 2)
+    if version not in versions:
+        raise ModelFileError(
+            f"a {name} is stored in format version {' or '.join(map(str, versions))}; "
+            f"got {version!r}")
+    expected = _ARRAYS[name] if version == 1 else _record_arrays(header, name, version)
     if sorted(members) != sorted(expected):
         raise ModelFileError(
             f"a {name} file must hold the arrays {sorted(expected)}; got {sorted(members)}"
         )
     arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
-    if version == 2:
-        return _load_records(header, arrays, _ESTIMATORS[name], classes)
+    if version in (2, 4):
+        return _load_records(header, arrays, _ESTIMATORS[name], classes, timed=version == 4)
     if name == "FIRGaussianProcess":
         return _load_gaussian_process(header, arrays, classes)
     return _load_least_squares(header, arrays)
@@ -861,30 +892,38 @@ def _several(model) -> bool:
     return len(model.observation_.records) > 1
 
 
-def _record_arrays(header: dict, name: str) -> tuple[str, ...]:
+def _record_arrays(header: dict, name: str, version: int = 2) -> tuple[str, ...]:
     fitted = _section(header, "fitted")
+    expected_layout = "timed" if version == 4 else "records"
+    if fitted.get("layout", "records") != expected_layout:
+        raise ModelFileError(
+            f"header entry 'layout' must be {expected_layout!r} in format version {version}; "
+            f"got {fitted.get('layout')!r}")
     n = _integer(fitted, "n_records")
     if n < 1 or n > 100_000:
         raise ModelFileError(f"header entry 'n_records' must be in 1..100000; got {n}")
     if name == "LeastSquaresFIR":
         keys, extra = ("u", "sample_indices"), ("coef_covariance",)
     else:
-        keys, extra = ("u", "sample_indices", "y_slow"), ()
+        instants = "sample_times" if version == 4 else "sample_indices"
+        keys, extra = ("u", instants, "y_slow"), ()
     return ("coef", *[f"{key}_{r}" for r in range(n) for key in keys], *extra)
 
 
-def _load_records(header: dict, arrays: dict, estimator: type, classes):
-    """Version 2: the stored records, fitted again or with the stored estimate.
+def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: bool = False):
+    """Versions 2 and 4: the stored records, fitted again or with the stored estimate.
 
     A Gaussian process is conditioned on the stored data at the stored
-    hyperparameters; least squares keeps no slow output, so its observation
-    is rebuilt from the inputs and instants and its estimate restored.
+    hyperparameters (version 4: the readings at their stored stamps, with
+    the exposure and latency of the parameters); least squares keeps no slow
+    output, so its observation is rebuilt from the inputs and instants and
+    its estimate restored.
     """
     params = _decode_params(header, estimator, classes)
     fitted = _section(header, "fitted")
     n = _integer(fitted, "n_records")
     us = [arrays[f"u_{r}"] for r in range(n)]
-    indices = [arrays[f"sample_indices_{r}"] for r in range(n)]
+    indices = [arrays[f"sample_{'times' if timed else 'indices'}_{r}"] for r in range(n)]
     ys = (
         [arrays[f"y_slow_{r}"] for r in range(n)] if estimator is FIRGaussianProcess
         else [np.zeros(index.shape[0]) for index in indices]
@@ -916,7 +955,14 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
         noise_level=_number(fitted, "noise_level_"), optimizer=None, normalize=False,
         order=order, **_stored_noise_bounds(fitted), **_stored_noise_kernel(fitted, classes),
     )
-    model = _fit_stored(arguments, fitted, us, ys, sample_indices=indices)
+    if timed:
+        _check_quadrature_nodes(fitted)
+        model = _fit_stored(arguments, fitted, us, ys, sample_times=indices)
+    else:
+        # readings on the fast ticks are the fast samples of their indices: the exposure (0)
+        # and the latency (whole periods) of the parameters are in the indices already
+        arguments.update(exposure=0.0, latency=0.0)
+        model = _fit_stored(arguments, fitted, us, ys, sample_indices=indices)
     if model.observation_.order != order:
         raise ModelFileError(
             f"inconsistent model file: order is {order!r} in the header "
@@ -931,6 +977,18 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes):
     _restore_resonances(model, fitted)
     _restore_tuning_results(model, fitted)
     return model
+
+
+def _check_quadrature_nodes(fitted: dict) -> None:
+    """The exposure windows are integrated as when the model was saved."""
+    nodes = _integer(fitted, "quadrature_nodes")
+    if nodes != QUADRATURE_NODES:
+        warnings.warn(
+            f"the model file was written with {nodes} quadrature nodes per exposure window; "
+            f"this gpmultirate integrates with {QUADRATURE_NODES}, so a model with an "
+            "exposure may differ slightly from the saved one",
+            UserWarning, stacklevel=5,
+        )
 
 
 def _fit_stored(arguments: dict, fitted: dict, u, y_slow, **kwargs) -> FIRGaussianProcess:

@@ -565,15 +565,11 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
         samples = model_slow_samples(model)
     files, notes, system = {}, [], None
     buffer = io.BytesIO()
-    if hasattr(model.observation_, "exposure"):  # readings between the fast ticks
-        notes.append("model.npz was not written: a model fitted to readings at their own "
-                     "instants cannot be saved yet")
-    else:
-        try:
-            save_model(model, buffer)
-        except (ValueError, TypeError) as error:
-            raise ValueError(f"the model cannot be saved: {error}") from None
-        files["model.npz"] = buffer.getvalue()
+    try:
+        save_model(model, buffer)
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"the model cannot be saved: {error}") from None
+    files["model.npz"] = buffer.getvalue()
     try:
         system = model.to_state_space()
     except ValueError as error:

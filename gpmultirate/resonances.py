@@ -208,7 +208,12 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     Parameters
     ----------
     observation : Observation
-        The (reduced) observation the evidence is computed from.
+        The (reduced) observation the evidence is computed from.  For
+        readings at their own instants (a
+        :class:`~gpmultirate.TimedConvolution`) the bases are observed at
+        real lags through the readings' functionals
+        (:meth:`~gpmultirate.TimedConvolution.damped_spectrum`), and the
+        excitation is judged from the regressor of the readings' ticks.
     y : ndarray of shape (M,)
         Its outputs.
     kernel : sklearn Kernel
@@ -252,7 +257,10 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     >>> round(float(omegas[np.argmax(gain.max(axis=0))]), 1)
     2.0
     """
-    Phi = observation.input_block(input).matrix
+    # readings at their own instants see the bases between the integer lags: observed
+    # through the readings' functionals; their regressor at the ticks gauges the excitation
+    timed = hasattr(observation, "damped_spectrum")
+    Phi = _tick_regressor(observation, input) if timed else observation.input_block(input).matrix
     P = Phi.shape[1]
     lags = np.arange(P, dtype=float)
     n_fft = None
@@ -271,7 +279,7 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         warnings.simplefilter("ignore", NumericalWarning)
         covariance = DenseCovariance.of(kernel, observation, WhiteNoise(noise_level))
     w = covariance.whiten(y)
-    white = covariance.whiten(Phi)  # L^{-1} Phi
+    white = None if timed else covariance.whiten(Phi)  # L^{-1} Phi
     if amplitudes is None:
         # the size of an impulse response that explains the data's power
         power_u = float(np.mean(Phi**2)) * P or 1.0
@@ -281,7 +289,10 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     sigma = np.empty_like(gain)
     for a, alpha in enumerate(alphas):
         envelope = alpha ** (0.5 * lags)
-        if n_fft is None:
+        if timed:
+            Ac, As = _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft,
+                                      None if n_fft is None else index)
+        elif n_fft is None:
             cos, sin = damped_sinusoids(lags, omegas, envelope)  # PK's basis, per frequency
             Ac, As = white @ cos, white @ sin
         else:
@@ -309,6 +320,26 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     # a large amplitude there only fits noise, and the response beyond the record
     gain[:, excitation(Phi, omegas) < MIN_EXCITATION] = 0.0
     return gain, sigma, omegas, alphas
+
+
+def _tick_regressor(observation, input: int) -> np.ndarray:
+    """Timed readings: the regressor of a response constant between integer lags, ``(M, P)``."""
+    P = observation.order
+    return observation.weighted_rows()[:, input * P:(input + 1) * P]
+
+
+def _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft, index):
+    """Whitened readings of PK's cosine and sine bases at every frequency (timed readings)."""
+    if index is not None:
+        spectrum = observation.damped_spectrum(alpha, n_fft, index, input)
+        return covariance.whiten(spectrum.real), covariance.whiten(-spectrum.imag)
+    cos, sin = [], []
+    for part in np.array_split(omegas, max(1, omegas.size // 8)):  # bounded memory
+        observed = observation.lag_functionals(
+            lambda x: np.hstack(damped_sinusoids(x, part, alpha ** (0.5 * x))), input)
+        cos.append(observed[:, :part.size])
+        sin.append(observed[:, part.size:])
+    return covariance.whiten(np.hstack(cos)), covariance.whiten(np.hstack(sin))
 
 
 def excitation(Phi: np.ndarray, omegas) -> np.ndarray:
@@ -578,6 +609,21 @@ class _ResonantModel:
             self._blocks[k] = self._spectral.rotate(self.evidence.data.input_block(k).matrix)
         return self._blocks[k]
 
+    def _observed_basis(self, k, lags, rate, omega, eval_gradient):
+        """The rotated data of the term's basis ``[e cos, e sin]`` (and ``t e cos, t e sin``).
+
+        Readings at their own instants see the basis at real lags, through
+        their functionals; other data through the regressor on ``lags``.
+        """
+        def basis(t):
+            ec, es = damped_sinusoids(t, omega, np.exp(-rate * t))
+            return np.column_stack([ec, es, t * ec, t * es] if eval_gradient else [ec, es])
+
+        data = self.evidence.data
+        if hasattr(data, "damped_sinusoids"):
+            return self._spectral.rotate(data.damped_sinusoids(rate, omega, k, eval_gradient))
+        return self._rotated_regressor(k) @ basis(lags)
+
     def _log_evidence(self, x, eval_gradient: bool = False):
         """The log evidence at ``x`` and, with ``eval_gradient``, its gradient.
 
@@ -598,9 +644,7 @@ class _ResonantModel:
         for r, (k, _) in enumerate(self.terms):
             rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
             s1, s2 = np.exp(x[4 + 4 * r]), np.exp(x[5 + 4 * r])
-            ec, es = damped_sinusoids(lags, omega, np.exp(-rate * lags))
-            columns = [ec, es, lags * ec, lags * es] if eval_gradient else [ec, es]
-            rotated = self._rotated_regressor(k) @ np.column_stack(columns)
+            rotated = self._observed_basis(k, lags, rate, omega, eval_gradient)
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
             raw.append((rotated, rate, s1, s2))
         if r_terms:

@@ -418,6 +418,149 @@ class TimedConvolution(Observation):
         lags[:, -1] += offset
         return lags
 
+    # ------------------------------------------- responses given as functions
+    def _reading_sum(self, start: int, stop: int):
+        """The sparse ``(M, stop - start)`` matrix that sums weighted points into readings."""
+        return sparse.csr_matrix(
+            (self._weights[start:stop], (self._reading[start:stop], np.arange(stop - start))),
+            shape=(self.n_outputs, stop - start),
+        )
+
+    def lag_functionals(self, functions, input: int = 0) -> np.ndarray:
+        """The readings of impulse responses given as functions of the continuous lag.
+
+        Reading ``m`` of a response ``f`` of input ``k`` is the sum over the
+        reading's points ``p`` (its instant, or the quadrature nodes of its
+        exposure window) of ``weight_p * sum_j u_k[tick_p - j] f(j + offset_p)``,
+        ``j = 0..P-1``: what the sensor would read if ``g`` of that input
+        were ``f`` (and of the others zero).
+
+        Parameters
+        ----------
+        functions : callable
+            ``functions(x)`` with ``x`` of shape ``(n,)`` (real lags in
+            ``[0, P)``) returns the values of ``q`` functions, ``(n, q)``.
+        input : int, default=0
+
+        Returns
+        -------
+        ndarray of shape (M, q)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> u = np.random.default_rng(0).standard_normal(20)
+        >>> timed = TimedConvolution(u, [4.5, 9.75], order=6, exposure=0.5)
+        >>> ones = timed.lag_functionals(lambda x: np.ones((x.shape[0], 1)))
+        >>> bool(np.allclose(ones[:, 0], [u[:5].sum(), u[4:10].sum()]))
+        True
+        """
+        input = check_int(input, "input", low=0, high=self.n_inputs - 1)
+        P = self.order
+        rows = self.unique_rows()[:, input * P:(input + 1) * P]
+        lags = np.arange(P, dtype=float)
+        out = None
+        step = max(1, _BLOCK_ENTRIES // (4 * P))
+        for start in range(0, self.n_points, step):
+            stop = min(start + step, self.n_points)
+            x = lags[None, :] + self._offsets[start:stop, None]
+            values = np.asarray(functions(x.reshape(-1)), dtype=float)
+            values = values.reshape(stop - start, P, -1)
+            # every point: its regressor row times the functions at its lags
+            per_point = np.einsum("pj,pjq->pq", rows[self._row_id[start:stop]], values)
+            part = self._reading_sum(start, stop) @ per_point
+            out = part if out is None else out + part
+        return np.asarray(out)
+
+    def damped_spectrum(self, alpha: float, n_fft: int, index, input: int = 0) -> np.ndarray:
+        """The readings of ``alpha^(x/2) exp(-i omega x)`` for ``omega = pi * index / n_fft``.
+
+        As :meth:`lag_functionals` of the damped complex exponentials (real
+        part: PK's cosine basis; minus the imaginary part: its sine basis),
+        from one real FFT of length ``2 n_fft`` of the damped regressor rows
+        and a phase per point.
+
+        Parameters
+        ----------
+        alpha : float
+            The decay per fast sample of the envelope ``alpha^(x/2)``.
+        n_fft : int
+        index : array-like of int
+            In ``1..n_fft``.
+        input : int, default=0
+
+        Returns
+        -------
+        ndarray of shape (M, len(index)), complex
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> u = np.random.default_rng(0).standard_normal(20)
+        >>> timed = TimedConvolution(u, [4.5, 9.25, 14.0], order=6, exposure=0.5)
+        >>> omega = np.pi * 3 / 8
+        >>> direct = timed.lag_functionals(
+        ...     lambda x: np.column_stack([0.9 ** (x / 2) * np.cos(omega * x)]))
+        >>> bool(np.allclose(timed.damped_spectrum(0.9, 8, [3]).real, direct))
+        True
+        """
+        input = check_int(input, "input", low=0, high=self.n_inputs - 1)
+        index = np.asarray(index, dtype=np.int64)
+        P = self.order
+        rows = self.unique_rows()[:, input * P:(input + 1) * P]
+        envelope = alpha ** (0.5 * np.arange(P))
+        spectrum = np.fft.rfft(rows * envelope, n=2 * n_fft, axis=1)[:, index]
+        omegas = np.pi * index / n_fft
+        out = np.zeros((self.n_outputs, index.shape[0]), dtype=complex)
+        step = max(1, _BLOCK_ENTRIES // (4 * max(index.shape[0], 1)))
+        for start in range(0, self.n_points, step):
+            stop = min(start + step, self.n_points)
+            d = self._offsets[start:stop, None]
+            phase = alpha ** (0.5 * d) * np.exp(-1j * d * omegas[None, :])
+            out += self._reading_sum(start, stop) @ (spectrum[self._row_id[start:stop]] * phase)
+        return out
+
+    def damped_sinusoids(self, rate: float, omega: float, input: int = 0,
+                         with_lag: bool = False) -> np.ndarray:
+        """The readings of PK's basis ``e^(-rate x) cos(omega x)``, ``e^(-rate x) sin(omega x)``.
+
+        As :meth:`lag_functionals` of these two functions (and, with
+        ``with_lag``, of ``x`` times each), by their separable form: at
+        ``x = j + d`` each is a combination of its values at the integer lag
+        ``j`` with weights of the offset ``d``, so the regressor rows meet
+        the bases once, ``O(R P)``, and each point adds ``O(1)``.
+
+        Returns
+        -------
+        ndarray of shape (M, 2), or (M, 4) with ``with_lag``
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> u = np.random.default_rng(0).standard_normal(20)
+        >>> timed = TimedConvolution(u, [4.5, 9.25, 14.0], order=6, exposure=0.5)
+        >>> f = lambda x: np.column_stack([np.exp(-0.1 * x) * np.cos(2.0 * x),
+        ...                                np.exp(-0.1 * x) * np.sin(2.0 * x)])
+        >>> bool(np.allclose(timed.damped_sinusoids(0.1, 2.0), timed.lag_functionals(f)))
+        True
+        """
+        input = check_int(input, "input", low=0, high=self.n_inputs - 1)
+        P = self.order
+        j = np.arange(P, dtype=float)
+        ec, es = np.exp(-rate * j) * np.cos(omega * j), np.exp(-rate * j) * np.sin(omega * j)
+        columns = [ec, es, j * ec, j * es] if with_lag else [ec, es]
+        at_ticks = self.unique_rows()[:, input * P:(input + 1) * P] @ np.column_stack(columns)
+        at_points = at_ticks[self._row_id]
+        d = self._offsets
+        decay = np.exp(-rate * d)
+        cos, sin = decay * np.cos(omega * d), decay * np.sin(omega * d)
+        C0, S0 = at_points[:, 0], at_points[:, 1]
+        values = [cos * C0 - sin * S0, sin * C0 + cos * S0]
+        if with_lag:  # (j + d) times each: the lag-weighted rows plus d times the plain ones
+            C1, S1 = at_points[:, 2], at_points[:, 3]
+            values += [cos * C1 - sin * S1 + d * values[0], sin * C1 + cos * S1 + d * values[1]]
+        return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
+
     # -------------------------------------------------------- with a kernel
     def observe_kernel(self, kernel, path: str = "") -> ObservedTerm:
         """``kernel`` seen through these readings: the tree of terms (see the module)."""

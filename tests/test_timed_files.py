@@ -1,0 +1,488 @@
+"""Models fitted to readings at their own instants: model files and the command line."""
+
+import io
+import json
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.base import clone
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+import gpmultirate as gm
+from gpmultirate.cli import main
+from gpmultirate.exceptions import ModelFileError
+from gpmultirate.kernels import DC
+
+N, P, F = 45, 8, 3
+LAGS = np.linspace(0.0, P - 1.0, 29)
+
+
+def _record(seed, n_inputs=1, n=N, between=None):
+    """Inputs, readings stamped off the ticks (one missing), and the stamps.
+
+    The stamps are at random instants between the ticks, or ``between`` after them.
+    """
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal((n, n_inputs)) if n_inputs > 1 else rng.standard_normal(n)
+    g = 0.8 ** np.arange(P) * np.cos(0.6 * np.arange(P))
+    ticks = np.arange(2, n - 3, F)
+    x = u if n_inputs == 1 else u @ np.linspace(1.0, 0.5, n_inputs)
+    y = np.convolve(x, g)[:n][ticks] + 1e-2 * rng.standard_normal(ticks.shape[0])
+    y[3] = np.nan
+    if between is not None:
+        return u, y, ticks + between
+    return u, y, ticks + rng.uniform(0.0, 1.0, ticks.shape[0])
+
+
+def _saved_and_loaded(model):
+    buffer = io.BytesIO()
+    gm.save_model(model, buffer)
+    buffer.seek(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # "differs from the saved one" fails
+        return buffer, gm.load_model(buffer)
+
+
+def _header(buffer):
+    buffer.seek(0)
+    with np.load(buffer) as archive:
+        return json.loads(bytes(archive["header"]).decode()), sorted(archive.files)
+
+
+def _assert_same_predictions(model, loaded, us, stamps):
+    several = isinstance(us, list)
+    for a, b in zip(model.predict(us, return_std=True), loaded.predict(us, return_std=True)):
+        for x, y in zip(a if several else [a], b if several else [b]):
+            np.testing.assert_array_equal(x, y)
+    a = model.predict(us, return_std=True, sample_times=stamps)
+    b = loaded.predict(us, return_std=True, sample_times=stamps)
+    for x, y in zip(np.concatenate([np.ravel(v) for v in a]), np.concatenate(
+            [np.ravel(v) for v in b])):
+        assert x == y
+    for x, y in zip(model.impulse_response(LAGS, return_std=True),
+                    loaded.impulse_response(LAGS, return_std=True)):
+        np.testing.assert_array_equal(x, y)
+    freqs = np.linspace(0.0, 0.5 / model.sample_time, 16)
+    last = model.n_inputs_ - 1
+    a, b = (m.frequency_response(freqs, input=last) for m in (model, loaded))
+    for name in ("mean", "real_std", "imag_std", "magnitude_lower", "magnitude_upper"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_records_with_exposure_and_latency_round_trip():
+    records = [_record(1), _record(2, n=39)]
+    us, ys, stamps = (list(v) for v in zip(*records))
+    model = gm.FIRGaussianProcess(C(1.5) * DC(0.8, 0.5), order=P, exposure=0.5, latency=0.3,
+                                  optimizer=None, noise_level=1e-4, sample_time=0.01)
+    model.fit(us, ys, sample_times=stamps)
+    buffer, loaded = _saved_and_loaded(model)
+    header, names = _header(buffer)
+    assert header["format_version"] == 4 and header["fitted"]["layout"] == "timed"
+    assert header["params"]["exposure"] == 0.5 and header["params"]["latency"] == 0.3
+    assert "sample_times_1" in names and "sample_indices_0" not in names
+    # the missing reading is not stored; the stamps of the others are, exactly
+    times = model.observation_.records[0].sample_times
+    np.testing.assert_array_equal(loaded.observation_.records[0].sample_times, times)
+    assert times.shape[0] == len(stamps[0]) - 1
+    assert isinstance(loaded.observation_, gm.TimedConvolution)
+    assert loaded.observation_ == model.observation_
+    assert loaded.get_params() == model.get_params()
+    assert loaded.log_marginal_likelihood_value_ == model.log_marginal_likelihood_value_
+    _assert_same_predictions(model, loaded, us, [np.array([5.5, 20.25, 40.7]),
+                                                 np.array([0.2, 7.1, 8.2])])
+
+
+def test_tuned_model_round_trips_with_its_optimizer_result():
+    u, y, stamps = _record(3)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P, exposure=0.5, latency=0.3)
+    model.fit(u, y, sample_times=stamps)
+    _, loaded = _saved_and_loaded(model)
+    assert loaded.kernel_ == model.kernel_ and loaded.noise_level_ == model.noise_level_
+    np.testing.assert_array_equal(loaded.optimizer_result_.x, model.optimizer_result_.x)
+    _assert_same_predictions(model, loaded, u, np.array([1.5, 22.75]))
+    # the loaded model fits again as the saved one did (same parameters, same data)
+    refit = clone(loaded).fit(u, y, sample_times=stamps)
+    assert refit.kernel_ == model.kernel_
+
+
+def test_two_inputs_round_trip():
+    # the readings share their offset from the ticks: the dense route of two inputs is quick
+    records = [_record(4, n_inputs=2, between=0.5), _record(5, n_inputs=2, between=0.5)]
+    us, ys, stamps = (list(v) for v in zip(*records))
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, latency=0.3,
+                                  optimizer=None, noise_level=1e-4)
+    model.fit(us, ys, sample_times=stamps)
+    _, loaded = _saved_and_loaded(model)
+    assert loaded.coef_.shape == (2, P)
+    _assert_same_predictions(model, loaded, us, [np.array([3.5, 30.5]), np.array([9.5])])
+
+
+def test_many_outputs_at_their_own_instants_round_trip():
+    u, y, stamps = _record(6)
+    y2 = 0.5 * y + 0.1
+    template = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, exposure=0.25,
+                                     optimizer=None, noise_level=1e-4)
+    model = gm.MultiOutputFIR(template).fit(u, np.column_stack([y, y2]), sample_times=stamps)
+    buffer, loaded = _saved_and_loaded(model)
+    header, _ = _header(buffer)
+    assert header["format_version"] == 4
+    assert [o["format_version"] for o in header["fitted"]["outputs"]] == [4, 4]
+    for a, b in zip(model.predict(u, return_std=True, sample_times=[4.5, 9.2]),
+                    loaded.predict(u, return_std=True, sample_times=[4.5, 9.2])):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_latency_of_whole_periods_on_the_ticks_round_trips():
+    # stamps late by whole periods are fast samples: a version 2 file with the latency
+    u, y, _ = _record(7)
+    ticks = np.arange(2, N - 3, F)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, latency=2.0,
+                                  optimizer=None, noise_level=1e-4)
+    model.fit(u, y, sample_times=ticks + 2.0)
+    buffer, loaded = _saved_and_loaded(model)
+    assert _header(buffer)[0]["format_version"] == 2
+    assert loaded.latency == 2.0
+    _assert_same_predictions(model, loaded, u, np.array([6.0, 10.5]))
+
+
+def _forge(buffer, edit):
+    from gpmultirate.persistence import _checksum
+
+    header, _ = _header(buffer)
+    buffer.seek(0)
+    with np.load(buffer) as archive:
+        members = {k: archive[k] for k in archive.files if k != "header"}
+    edit(header, members)
+    header["sha256"] = _checksum(header, members)
+    out = io.BytesIO()
+    np.savez(out, header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8), **members)
+    out.seek(0)
+    return out
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda h, m: h.update(format_version=2), "layout"),
+    (lambda h, m: h["fitted"].update(layout="records"), "layout"),
+    (lambda h, m: m.update(sample_times_0=m["sample_times_0"][::-1].copy()), "increasing"),
+    (lambda h, m: h["fitted"].update(quadrature_nodes="many"), "quadrature_nodes"),
+    (lambda h, m: h.update(estimator="LeastSquaresFIR"), "version 1 or 2"),
+])
+def test_inconsistent_timed_file_refused(edit, match):
+    u, y, stamps = _record(8)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, exposure=0.5,
+                                  optimizer=None, noise_level=1e-4).fit(u, y, sample_times=stamps)
+    buffer, _ = _saved_and_loaded(model)
+    with pytest.raises(ModelFileError, match=match):
+        gm.load_model(_forge(buffer, edit))
+
+
+def test_other_quadrature_is_reported():
+    u, y, stamps = _record(9)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, exposure=0.5,
+                                  optimizer=None, noise_level=1e-4).fit(u, y, sample_times=stamps)
+    buffer, _ = _saved_and_loaded(model)
+    with pytest.warns(UserWarning, match="quadrature nodes"):
+        gm.load_model(_forge(buffer, lambda h, m: h["fitted"].update(quadrature_nodes=8)))
+
+
+# ------------------------------------------------------------------ the command line
+T = 0.001
+
+
+def _camera_files(tmp_path, n=300):
+    """A fast input file and a camera log: frames off the ticks, exposure, latency."""
+    rng = np.random.default_rng(11)
+    u = rng.standard_normal(n)
+    g = 0.8 ** np.arange(P) * np.cos(0.6 * np.arange(P))
+    ticks = np.arange(2, n - 3, F)
+    stamps = ticks + rng.uniform(0.0, 1.0, ticks.shape[0])
+    y = np.convolve(u, g)[:n][ticks] + 1e-2 * rng.standard_normal(ticks.shape[0])
+    fast = tmp_path / "fast.csv"
+    fast.write_text("u\n" + "".join(f"{v:.17g}\n" for v in u))
+    slow = tmp_path / "camera.csv"
+    slow.write_text("t,y\n" + "".join(f"{t * T:.17g},{v:.17g}\n" for t, v in zip(stamps, y)))
+    return u, y, stamps, fast, slow
+
+
+@pytest.mark.slow  # the figures of the fit take most of its 15 s
+def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
+    from gpmultirate.io import read_slow_log
+
+    u, y, _, fast, slow = _camera_files(tmp_path)
+    out = tmp_path / "fit"
+    assert main(["fit", str(fast), "--input", "u", "--sample-time", str(T), "--slow", str(slow),
+                 "--output", "y", "--time", "t", "--exposure", "0.0005", "--latency", "0.0002",
+                 "--order", str(P), "--kernel", "dc", "--out", str(out), "--quiet"]) == 0
+    assert "not written" not in capsys.readouterr().err
+    model = gm.load_model(out / "model.npz")
+    assert (model.exposure, model.latency, model.sample_time) == (0.5, 0.2, T)
+    # the saved model is the fit of the library on the same data
+    stamps = read_slow_log(slow, "t", sample_time=T, n_samples=u.shape[0]).sample_times
+    direct = gm.FIRGaussianProcess(order=P, sample_time=T, exposure=0.5, latency=0.2).fit(
+        u, y, sample_times=stamps)
+    summary = json.loads((out / "summary.json").read_text())
+    assert np.isclose(summary["model"]["log_evidence"], direct.log_marginal_likelihood_value_,
+                      rtol=1e-9)
+    np.testing.assert_allclose(model.coef_, direct.coef_, rtol=1e-7, atol=1e-9)
+    # readings at the instants of another log, with their bands, as the library gives them
+    other = tmp_path / "frames.csv"
+    instants = np.array([10.25, 57.5, 123.875, 250.0])
+    other.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
+    table_file = tmp_path / "readings.csv"
+    assert main(["predict", str(out / "model.npz"), str(fast), "--input", "u", "--slow",
+                 str(other), "--time", "t", "--out", str(table_file), "--quiet"]) == 0
+    table = np.genfromtxt(table_file, delimiter=",", names=True)
+    mean, std = model.predict(u, return_std=True, sample_times=instants)
+    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
+    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+    assert table.shape == (4,) and np.all(table["y_std"] > 0)
+
+
+def test_predict_readings_of_a_saved_camera_model(tmp_path):
+    u, y, stamps, fast, _ = _camera_files(tmp_path, n=120)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, sample_time=T, exposure=0.5,
+                                  latency=0.2, optimizer=None, noise_level=1e-4)
+    gm.save_model(model.fit(u, y, sample_times=stamps), tmp_path / "model.npz")
+    frames = tmp_path / "frames.csv"
+    instants = np.array([10.25, 57.5, 100.875])
+    frames.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
+    target = tmp_path / "readings.csv"
+    assert main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--slow",
+                 str(frames), "--time", "t", "--out", str(target), "--quiet"]) == 0
+    table = np.genfromtxt(target, delimiter=",", names=True)
+    mean, std = model.predict(u, return_std=True, sample_times=instants)
+    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
+    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+
+
+# ------------------------------------------------ tuning by cross-validation between the ticks
+def _dense_held_out_density(S, noise, y, folds):
+    """``sum_k log p(y_B | y_rest)`` by conditioning the dense Gaussian, fold by fold."""
+    from scipy.stats import multivariate_normal
+
+    K = S + noise * np.eye(y.shape[0])
+    total = 0.0
+    for B in folds:
+        R = np.setdiff1d(np.arange(y.shape[0]), B)
+        gain = np.linalg.solve(K[np.ix_(R, R)], K[np.ix_(R, B)]).T
+        mean = gain @ y[R]
+        cov = K[np.ix_(B, B)] - gain @ K[np.ix_(R, B)]
+        total += multivariate_normal(mean, cov).logpdf(y[B])
+    return total
+
+
+def _brute_force_covariance(kernel, u, stamps, latency):
+    """Readings without exposure: ``sum_ij u[i] u[j] k(t_m - L - i, t_n - L - j)``, lags in [0, P)."""
+    ends = np.asarray(stamps) - latency
+    lags = ends[:, None] - np.arange(u.shape[0])[None, :]
+    inside = (lags >= 0) & (lags < P)
+    S = np.zeros((ends.shape[0], ends.shape[0]))
+    for m in range(ends.shape[0]):
+        for n in range(ends.shape[0]):
+            a, b = np.flatnonzero(inside[m]), np.flatnonzero(inside[n])
+            k = kernel(lags[m, a][:, None], lags[n, b][:, None])
+            S[m, n] = u[a] @ k @ u[b]
+    return S
+
+
+@pytest.mark.parametrize("exposure", [0.0, 0.5])
+def test_cross_validation_between_the_ticks_is_the_dense_held_out_density(exposure):
+    from gpmultirate.crossvalidation import contiguous_folds
+    from gpmultirate.kernels import observe
+
+    u, y, stamps = _record(12)
+    measured = np.isfinite(y)
+    y, stamps = y[measured], stamps[measured]
+    kernel = C(1.5) * DC(0.8, 0.5)
+    model = gm.FIRGaussianProcess(kernel, order=P, exposure=exposure, latency=0.3,
+                                  tuning="cross_validation", cv=4, optimizer=None,
+                                  noise_level=1e-3)
+    model.fit(u, y, sample_times=stamps)
+    assert isinstance(model.observation_, gm.TimedConvolution)
+    folds = contiguous_folds([y.shape[0]], 4)
+    if exposure == 0.0:
+        S = _brute_force_covariance(kernel, u, stamps, 0.3)
+    else:  # the readings' covariance, tested against dense quadrature in test_timed
+        S = observe(kernel, model.observation_).covariance()
+    expected = _dense_held_out_density(S, 1e-3, y, folds)
+    assert abs(model.cv_log_predictive_likelihood_ - expected) < 1e-8 * max(1.0, abs(expected))
+
+
+@pytest.mark.slow  # 2 s: tuning by cross-validation
+def test_tuning_by_cross_validation_between_the_ticks():
+    from gpmultirate.crossvalidation import contiguous_folds
+
+    u, y, stamps = _record(12)
+    measured = np.isfinite(y)
+    y, stamps = y[measured], stamps[measured]
+    start = C(1.5) * DC(0.8, 0.5)
+    model = gm.FIRGaussianProcess(start, order=P, latency=0.3, tuning="cross_validation", cv=4)
+    model.fit(u, y, sample_times=stamps)
+    folds = contiguous_folds([y.shape[0]], 4)
+    tuned = _dense_held_out_density(_brute_force_covariance(model.kernel_, u, stamps, 0.3),
+                                    model.noise_level_, y, folds)
+    assert abs(model.cv_log_predictive_likelihood_ - tuned) < 1e-8 * abs(tuned)
+    # the tuning raised the held-out density above that of the start
+    assert tuned > _dense_held_out_density(_brute_force_covariance(start, u, stamps, 0.3),
+                                           1e-2, y, folds) + 1.0
+
+
+# ------------------------------------------------ the resonance search between the ticks
+def _response(x):
+    """A smooth response over continuous lag and its basis-like partner: ``(n, 2)``."""
+    return np.column_stack([0.8 ** x * np.cos(1.3 * x), 0.9 ** x * np.sin(2.4 * x)])
+
+
+def _brute_force_readings(f, u, stamps, exposure, latency, nodes=40):
+    """``(1/E) int y`` with ``y(t) = sum_j u[j] f(t - j)``, Gauss-Legendre on every piece."""
+    xi, w = np.polynomial.legendre.leggauss(nodes)
+    out = []
+    for t in stamps:
+        end, start = t - latency, t - latency - exposure
+        edges = [start] + [k for k in range(int(np.ceil(start)), int(np.ceil(end)))
+                           if start < k < end] + [end]
+        total = 0.0
+        for a, b in zip(edges[:-1], edges[1:]):
+            for s, weight in zip(a + (b - a) * (xi + 1) / 2, w * (b - a) / 2):
+                j = np.arange(u.shape[0])
+                inside = (s - j >= 0) & (s - j < P)
+                total += weight * (u[inside] @ f(s - j[inside]))
+        out.append(total / exposure)
+    return np.array(out)
+
+
+def test_readings_of_responses_given_as_functions():
+    u2, _, stamps = _record(13, n_inputs=2)
+    timed = gm.TimedConvolution(u2, stamps, order=P, exposure=0.5, latency=0.3)
+    for k in (0, 1):
+        expected = _brute_force_readings(_response, u2[:, k], stamps, 0.5, 0.3)
+        np.testing.assert_allclose(timed.lag_functionals(_response, input=k), expected,
+                                   rtol=1e-10, atol=1e-12)
+    # the damped exponentials of the scan: one FFT for every frequency
+    alpha, n_fft, index = 0.85, 16, np.arange(1, 17)
+    omegas = np.pi * index / n_fft
+    spectrum = timed.damped_spectrum(alpha, n_fft, index, input=1)
+    basis = timed.lag_functionals(lambda x: np.hstack([
+        alpha ** (x[:, None] / 2) * np.cos(np.outer(x, omegas)),
+        alpha ** (x[:, None] / 2) * np.sin(np.outer(x, omegas))]), input=1)
+    np.testing.assert_allclose(spectrum.real, basis[:, :16], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(-spectrum.imag, basis[:, 16:], rtol=1e-10, atol=1e-12)
+
+
+def test_resonance_scan_of_readings_on_the_ticks_is_that_of_the_fast_samples():
+    from gpmultirate.observations import SampledConvolution
+    from gpmultirate.resonances import resonance_scan
+
+    u, y, _ = _record(14, n=120)
+    ticks = np.arange(2, 117, F)
+    y = np.convolve(u, 0.95 ** np.arange(P) * np.sin(2.4 * np.arange(P)))[:120][ticks]
+    kernel = C(1.0) * DC(0.8, 0.5)
+    timed = gm.TimedConvolution(u, ticks.astype(float), order=P)
+    sampled = SampledConvolution(u, ticks, order=P)
+    a = resonance_scan(timed, y, kernel, 1e-3)
+    b = resonance_scan(sampled, y, kernel, 1e-3)
+    assert a[0].shape == b[0].shape and np.max(b[0]) > 1.0
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(a[1], b[1], rtol=1e-8)
+
+
+def test_resonant_model_between_the_ticks_is_the_evidence_of_its_kernel():
+    from scipy.optimize import approx_fprime
+
+    from gpmultirate.inference import LogEvidence
+    from gpmultirate.kernels import PK
+    from gpmultirate.resonances import _ResonantModel
+
+    u, y, stamps = _record(15)
+    measured = np.isfinite(y)
+    timed = gm.TimedConvolution(u, stamps[measured], order=P, exposure=0.5, latency=0.3)
+    y = y[measured]
+    evidence = LogEvidence(timed, y, C(1.0) * DC(0.8, 0.5), 1e-3, (1e-8, 1.0))
+    model = _ResonantModel(evidence)
+    model.terms = [(0, PK(alpha=0.9, omega=2.0, sigma1=0.5, sigma2=0.3))]
+    x = model._pack() + np.array([0.1, 0.2, 0.0, 0.05, -0.1, 0.2])
+    value, gradient = model._log_evidence(x, eval_gradient=True)
+    model._unpack(x)
+    dense = LogEvidence(timed, y, model.kernel(), model.noise_level, "fixed")
+    assert abs(value - dense(dense.theta)) < 1e-8 * abs(value)
+    numeric = approx_fprime(x, lambda v: model._log_evidence(v), 1e-6)
+    np.testing.assert_allclose(gradient, numeric, rtol=1e-4, atol=1e-4 * np.abs(numeric).max())
+
+
+@pytest.mark.slow  # 3 s: two tuned fits of 100 frames
+def test_auto_kernel_finds_a_resonance_above_the_slow_nyquist_frequency():
+    rng = np.random.default_rng(5)
+    n, order, omega = 300, 60, 2.2  # the slow Nyquist frequency is pi / 3 = 1.05
+
+    def g(x):
+        return 0.3 * 0.9 ** x + 0.97 ** x * np.sin(omega * x)
+
+    def readings(u, stamps, latency):  # the output at t - latency, from g between the lags
+        out = []
+        for t in stamps - latency:
+            j = np.arange(u.shape[0])
+            inside = (t - j >= 0) & (t - j < order)
+            out.append(u[inside] @ g(t - j[inside]))
+        return np.array(out)
+
+    u = rng.standard_normal(n)
+    ticks = np.arange(2, n - 1, F)
+    stamps = ticks + rng.uniform(0.0, 1.0, ticks.shape[0])
+    y = readings(u, stamps, 0.2)
+    y += 10 ** (-45 / 20) * np.std(y) * rng.standard_normal(y.shape[0])
+    u_val = rng.standard_normal(n)
+    y_val = np.convolve(u_val, g(np.arange(order)))[:n]
+
+    def gof(model):
+        error = np.linalg.norm(y_val - model.predict(u_val))
+        return 100.0 * (1.0 - error / np.linalg.norm(y_val - y_val.mean()))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = gm.FIRGaussianProcess(C(1.0) * DC(), order=order, latency=0.2).fit(
+            u, y, sample_times=stamps)
+        auto = gm.FIRGaussianProcess("auto", order=order, latency=0.2).fit(
+            u, y, sample_times=stamps)
+    assert isinstance(auto.observation_, gm.TimedConvolution)
+    found = [2 * np.pi * r.frequency_hz for r in auto.resonances_]
+    assert any(abs(w - omega) < 0.02 for w in found)
+    assert gof(auto) > gof(plain) + 10.0 and gof(auto) > 95.0
+    # the model file keeps the resonances
+    _, loaded = _saved_and_loaded(auto)
+    assert loaded.resonances_ == auto.resonances_
+    np.testing.assert_array_equal(loaded.predict(u_val), auto.predict(u_val))
+
+
+def test_resonance_scan_of_given_frequencies_between_the_ticks():
+    # given frequencies take the functionals of the bases; the grid takes the FFT
+    from gpmultirate.resonances import resonance_scan
+
+    u, y, stamps = _record(16, n=120)
+    measured = np.isfinite(y)
+    timed = gm.TimedConvolution(u, stamps[measured], order=32, exposure=0.5)
+    kernel = C(1.0) * DC(0.8, 0.5)
+    grid = resonance_scan(timed, y[measured], kernel, 1e-3)
+    chosen = grid[2][::7]
+    given = resonance_scan(timed, y[measured], kernel, 1e-3, omegas=chosen)
+    np.testing.assert_allclose(given[0], grid[0][:, ::7], rtol=1e-9, atol=1e-9)
+    assert np.max(grid[0]) > 0.0
+
+
+def test_readings_of_damped_sinusoids_by_their_separable_form():
+    u2, _, stamps = _record(17, n_inputs=2)
+    timed = gm.TimedConvolution(u2, stamps, order=P, exposure=0.7, latency=0.3)
+    rate, omega = 0.12, 2.3
+
+    def basis(x):
+        ec, es = np.exp(-rate * x) * np.cos(omega * x), np.exp(-rate * x) * np.sin(omega * x)
+        return np.column_stack([ec, es, x * ec, x * es])
+
+    for k in (0, 1):
+        expected = _brute_force_readings(basis, u2[:, k], stamps, 0.7, 0.3)
+        np.testing.assert_allclose(timed.damped_sinusoids(rate, omega, k, with_lag=True),
+                                   expected, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(timed.damped_sinusoids(rate, omega, k), expected[:, :2],
+                                   rtol=1e-10, atol=1e-12)
