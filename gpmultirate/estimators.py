@@ -50,7 +50,8 @@ from gpmultirate.kernels import (
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.noise import NAMED_DISTURBANCES, make_noise, noise_instants
 from gpmultirate.observations import build_experiment, regressor_rows
-from gpmultirate.observations.experiment import check_records, is_record_list
+from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
+from gpmultirate.observations.interpolated import InterpolatedConvolution
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER, auto_orders
 from gpmultirate.observations.timed import (
@@ -650,6 +651,18 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
         the output at ``t - latency`` (fast sample periods).
+    between_ticks : {"auto", "exact", "interpolated"}, default="auto"
+        How readings between the fast ticks are observed.  ``"exact"``: the
+        readings as linear functionals of the response over continuous lag
+        (:class:`~gpmultirate.observations.TimedConvolution`), whose data
+        covariance is ``M x M``.  ``"interpolated"``: the response between
+        the integer lags interpolated (cubic, four integer lags), so the
+        readings are a regressor on the integer lags and a long record
+        takes the ``P x P`` parameter space
+        (:class:`~gpmultirate.observations.InterpolatedConvolution`); the
+        interpolation error is absorbed by the tuned noise level (its size:
+        :doc:`/cameras`).  ``"auto"``: interpolated where there are more
+        readings than coefficients, exact otherwise.
     noise_kernel : "white", "matern12", "matern32", "auto" or sklearn Kernel, default="white"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
@@ -798,6 +811,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         cv: int = 5,
         exposure: float = 0.0,
         latency: float = 0.0,
+        between_ticks: str = "auto",
         noise_kernel="white",
     ):
         self.kernel = kernel
@@ -817,6 +831,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.cv = cv
         self.exposure = exposure
         self.latency = latency
+        self.between_ticks = between_ticks
         self.noise_kernel = noise_kernel
 
     # ------------------------------------------------------------------ fit
@@ -1584,6 +1599,7 @@ def _timed_samples(model, sample_indices, sample_times):
     """
     exposure = check_duration(model.exposure, "exposure")
     latency = check_duration(model.latency, "latency")
+    _between_ticks(model)
     if sample_times is None:
         if exposure or latency:
             raise ValueError(
@@ -1605,13 +1621,35 @@ def _timed_samples(model, sample_indices, sample_times):
     return _TimedSamples([sample_times])
 
 
+#: the routes of readings between the fast ticks (``between_ticks``)
+BETWEEN_TICKS = ("auto", "exact", "interpolated")
+
+
+def _between_ticks(model) -> str:
+    route = getattr(model, "between_ticks", "auto")
+    if not (isinstance(route, str) and route in BETWEEN_TICKS):
+        raise ValueError(f"between_ticks must be one of {BETWEEN_TICKS}; got {route!r}")
+    return route
+
+
 def _experiment(model, u, y_slow, sample_indices, order):
-    """The experiment of a fit: on the fast ticks, or the readings at their own instants."""
+    """The experiment of a fit: on the fast ticks, or the readings at their own instants.
+
+    Readings at their own instants are the exact timed observation, or its
+    interpolation on the integer lags (``between_ticks``; by default where
+    there are more readings than coefficients, a long record).
+    """
     if isinstance(sample_indices, _TimedSamples):
-        return build_timed_experiment(
+        experiment = build_timed_experiment(
             u, y_slow, sample_indices[0], order=order, exposure=model.exposure,
             latency=model.latency, initial_conditions=model.initial_conditions,
         )
+        timed = experiment.observation
+        route = _between_ticks(model)
+        if route == "interpolated" or (
+                route == "auto" and timed.n_outputs > timed.n_coefficients):
+            return Experiment(InterpolatedConvolution(timed), experiment.y, experiment.n_inputs)
+        return experiment
     return build_experiment(
         u, y_slow, sample_indices, factor=model.factor, offset=model.offset,
         order=order, initial_conditions=model.initial_conditions,
