@@ -661,8 +661,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         takes the ``P x P`` parameter space
         (:class:`~gpmultirate.observations.InterpolatedConvolution`); the
         interpolation error is absorbed by the tuned noise level (its size:
-        :doc:`/cameras`).  ``"auto"``: interpolated where there are more
-        readings than coefficients, exact otherwise.
+        :doc:`/cameras`).  ``"auto"``: interpolated for a long record, with
+        more readings than coefficients and than 1,000 (where the exact
+        route's ``M x M`` covariance costs many seconds per evaluation),
+        exact otherwise.
     noise_kernel : "white", "matern12", "matern32", "auto" or sklearn Kernel, default="white"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
@@ -1623,6 +1625,8 @@ def _timed_samples(model, sample_indices, sample_times):
 
 #: the routes of readings between the fast ticks (``between_ticks``)
 BETWEEN_TICKS = ("auto", "exact", "interpolated")
+#: ``between_ticks="auto"`` interpolates above this many readings (and more than coefficients)
+INTERPOLATED_ABOVE = 1000
 
 
 def _between_ticks(model) -> str:
@@ -1636,8 +1640,8 @@ def _experiment(model, u, y_slow, sample_indices, order):
     """The experiment of a fit: on the fast ticks, or the readings at their own instants.
 
     Readings at their own instants are the exact timed observation, or its
-    interpolation on the integer lags (``between_ticks``; by default where
-    there are more readings than coefficients, a long record).
+    interpolation on the integer lags (``between_ticks``; by default for a
+    long record: more readings than coefficients and than ``INTERPOLATED_ABOVE``).
     """
     if isinstance(sample_indices, _TimedSamples):
         experiment = build_timed_experiment(
@@ -1646,8 +1650,8 @@ def _experiment(model, u, y_slow, sample_indices, order):
         )
         timed = experiment.observation
         route = _between_ticks(model)
-        if route == "interpolated" or (
-                route == "auto" and timed.n_outputs > timed.n_coefficients):
+        if route == "interpolated" or (route == "auto" and timed.n_outputs > max(
+                timed.n_coefficients, INTERPOLATED_ABOVE)):
             return Experiment(InterpolatedConvolution(timed), experiment.y, experiment.n_inputs)
         return experiment
     return build_experiment(

@@ -97,21 +97,24 @@ def test_interpolation_error_falls_with_the_fast_sample_time():
 
 def test_route_is_chosen_from_the_record_and_by_the_user():
     rng = np.random.default_rng(4)
-    u = rng.standard_normal(150)
-    times = np.arange(0, 150, 3) + rng.uniform(0, 1, 50)
-    y = rng.standard_normal(50)
+    u = rng.standard_normal(3030)
+    times = np.arange(0, 3030, 3) + rng.uniform(0, 1, 1010)
+    y = rng.standard_normal(1010)
     kernel = gm.kernels.DC(0.9, 0.8)
 
-    def route(**params):
+    def route(u=u, y=y, times=times, **params):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             model = gm.FIRGaussianProcess(kernel, optimizer=None, noise_level=0.1, **params)
             return type(model.fit(u, y, sample_times=times).observation_).__name__
 
-    assert route(order=20) == "InterpolatedConvolution"  # 50 readings > 20 coefficients
-    assert route(order=60) == "TimedConvolution"
+    # 1,010 readings: more than 1,000 and than 20 coefficients
+    assert route(order=20) == "InterpolatedConvolution"
     assert route(order=20, between_ticks="exact") == "TimedConvolution"
-    assert route(order=60, between_ticks="interpolated") == "InterpolatedConvolution"
+    # a short record: exact by default, interpolated on request
+    assert route(u=u[:150], y=y[:50], times=times[:50], order=20) == "TimedConvolution"
+    assert route(u=u[:150], y=y[:50], times=times[:50], order=20,
+                 between_ticks="interpolated") == "InterpolatedConvolution"
     with pytest.raises(ValueError, match="between_ticks"):
         route(order=20, between_ticks="cubic")
     with pytest.raises(ValueError, match="interpolation"):
