@@ -119,6 +119,8 @@ def test_route_is_chosen_from_the_record_and_by_the_user():
         route(order=20, between_ticks="cubic")
     with pytest.raises(ValueError, match="interpolation"):
         InterpolatedConvolution(TimedConvolution(u, times, 20), "spline")
+    with pytest.raises(ValueError, match="timed"):
+        InterpolatedConvolution(u)
 
 
 def _held_output(u, times, sample_time=0.1):

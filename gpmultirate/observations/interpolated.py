@@ -12,7 +12,9 @@ or ``0, 1``, linear), makes the reading a combination of the fast samples
 ``y[n + s] = phi_{n+s} g``: a row on the integer lags,
 ``sum_s w_s(d) phi_{n+s}``.  An exposure averages such rows over the
 quadrature points of its window (exact for the interpolant, a polynomial on
-each piece between ticks).  :class:`InterpolatedConvolution` is that
+each piece between ticks).  A reading at ``n + d`` sees no input after
+``n``: the entries of the later ticks' rows that do (their lags below the
+tick's distance) are taken out.  :class:`InterpolatedConvolution` is that
 regressor: an ordinary observation on the integer lags, so the
 long-record reduction (the ``P x P`` parameter space) and every route of
 the integer-lag observations apply unchanged.
@@ -35,6 +37,7 @@ from scipy.linalg import blas
 
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.gram import extended_input
+from gpmultirate.observations.timed import TimedConvolution
 
 __all__ = ["INTERPOLATIONS", "InterpolatedConvolution", "lagrange_weights"]
 
@@ -94,6 +97,8 @@ class InterpolatedConvolution(Observation):
         if interpolation not in INTERPOLATIONS:
             raise ValueError(
                 f"interpolation must be one of {sorted(INTERPOLATIONS)}; got {interpolation!r}")
+        if not isinstance(timed, TimedConvolution):
+            raise ValueError(f"timed must be a TimedConvolution; got {type(timed).__name__}")
         self.interpolation = interpolation
         self.timed = timed
         self.order = timed.order
@@ -149,6 +154,7 @@ class InterpolatedConvolution(Observation):
 
     @property
     def u(self):
+        """The fast-rate input of the first record."""
         return self.timed.u
 
     def _windows(self, part):
@@ -174,8 +180,9 @@ class InterpolatedConvolution(Observation):
             target, weight = block.row[mine], block.data[mine]
             for k, windows in enumerate(self._windows(part)):
                 # one slot per entry of a reading: add the weighted fast rows
-                order = np.argsort(target, kind="stable")
-                target_k, tick_k, weight_k = target[order], tick[order], weight[order]
+                by_reading = np.argsort(target, kind="stable")
+                target_k, tick_k, weight_k = (target[by_reading], tick[by_reading],
+                                              weight[by_reading])
                 slot = np.arange(target_k.shape[0]) - np.searchsorted(target_k, target_k)
                 for s in range(int(slot.max()) + 1 if slot.size else 0):
                     here = slot == s
