@@ -19,7 +19,9 @@ structure with 2 inputs and 28 outputs (N = 8,523, F = 3, P = 200), one
 default-kernel fit per output with :class:`gpmultirate.MultiOutputFIR`,
 serially and in two processes (ratio against serial); frames of a camera
 (``timed_*``: N = 600, P = 300, F = 3, 45 dB) at their own instants and with
-an exposure of half a fast period, against the frames on the ticks.
+an exposure of half a fast period, against the frames on the ticks, and a
+long camera record (``timed_long_*``: N = 50,000, P = 2,000, about 16,700
+frames) at their own instants (the interpolated route) against the ticks.
 ``--repeat 3`` runs
 every case three times and prints the min/median/max time.
 Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own.
@@ -566,6 +568,8 @@ CASES = {
     "timed_ticks": ("frames on the ticks, N = 600, P = 300, F = 3", ["ours"]),
     "timed_instants": ("frames at their own instants (vs ticks)", ["ours"]),
     "timed_exposure": ("own instants, exposure T/2 modelled (vs ticks)", ["ours"]),
+    "timed_long_ticks": ("frames on the ticks, N = 50,000, P = 2,000, F = 3", ["ours"]),
+    "timed_long_instants": ("the same at own instants, interpolated (vs ticks)", ["ours"]),
     "defaults_3k": ("defaults, 40 dB, N = 3,000, F = 3", ["ours"]),
     "defaults_30k": ("defaults, 40 dB, N = 30,000, F = 3", ["ours"]),
     "defaults_300k": ("defaults, 40 dB, N = 300,000, F = 3", ["ours"]),
@@ -585,6 +589,7 @@ WIDE_REFERENCES = {
     "long_irregular": "long_record", "paper_auto": "paper_default",
     "paper_dc_auto": "paper_dc_white", "paper_default_auto": "paper_default_white",
     "timed_instants": "timed_ticks", "timed_exposure": "timed_ticks",
+    "timed_long_instants": "timed_long_ticks",
 }
 
 
@@ -629,6 +634,9 @@ def run_case(name, implementation, n_samples=None, order=None):
         return wide_case("irregular", implementation, n_samples or 50_000, order or 2000)
     if name == "multi_output_28":
         return multi_output_case(implementation, n_samples or 8523, order or 200)
+    if name.startswith("timed_long_"):
+        return timed_case(name[len("timed_long_"):], implementation, n_samples or 50_000,
+                          order or 2000)
     if name.startswith("timed_"):
         return timed_case(name[len("timed_"):], implementation, n_samples or 600, order or 300)
     if name in DEFAULTS_SIZES:

@@ -57,7 +57,8 @@ from gpmultirate.noise import (
     noise_instants,
 )
 from gpmultirate.observations import build_experiment, regressor_rows
-from gpmultirate.observations.experiment import check_records, is_record_list
+from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
+from gpmultirate.observations.interpolated import InterpolatedConvolution
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER, auto_orders
 from gpmultirate.observations.timed import (
@@ -664,6 +665,20 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
         the output at ``t - latency`` (fast sample periods).
+    between_ticks : {"auto", "exact", "interpolated"}, default="auto"
+        How readings between the fast ticks are observed.  ``"exact"``: the
+        readings as linear functionals of the response over continuous lag
+        (:class:`~gpmultirate.observations.TimedConvolution`), whose data
+        covariance is ``M x M``.  ``"interpolated"``: the response between
+        the integer lags interpolated (cubic, four integer lags), so the
+        readings are a regressor on the integer lags and a long record
+        takes the ``P x P`` parameter space
+        (:class:`~gpmultirate.observations.InterpolatedConvolution`); the
+        interpolation error is absorbed by the tuned noise level (its size:
+        :doc:`/cameras`).  ``"auto"``: interpolated for a long record, with
+        more readings than coefficients and than 1,000 (where the exact
+        route's ``M x M`` covariance costs many seconds per evaluation),
+        exact otherwise.
     noise_kernel : "auto", "white", "matern12", "matern32" or sklearn Kernel, default="auto"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
@@ -818,6 +833,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         cv: int = 5,
         exposure: float = 0.0,
         latency: float = 0.0,
+        between_ticks: str = "auto",
         noise_kernel="auto",
     ):
         self.kernel = kernel
@@ -837,6 +853,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.cv = cv
         self.exposure = exposure
         self.latency = latency
+        self.between_ticks = between_ticks
         self.noise_kernel = noise_kernel
 
     # ------------------------------------------------------------------ fit
@@ -1666,6 +1683,7 @@ def _timed_samples(model, sample_indices, sample_times):
     """
     exposure = check_duration(model.exposure, "exposure")
     latency = check_duration(model.latency, "latency")
+    _between_ticks(model)
     if sample_times is None:
         if exposure or latency:
             raise ValueError(
@@ -1681,13 +1699,37 @@ def _timed_samples(model, sample_indices, sample_times):
     return _TimedSamples([sample_times])
 
 
+#: the routes of readings between the fast ticks (``between_ticks``)
+BETWEEN_TICKS = ("auto", "exact", "interpolated")
+#: ``between_ticks="auto"`` interpolates above this many readings (and more than coefficients)
+INTERPOLATED_ABOVE = 1000
+
+
+def _between_ticks(model) -> str:
+    route = getattr(model, "between_ticks", "auto")
+    if not (isinstance(route, str) and route in BETWEEN_TICKS):
+        raise ValueError(f"between_ticks must be one of {BETWEEN_TICKS}; got {route!r}")
+    return route
+
+
 def _experiment(model, u, y_slow, sample_indices, order):
-    """The experiment of a fit: on the fast ticks, or the readings at their own instants."""
+    """The experiment of a fit: on the fast ticks, or the readings at their own instants.
+
+    Readings at their own instants are the exact timed observation, or its
+    interpolation on the integer lags (``between_ticks``; by default for a
+    long record: more readings than coefficients and than ``INTERPOLATED_ABOVE``).
+    """
     if isinstance(sample_indices, _TimedSamples):
-        return build_timed_experiment(
+        experiment = build_timed_experiment(
             u, y_slow, sample_indices[0], order=order, exposure=model.exposure,
             latency=model.latency, initial_conditions=model.initial_conditions,
         )
+        timed = experiment.observation
+        route = _between_ticks(model)
+        if route == "interpolated" or (route == "auto" and timed.n_outputs > max(
+                timed.n_coefficients, INTERPOLATED_ABOVE)):
+            return Experiment(InterpolatedConvolution(timed), experiment.y, experiment.n_inputs)
+        return experiment
     return build_experiment(
         u, y_slow, sample_indices, factor=model.factor, offset=model.offset,
         order=order, initial_conditions=model.initial_conditions,

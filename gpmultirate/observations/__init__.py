@@ -22,6 +22,7 @@ from gpmultirate.observations.sampled import (
     SampledConvolution,
     check_initial_conditions,
 )
+from gpmultirate.observations.interpolated import InterpolatedConvolution
 from gpmultirate.observations.timed import TimedConvolution
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "ColumnBlock",
     "DownsampledConvolution",
     "Experiment",
+    "InterpolatedConvolution",
     "Observation",
     "RecordStack",
     "ReducedObservation",
