@@ -1105,6 +1105,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                     operator, y, kernel, noise, noise_bounds,
                     max_resonances=settings.max_resonances,
                     sample_time=self.sample_time, random_state=self.random_state,
+                    n_folds=settings.n_folds,
                 )
                 kernel, noise = search.kernel, search.noise_level
                 optimizer_result = search.optimizer_result

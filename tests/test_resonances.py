@@ -355,3 +355,53 @@ def test_no_resonance_is_searched_where_the_input_has_no_power():
     unexcited = gm.resonances.excitation(op.matrix, omegas) < gm.resonances.MIN_EXCITATION
     assert unexcited.any() and np.all(gain[:, unexcited] == 0.0)
     assert np.all(omegas[unexcited] > 0.25 * np.pi)
+
+
+# ------------------------------------------------------------ held-out check
+def _held_out_fit_by_refits(op, y, kernel, noise, folds):
+    """Each fold predicted by a GP conditioned on the other samples only (dense, no shortcut)."""
+    Phi = op.matrix
+    lags = np.arange(op.order, dtype=float)[:, None]
+    K = Phi @ kernel(lags) @ Phi.T
+    mean = np.empty_like(y)
+    for B in folds:
+        rest = np.setdiff1d(np.arange(y.shape[0]), B)
+        Ky = K[np.ix_(rest, rest)] + noise * np.eye(rest.size)
+        mean[B] = K[np.ix_(B, rest)] @ np.linalg.solve(Ky, y[rest])
+    return gm.fit_percent(y, mean)
+
+
+def test_held_out_check_drops_a_spurious_term_and_keeps_a_true_one():
+    from gpmultirate.crossvalidation import contiguous_folds
+    from gpmultirate.resonances import HELD_OUT_GAIN, held_out_resonances
+
+    op, y = _small_problem()
+    base = C(1.0) * DC(alpha=0.9, beta=0.9)
+    true = PK(alpha=0.97, omega=2.3, sigma1=1.0, sigma2=1.0)
+    spurious = PK(alpha=0.97, omega=1.1, sigma1=1.0, sigma2=1.0)
+    noise = 1e-4
+    check = held_out_resonances(op, y, base + true + spurious, noise, [0, 0], base, noise)
+    assert check["kept_terms"] == [0] and check["dropped"] == 1
+    # the fits are those of refits on the other folds
+    folds = contiguous_folds([op.n_outputs], 5)
+    assert check["base"] == pytest.approx(_held_out_fit_by_refits(op, y, base, noise, folds),
+                                          abs=1e-6)
+    assert check["kept"] == pytest.approx(
+        _held_out_fit_by_refits(op, y, base + true, noise, folds), abs=1e-6)
+    assert check["found"] == pytest.approx(
+        _held_out_fit_by_refits(op, y, base + true + spurious, noise, folds), abs=1e-6)
+    assert check["kept"] > check["base"] + HELD_OUT_GAIN
+    assert check["kernel"].k2.omega == 2.3
+    # a term that only raises the fit within the margin is not kept
+    none = held_out_resonances(op, y, base + true, noise, [0], base, noise, margin=1e3)
+    assert none["kept_terms"] == [] and none["kernel"] is base
+    # more folds than slow samples: nothing to hold out, no check
+    assert held_out_resonances(op, y, base + true, noise, [0], base, noise, n_folds=500) is None
+
+
+def test_search_reports_the_held_out_check():
+    op, y = _small_problem(n=210, order=90)
+    found = search_resonances(op, y, C(1.0) * DC(), 1e-3, (1e-8, 1.0))
+    assert [round(r.frequency_hz * 2 * np.pi, 1) for r in found.resonances] == [2.3]
+    check = found.held_out
+    assert check["dropped"] == 0 and check["kept"] == check["found"] > check["base"]
