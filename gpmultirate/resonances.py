@@ -100,6 +100,9 @@ EVIDENCE_THRESHOLD = 12.0
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
+#: the evaluations the tuning of the kernel with its terms may spend (where it runs
+#: L-BFGS-B: more than 1,000 reduced slow samples); it starts from the joint refinement
+FINAL_EVALUATIONS = 40
 #: held-out fit (points of fit percent) a term must add to be kept
 HELD_OUT_GAIN = 0.1
 #: excitation (relative to its mean over the band) below which no resonance is searched
@@ -657,7 +660,7 @@ def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
     """
     while inputs:
         kernel, noise, result, value = _tune(
-            evidence.moved_to(kernel, noise), kernel, noise, random_state
+            evidence.moved_to(kernel, noise), kernel, noise, random_state, FINAL_EVALUATIONS
         )
         terms = _terms_of(kernel, inputs)
         gains = []
@@ -855,9 +858,9 @@ def _without_pk(kernel):
     return like_inputs([without_resonances(each) for each in input_kernels(kernel)], kernel)
 
 
-def _tune(evidence, kernel, noise, random_state):
+def _tune(evidence, kernel, noise, random_state, max_evaluations=None):
     """Tuned ``(kernel, noise, optimizer result, log evidence)`` from ``evidence``'s start."""
-    result = tuning.maximize(evidence, 0, random_state)
+    result = tuning.maximize(evidence, 0, random_state, max_evaluations)
     if result is None:
         return kernel, noise, None, float(evidence(evidence.theta))
     kernel, noise = evidence.split(result.x)

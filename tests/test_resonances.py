@@ -405,3 +405,22 @@ def test_search_reports_the_held_out_check():
     assert [round(r.frequency_hz * 2 * np.pi, 1) for r in found.resonances] == [2.3]
     check = found.held_out
     assert check["dropped"] == 0 and check["kept"] == check["found"] > check["base"]
+
+
+def test_tuning_budget_stops_early_without_a_warning():
+    from gpmultirate import tuning
+
+    rng = np.random.default_rng(3)
+    op = gm.DownsampledConvolution(rng.standard_normal(1500), factor=FACTOR, order=300)
+    y = op.matvec(0.9 ** np.arange(300)) + 0.01 * rng.standard_normal(op.n_outputs)
+    evidence = LogEvidence(op, y, C(1.0) * DC(alpha=0.7, beta=0.5), 1e-2, (1e-8, 10.0))
+    from sklearn.exceptions import ConvergenceWarning
+
+    full = tuning.maximize(evidence)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        short = tuning.maximize(evidence, max_evaluations=4)
+    assert short.nfev < full.nfev
+    # what it returns is the evidence at its point, better than the start and at most the optimum
+    assert -short.fun == pytest.approx(evidence(short.x), rel=1e-10)
+    assert evidence(evidence.theta) < -short.fun <= -full.fun + 1e-6
