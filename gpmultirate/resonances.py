@@ -30,10 +30,17 @@ terms one at a time, greedily:
    contiguous blocks over time (as for ``tuning="cross_validation"``) and
    each block is predicted from the others
    (:func:`~gpmultirate.crossvalidation.held_out_predictions`); a term is
-   kept only when the held-out fit with it beats the fit without it by
-   more than :data:`HELD_OUT_GAIN` points, and the found terms together
-   must beat the tuned base kernel by that much, or the search returns
-   the tuned base kernel.
+   kept only when it improves the held-out fit by more than
+   :data:`HELD_OUT_GAIN` points, both of the outputs and of the outputs
+   whitened by an AR model of the base kernel's held-out residuals, and
+   the found terms together must beat the tuned base kernel by that much,
+   or the search returns the tuned base kernel.  The whitened fit is the
+   one that matters against slow disturbances (drift, level steps): a
+   slow, nearly undamped term turns the input's history into a slowly
+   wandering signal that follows such a disturbance within the record,
+   even in held-out blocks (a spurious regression of one persistent
+   signal on another), but not its changes from one sample to the next,
+   nor on a new record.
 
 The threshold is an approximate Bayes factor: a PK term brings four
 hyperparameters and its frequency is chosen among a few hundred
@@ -86,10 +93,11 @@ from gpmultirate.metrics import fit_percent
 from gpmultirate.orders import MAX_CHECKED_SAMPLES
 from gpmultirate.validation import check_positive
 
-__all__ = ["EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION", "SEARCH_THRESHOLD", "Resonance",
-           "ResonanceSearch", "damping_ratio", "excitation", "held_out_resonances", "resonance_scan",
-           "search_resonances",
-           "slowest_decay"]
+__all__ = [
+    "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
+    "PREWHITENING_ORDER", "SEARCH_THRESHOLD", "Resonance", "ResonanceSearch", "damping_ratio",
+    "excitation", "held_out_resonances", "resonance_scan", "search_resonances", "slowest_decay",
+]
 
 #: the logger of a fit's progress (see :mod:`gpmultirate.progress`)
 _LOG = logging.getLogger("gpmultirate.fit")
@@ -105,6 +113,9 @@ MAX_DAMPING = 0.5
 FINAL_EVALUATIONS = 40
 #: held-out fit (points of fit percent) a term must add to be kept
 HELD_OUT_GAIN = 0.1
+#: the order of the AR model of the base kernel's held-out residuals that whitens
+#: them before the held-out fits are compared
+PREWHITENING_ORDER = 4
 #: excitation (relative to its mean over the band) below which no resonance is searched
 MIN_EXCITATION = 1e-2
 # decay rates of the scan's candidates, in units of 1 / P (the envelope
@@ -181,11 +192,12 @@ class ResonanceSearch:
         kept, when it dropped some terms but not all).
     held_out : dict or None
         The held-out check (:func:`held_out_resonances`) when it ran:
-        ``"base"`` and ``"found"``, the held-out fit in percent of the tuned
-        base kernel and of the kernel with every term the evidence kept,
-        ``"kept"``, that of the kernel with the terms that earned their place
-        (``"base"`` when none did), and ``"dropped"``, the number of terms it
-        removed.
+        ``"base"`` and ``"found"``, the held-out fit in percent (of the
+        whitened outputs) of the tuned base kernel and of the kernel with
+        every term the evidence kept, ``"kept"``, that of the kernel with
+        the terms that earned their place (``"base"`` when none did), the
+        same of the outputs themselves (``"raw_base"``, ``"raw_found"``,
+        ``"raw_kept"``) and ``"dropped"``, the number of terms it removed.
     """
 
     kernel: Kernel
@@ -510,7 +522,8 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
         ],
         log_marginal_likelihood=value, history=history,
         held_out=None if check is None else {
-            name: check[name] for name in ("base", "found", "kept", "dropped")},
+            name: check[name] for name in ("base", "found", "kept", "raw_base", "raw_found",
+                                           "raw_kept", "dropped")},
     )
 
 
@@ -522,11 +535,15 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
     (:func:`~gpmultirate.crossvalidation.contiguous_folds`), each predicted
     from the others at fixed hyperparameters
     (:func:`~gpmultirate.crossvalidation.held_out_predictions`), and scored
-    by :func:`~gpmultirate.metrics.fit_percent`.  Backward elimination: while
-    removing some term (the others unchanged) lowers the held-out fit by at
-    most ``margin`` points, the term whose removal costs least is dropped.
-    The terms left must beat ``base_kernel`` (the tuned kernel without
-    terms) by more than ``margin`` points, or none is kept.
+    by :func:`~gpmultirate.metrics.fit_percent` twice: on the outputs, and
+    on the outputs and predictions filtered by ``A(q)``, the AR model
+    (order :data:`PREWHITENING_ORDER`, least squares, per record) of the
+    held-out residuals of ``base_kernel``, which whitens them.  A term's
+    gain is the smaller of its two gains.  Backward elimination: while
+    removing some term (the others unchanged) costs at most ``margin``
+    points, the term whose removal costs least is dropped.  The terms left
+    must gain more than ``margin`` points over ``base_kernel`` (the tuned
+    kernel without terms), or none is kept.
 
     Parameters
     ----------
@@ -555,8 +572,10 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         (the indices of the terms kept, in order), ``"kernel"`` (``kernel``
         with only those terms, its hyperparameters unchanged; ``base_kernel``
         when none is kept), ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in
-        percent of ``base_kernel``, ``kernel`` and the kept kernel) and
-        ``"dropped"`` (the number of terms dropped).
+        percent of the whitened outputs, of ``base_kernel``, ``kernel`` and
+        the kept kernel), ``"raw_base"``, ``"raw_found"`` and ``"raw_kept"``
+        (the same of the outputs) and ``"dropped"`` (the number of terms
+        dropped).
 
     Examples
     --------
@@ -575,43 +594,98 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
     y = np.asarray(y, dtype=float)
     if y.shape[0] > MAX_CHECKED_SAMPLES or np.ptp(y) == 0:
         return None
+    sizes = [r.n_outputs for r in observation.records]
     try:
-        folds = contiguous_folds([r.n_outputs for r in observation.records], n_folds)
+        folds = contiguous_folds(sizes, n_folds)
     except ValueError:
         return None
 
-    def held_out_fit(candidate, noise):
+    def held_out_mean(candidate, noise):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NumericalWarning)
             try:
-                mean, _ = held_out_predictions(observation, candidate, noise, y, folds)
+                return held_out_predictions(observation, candidate, noise, y, folds)[0]
             except (ValueError, np.linalg.LinAlgError):
-                return -np.inf
-        return fit_percent(y, mean)
+                return None
+
+    base_mean = held_out_mean(base_kernel, base_noise)
+    if base_mean is None:
+        return None
+    whiten = _prewhitening(y - base_mean, sizes)
+    white_y = whiten(y)
+    if np.ptp(white_y) == 0:
+        return None
+
+    def held_out_fits(candidate, noise):
+        """(fit of the whitened outputs, fit of the outputs) in percent."""
+        mean = held_out_mean(candidate, noise)
+        if mean is None:
+            return -np.inf, -np.inf
+        return fit_percent(white_y, whiten(mean)), fit_percent(y, mean)
+
+    def cost(with_term, without_term):
+        # what removing a term costs: the smaller of its two gains
+        return min(w - o for w, o in zip(with_term, without_term))
 
     terms = _terms_of(kernel, list(inputs))
     kept = list(range(len(terms)))
-    found = current = held_out_fit(kernel, noise_level)
+    found = current = held_out_fits(kernel, noise_level)
     while kept:
-        without = {r: held_out_fit(_assembled(kernel, [terms[i] for i in kept if i != r]),
-                                   noise_level)
+        without = {r: held_out_fits(_assembled(kernel, [terms[i] for i in kept if i != r]),
+                                    noise_level)
                    for r in kept}
-        weakest = max(kept, key=lambda r: without[r])
-        if without[weakest] < current - margin:
+        weakest = min(kept, key=lambda r: cost(current, without[r]))
+        if cost(current, without[weakest]) > margin:
             break
         kept.remove(weakest)
         current = without[weakest]
-    base = held_out_fit(base_kernel, base_noise)
-    if kept and current <= base + margin:
+    base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
+    if kept and cost(current, base) <= margin:
         kept = []
+    if not kept:
+        current = base
     return {
         "kept_terms": kept,
         "kernel": _assembled(kernel, [terms[i] for i in kept]) if kept else base_kernel,
-        "base": base,
-        "found": found,
-        "kept": current if kept else base,
+        "base": base[0],
+        "found": found[0],
+        "kept": current[0],
+        "raw_base": base[1],
+        "raw_found": found[1],
+        "raw_kept": current[1],
         "dropped": len(terms) - len(kept),
     }
+
+
+def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
+    """The filter ``A(q)`` of an AR model of ``residual``, per record: ``series -> A(q) series``.
+
+    The coefficients are fitted by least squares to the residual of every
+    record at once; the filtered records, each without its first ``order``
+    samples, are concatenated.  The identity where a record is too short.
+    """
+    bounds = np.cumsum([0, *sizes])
+    rows, targets = [], []
+    for start, stop in zip(bounds[:-1], bounds[1:]):
+        e = residual[start:stop]
+        if e.shape[0] > 4 * order:
+            rows.append(np.column_stack([e[order - k - 1 : e.shape[0] - k - 1]
+                                         for k in range(order)]))
+            targets.append(e[order:])
+    if not rows:
+        return lambda series: np.asarray(series, dtype=float)
+    a = np.linalg.lstsq(np.vstack(rows), np.concatenate(targets), rcond=None)[0]
+    taps = np.concatenate([[1.0], -a])
+
+    def whiten(series):
+        parts = []
+        for start, stop in zip(bounds[:-1], bounds[1:]):
+            x = series[start:stop]
+            parts.append(np.convolve(x, taps)[order : x.shape[0]] if x.shape[0] > 4 * order
+                         else x)
+        return np.concatenate(parts)
+
+    return whiten
 
 
 def _refitted(evidence, kernel, noise):
