@@ -926,9 +926,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         the resonance search) by the evidence; the last one is kept as the
         fit when the rule keeps its order and the fit asks for nothing more.
         Their warnings are those of the kept fit only.  Returns the rule
-        and, when the resonance search goes on at the last pilot's order,
-        that pilot's tuned ``(kernel, noise level)``: the search starts from
-        them instead of tuning the plain prior again.
+        and, for the resonance search, the last pilot's tuned ``(kernel,
+        noise level)``: the search starts from them instead of from the
+        untuned prior (at the pilot's order they are already tuned).
         """
         whole = self._experiment(data, None)
         longest = whole.observation.order
@@ -938,11 +938,14 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         pilot = replace(settings, auto=False, criterion="evidence")
         caught = {}
 
+        last = []
+
         def fit_at(order):
             with warnings.catch_warnings(record=True) as record:
                 warnings.simplefilter("always")
                 fitted = self._fit_at(data, order, pilot)
             caught[order] = record
+            last[:] = [fitted]
             return fitted
 
         def tail_lag(fitted):
@@ -953,9 +956,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
                                     whole.n_inputs, log=_LOG.info)
         start = None
+        if settings.auto and last[0].noise_model is None:
+            start = (last[0].kernel_, last[0].noise_level_)
         if rule.fit is not None and (settings.auto or settings.criterion != "evidence"):
-            if settings.auto and rule.fit.noise_model is None:
-                start = (rule.fit.kernel_, rule.fit.noise_level_)
             rule = replace(rule, fit=None)  # the fit at that order goes on from here
             _LOG.info("default order: %d, fitting it with the full settings", rule.order)
         if rule.fit is not None:
