@@ -641,6 +641,8 @@ def run_case(name, implementation, n_samples=None, order=None):
         return timed_case(name[len("timed_"):], implementation, n_samples or 600, order or 300)
     if name in DEFAULTS_SIZES:
         return defaults_case(n_samples or DEFAULTS_SIZES[name])
+    if name == "defaults":  # the scaling figure's default fits, of any size
+        return defaults_case(n_samples or 3000)
     if name == "camera_20k":
         return camera_case(implementation, n_samples or 20_000, order)
     if name == "cli_camera_20k":
@@ -691,12 +693,20 @@ def main(argv=None):
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--n-samples", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--order", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--scaling-only", nargs="+", metavar="CASE",
+                        help="time only the scaling regimes of these cases (e.g. defaults) and "
+                             "keep the others from docs/generated/scaling.json")
     parser.add_argument("--draw-scaling", metavar="JSON",
                         help="only redraw the scaling figure from its results file")
     args = parser.parse_args(argv)
     if args.draw_scaling:
         path = Path(args.draw_scaling)
         draw_scaling(json.loads(path.read_text()), path.with_suffix(".png"))
+        return 0
+    if args.scaling_only:
+        earlier = Path(__file__).resolve().parent.parent / "docs" / "generated" / "scaling.json"
+        regimes = [r for r in SCALING_REGIMES if r[1] in args.scaling_only]
+        scaling(args.repeat, regimes, json.loads(earlier.read_text()))
         return 0
     if args.child:
         warnings.simplefilter("ignore")
@@ -760,33 +770,42 @@ SCALING_REGIMES = (
      [(n, 500) for n in (12_500, 25_000, 50_000, 100_000, 200_000, 400_000)]),
     ("N = 50,000, P grows (long record)", "long_record",
      [(50_000, p) for p in (125, 250, 500, 1000)]),
+    ("defaults, order from the data (F = 3, 40 dB)", "defaults",
+     [(n, None) for n in (1000, 3000, 10_000, 30_000, 100_000, 300_000, 1_000_000)]),
 )
 
 
-def scaling(repeat=1, regimes=SCALING_REGIMES):
-    """Fit time against N and P in each regime, with the exponent of a power law fitted to it.
+def scaling(repeat=1, regimes=SCALING_REGIMES, keep=None):
+    """Fit time and peak memory against N and P in each regime, with the exponent of a power law.
 
-    Each point is the median of ``repeat`` fits in fresh processes.  Writes
+    Each point is the median of ``repeat`` fits in fresh processes (the peak
+    memory is the largest of them; a default fit also records the order it
+    chose, ``p``).  ``keep``: the results of an earlier run whose regimes not
+    in ``regimes`` are kept as they are (``--scaling-only``).  Writes
     ``scaling.json`` and draws ``scaling.png`` in ``benchmarks/output``.
     """
     OUTPUT.mkdir(exist_ok=True)
-    result = {"load_before": os.getloadavg(), "regimes": []}
+    labels = [label for label, _, _ in regimes]
+    kept = [r for r in (keep or {}).get("regimes", []) if r["label"] not in labels]
+    result = {"load_before": os.getloadavg(), "regimes": kept}
     for label, case, sizes in regimes:
         points = []
         for n, p in sizes:
-            times = []
+            times, peaks, chosen = [], [], p
             for _ in range(repeat):
                 r = in_subprocess(case, "ours", n, p)
                 if "error" in r:
                     break
                 times.append(r["seconds"])
+                peaks.append(r["peak_mb"])
+                chosen = r.get("order", p)
             if not times:
                 print(f"{label}: N = {n}, P = {p}: {r['error']}")
                 continue
-            points.append({"n": n, "p": p, "seconds": float(np.median(times)),
-                           "min": min(times), "max": max(times)})
-            print(f"{label}: N = {n:7d}, P = {p:5d}: {np.median(times):8.2f} s "
-                  f"({min(times):.2f}..{max(times):.2f})", flush=True)
+            points.append({"n": n, "p": chosen, "seconds": float(np.median(times)),
+                           "min": min(times), "max": max(times), "peak_mb": max(peaks)})
+            print(f"{label}: N = {n:7d}, P = {chosen:5d}: {np.median(times):8.2f} s "
+                  f"({min(times):.2f}..{max(times):.2f}), {max(peaks):.0f} MB", flush=True)
             regime = {"label": label, "case": case, "points": points,
                       "exponent": power_law_exponent(label, points)}
             partial = dict(result, regimes=result["regimes"] + [regime])
@@ -816,8 +835,8 @@ def draw_scaling(result, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.0, 4.0))
-    for regime, marker in zip(result["regimes"], ("o-", "^-", "s-")):
+    fig, (ax, memory) = plt.subplots(1, 2, figsize=(11.0, 4.2))
+    for regime, marker in zip(result["regimes"], ("o-", "^-", "s-", "D-")):
         points = regime["points"]
         if not points:
             continue
@@ -828,13 +847,24 @@ def draw_scaling(result, path):
                   [pt["max"] - pt["seconds"] for pt in points]]
         exponent = regime["exponent"]
         label = regime["label"] + (f", slope {exponent:.2f}" if exponent is not None else "")
-        ax.errorbar(x, y, yerr=errors, fmt=marker, capsize=2, label=label)
+        line = ax.errorbar(x, y, yerr=errors, fmt=marker, capsize=2, label=label)
+        measured = [(xi, pt["peak_mb"]) for xi, pt in zip(x, points) if "peak_mb" in pt]
+        if measured:
+            memory.plot(*zip(*measured), marker, color=line[0].get_color(),
+                        label=regime["label"])
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("N (fast samples) or P (order), the size that varies")
     ax.set_ylabel("ML-tuned fit time (s)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7)
+    memory.set_xscale("log")
+    memory.set_yscale("log")
+    memory.set_xlabel("N (fast samples) or P (order), the size that varies")
+    memory.set_ylabel("peak memory of the fitting process (MB)")
+    memory.grid(True, which="both", alpha=0.3)
+    if memory.lines:
+        memory.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

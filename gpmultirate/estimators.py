@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import linalg
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 
@@ -933,15 +933,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             self._adopt(selection.fit)
             self.order_selection_ = selection.table
             return
-        order, fitted, rule = self.order, None, None
+        order, fitted, rule, pilot = self.order, None, None, None
         if order is None:
-            rule = self._default_order(data, settings)
+            rule, pilot = self._default_order(data, settings)
             if rule is not None:
                 order, fitted = rule.order, rule.fit
         if fitted is None:
             start = time.perf_counter()
             fitted = self._fit_at(data, order, settings if rule is None else replace(
-                settings, order_from_data=True))
+                settings, order_from_data=True), start=pilot)
             if rule is not None:
                 _LOG.info("fitted order %d in %.1f s", fitted.observation_.order,
                           time.perf_counter() - start)
@@ -963,21 +963,27 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         fits tune the plain prior (the user's kernel, or the default without
         the resonance search) by the evidence; the last one is kept as the
         fit when the rule keeps its order and the fit asks for nothing more.
-        Their warnings are those of the kept fit only.
+        Their warnings are those of the kept fit only.  Returns the rule
+        and, for the resonance search, the last pilot's tuned ``(kernel,
+        noise level)``: the search starts from them instead of from the
+        untuned prior (at the pilot's order they are already tuned).
         """
         whole = self._experiment(data, None)
         longest = whole.observation.order
         if longest <= orders.SHORT_RECORD:
-            return None
+            return None, None
         powers = _input_powers(whole)
         pilot = replace(settings, auto=False, criterion="evidence", noise_kernel="white")
         caught = {}
+
+        last = []
 
         def fit_at(order):
             with warnings.catch_warnings(record=True) as record:
                 warnings.simplefilter("always")
                 fitted = self._fit_at(data, order, pilot)
             caught[order] = record
+            last[:] = [fitted]
             return fitted
 
         def tail_lag(fitted):
@@ -987,6 +993,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
 
         rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
                                     whole.n_inputs, log=_LOG.info)
+        start = None
+        if settings.auto and last[0].noise_model is None:
+            start = (last[0].kernel_, last[0].noise_level_)
         if rule.fit is not None and (settings.auto or settings.criterion != "evidence"
                                      or settings.noise_kernel not in ("white", "auto")
                                      or (settings.noise_kernel == "auto"
@@ -999,7 +1008,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             for w in caught[rule.order]:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             _LOG.info("default order: %d (the pilot fit at that order is kept)", rule.order)
-        return rule
+        return rule, start
 
     def _check_long_enough(self) -> None:
         """Warn when the fitted order is too short for the data's memory.
@@ -1118,8 +1127,12 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             else:
                 self.__dict__.pop(name, None)
 
-    def _fit_at(self, data, order, settings: _Settings) -> _Fit:
-        """Fit at one order; returns the learned state, leaves the estimator alone."""
+    def _fit_at(self, data, order, settings: _Settings, start=None) -> _Fit:
+        """Fit at one order; returns the learned state, leaves the estimator alone.
+
+        ``start``: the ``(kernel, noise level)`` of a plain fit at that order
+        (the default order's pilot), where ``kernel="auto"`` starts its search.
+        """
         experiment = self._experiment(data, order)
         operator, y = experiment.observation, experiment.y
         kernel, noise, noise_bounds = prior_in_data_units(
@@ -1139,6 +1152,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 settings.scale)
             kernel = converted if given else kernel
             noise_bounds = bounds if explicit else noise_bounds
+        if start is not None and settings.auto:
+            kernel, noise = clone(start[0]), float(start[1])
         # refuse now what would be killed for lack of memory halfway
         n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
         check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1,
@@ -1152,6 +1167,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                     operator, y, kernel, noise, noise_bounds,
                     max_resonances=settings.max_resonances,
                     sample_time=self.sample_time, random_state=self.random_state,
+                    n_folds=settings.n_folds,
                 )
                 kernel, noise = search.kernel, search.noise_level
                 optimizer_result = search.optimizer_result

@@ -23,7 +23,24 @@ terms one at a time, greedily:
    (:func:`gpmultirate.tuning.maximize`); each term's evidence gain is the
    tuned log evidence minus that of the model without it (scale and noise
    refitted); while a term gains at most :data:`EVIDENCE_THRESHOLD` nats
-   or is not resonant, the weakest is removed and the rest tuned again.
+   or is not resonant, the weakest is removed and the rest tuned again;
+4. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
+   model, and on measured data a term can raise it by fitting a
+   disturbance that does not repeat.  The slow samples are cut into
+   contiguous blocks over time (as for ``tuning="cross_validation"``) and
+   each block is predicted from the others
+   (:func:`~gpmultirate.crossvalidation.held_out_predictions`); a term is
+   kept only when it improves the held-out fit by more than
+   :data:`HELD_OUT_GAIN` points, both of the outputs and of the outputs
+   whitened by an AR model of the base kernel's held-out residuals, and
+   the found terms together must beat the tuned base kernel by that much,
+   or the search returns the tuned base kernel.  The whitened fit is the
+   one that matters against slow disturbances (drift, level steps): a
+   slow, nearly undamped term turns the input's history into a slowly
+   wandering signal that follows such a disturbance within the record,
+   even in held-out blocks (a spurious regression of one persistent
+   signal on another), but not its changes from one sample to the next,
+   nor on a new record.
 
 The threshold is an approximate Bayes factor: a PK term brings four
 hyperparameters and its frequency is chosen among a few hundred
@@ -39,8 +56,10 @@ away.
 Cost: one tuning of the base kernel; per found resonance one scan
 (``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
 refinement; the last, unsuccessful scan and refinement; one tuning of the
-final kernel.  Without resonances, one tuning of the base kernel, a scan
-and a refinement.
+final kernel; the held-out check, one ``M x M`` factorization per
+kernel compared (skipped beyond
+:data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples).  Without
+resonances, one tuning of the base kernel, a scan and a refinement.
 """
 
 from __future__ import annotations
@@ -58,6 +77,7 @@ from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import tuning
 from gpmultirate.covariance import DenseCovariance, SpectralCovariance, WhiteNoise, log_gaussian
+from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
@@ -69,12 +89,15 @@ from gpmultirate.kernels import (
     without_resonances,
 )
 from gpmultirate.kernels.lag import damped_sinusoids
+from gpmultirate.metrics import fit_percent
+from gpmultirate.orders import MAX_CHECKED_SAMPLES
 from gpmultirate.validation import check_positive
 
-__all__ = ["EVIDENCE_THRESHOLD", "MAX_DAMPING", "MIN_EXCITATION", "SEARCH_THRESHOLD", "Resonance",
-           "ResonanceSearch", "damping_ratio", "excitation", "resonance_scan",
-           "search_resonances",
-           "slowest_decay"]
+__all__ = [
+    "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
+    "PREWHITENING_ORDER", "SEARCH_THRESHOLD", "Resonance", "ResonanceSearch", "damping_ratio",
+    "excitation", "held_out_resonances", "resonance_scan", "search_resonances", "slowest_decay",
+]
 
 #: the logger of a fit's progress (see :mod:`gpmultirate.progress`)
 _LOG = logging.getLogger("gpmultirate.fit")
@@ -85,6 +108,14 @@ EVIDENCE_THRESHOLD = 12.0
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
+#: the evaluations the tuning of the kernel with its terms may spend (where it runs
+#: L-BFGS-B: more than 1,000 reduced slow samples); it starts from the joint refinement
+FINAL_EVALUATIONS = 40
+#: held-out fit (points of fit percent) a term must add to be kept
+HELD_OUT_GAIN = 0.1
+#: the order of the AR model of the base kernel's held-out residuals that whitens
+#: them before the held-out fits are compared
+PREWHITENING_ORDER = 4
 #: excitation (relative to its mean over the band) below which no resonance is searched
 MIN_EXCITATION = 1e-2
 # decay rates of the scan's candidates, in units of 1 / P (the envelope
@@ -157,7 +188,16 @@ class ResonanceSearch:
     history : list of float
         The log evidence of the tuned base kernel, after each term the
         search added (before the final tuning) and, when a term was added,
-        of the tuned final kernel.
+        of the tuned final kernel (and of the kernel the held-out check
+        kept, when it dropped some terms but not all).
+    held_out : dict or None
+        The held-out check (:func:`held_out_resonances`) when it ran:
+        ``"base"`` and ``"found"``, the held-out fit in percent (of the
+        whitened outputs) of the tuned base kernel and of the kernel with
+        every term the evidence kept, ``"kept"``, that of the kernel with
+        the terms that earned their place (``"base"`` when none did), the
+        same of the outputs themselves (``"raw_base"``, ``"raw_found"``,
+        ``"raw_kept"``) and ``"dropped"``, the number of terms it removed.
     """
 
     kernel: Kernel
@@ -166,6 +206,7 @@ class ResonanceSearch:
     resonances: list = field(default_factory=list)
     log_marginal_likelihood: float = float("nan")
     history: list = field(default_factory=list)
+    held_out: dict | None = None
 
 
 def _check_max_resonances(value) -> int:
@@ -376,15 +417,17 @@ def excitation(Phi: np.ndarray, omegas) -> np.ndarray:
 
 def search_resonances(observation, y, base_kernel, noise_level: float, noise_bounds, *,
                       max_resonances: int = 4, sample_time: float = 1.0,
-                      random_state=None) -> ResonanceSearch:
+                      random_state=None, n_folds: int = 5) -> ResonanceSearch:
     """Add PK terms to ``base_kernel`` by marginal likelihood, with no frequency guesses.
 
     The greedy forward search of the module docstring: tune the base
     kernel; repeatedly scan one more PK term over the whole band on every
     input, refine it jointly with the terms found so far, and keep it when
     the log evidence grows by more than :data:`SEARCH_THRESHOLD` nats and
-    it is resonant; then tune everything and prune the terms whose
-    evidence gain is at most :data:`EVIDENCE_THRESHOLD` nats.  With several
+    it is resonant; then tune everything, prune the terms whose
+    evidence gain is at most :data:`EVIDENCE_THRESHOLD` nats, and keep only
+    the terms that improve the fit of held-out slow samples
+    (:func:`held_out_resonances`).  With several
     inputs the terms go into the input kernels of the
     :class:`~gpmultirate.kernels.PerInputKernel`, each to the input whose
     scan gains most.
@@ -408,6 +451,8 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
         Fast sample time in seconds, for :attr:`Resonance.frequency_hz`.
     random_state : int, RandomState, Generator or None
         Passed to the tuning.
+    n_folds : int, default=5
+        Contiguous blocks of slow samples of the held-out check.
 
     Returns
     -------
@@ -438,11 +483,11 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
     sample_time = check_positive(sample_time, "sample_time")
     with blas_threads_for(observation):
         return _search(observation, y, base_kernel, noise_level, noise_bounds,
-                       max_resonances, sample_time, random_state)
+                       max_resonances, sample_time, random_state, n_folds)
 
 
 def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonances,
-            sample_time, random_state) -> ResonanceSearch:
+            sample_time, random_state, n_folds=5) -> ResonanceSearch:
     _LOG.info("resonance search: order %d, up to %d resonance(s)", observation.order,
               max_resonances)
     evidence = LogEvidence(observation, y, base_kernel, noise_level, noise_bounds)
@@ -475,12 +520,23 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
         history.append(model.value)
         _LOG.info("resonance search: a term at %.4g Hz on input %d (evidence gain %.1f nats)",
                   float(omega) / (2.0 * np.pi * sample_time), k, gain)
-    gains = []
+    gains, check = [], None
     if model.terms:
         kernel, noise, result, value, gains = _tune_and_prune(
             evidence, model.kernel(), model.noise_level, [k for k, _ in model.terms],
             random_state,
         )
+        if gains:
+            check = held_out_resonances(observation, y, kernel, noise, [g.input for g in gains],
+                                        base, model_noise0, n_folds)
+            if check is not None and len(check["kept_terms"]) < len(gains):
+                _LOG.info("resonance search: %d term(s) dropped, they do not improve the fit of "
+                          "held-out slow samples (%.2f %% with them, %.2f %% without)",
+                          check["dropped"], check["found"], check["kept"])
+                gains = [gains[r] for r in check["kept_terms"]]
+                if gains:
+                    history.append(value)
+                    kernel, noise, value = _refitted(evidence, check["kernel"], noise)
         if not gains:  # every term pruned: the tuned base kernel
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
@@ -496,7 +552,180 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             for (k, term), gain in zip(terms, gains)
         ],
         log_marginal_likelihood=value, history=history,
+        held_out=None if check is None else {
+            name: check[name] for name in ("base", "found", "kept", "raw_base", "raw_found",
+                                           "raw_kept", "dropped")},
     )
+
+
+def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base_kernel,
+                        base_noise: float, n_folds: int = 5, margin: float = HELD_OUT_GAIN):
+    """Which PK terms of ``kernel`` improve the fit of held-out slow samples.
+
+    The slow samples are cut into ``n_folds`` contiguous blocks per record
+    (:func:`~gpmultirate.crossvalidation.contiguous_folds`), each predicted
+    from the others at fixed hyperparameters
+    (:func:`~gpmultirate.crossvalidation.held_out_predictions`), and scored
+    by :func:`~gpmultirate.metrics.fit_percent` twice: on the outputs, and
+    on the outputs and predictions filtered by ``A(q)``, the AR model
+    (order :data:`PREWHITENING_ORDER`, least squares, per record) of the
+    held-out residuals of ``base_kernel``, which whitens them.  A term's
+    gain is the smaller of its two gains.  Backward elimination: while
+    removing some term (the others unchanged) costs at most ``margin``
+    points, the term whose removal costs least is dropped.  The terms left
+    must gain more than ``margin`` points over ``base_kernel`` (the tuned
+    kernel without terms), or none is kept.
+
+    Parameters
+    ----------
+    observation : Observation
+        The observation of every used slow sample (not reduced).
+    y : ndarray of shape (M,)
+    kernel : sklearn Kernel
+        The tuned kernel with its PK terms.
+    noise_level : float
+    inputs : list of int
+        The input of each PK term, in the order they were added.
+    base_kernel : sklearn Kernel
+        The tuned kernel without PK terms.
+    base_noise : float
+        Its noise variance.
+    n_folds : int, default=5
+    margin : float, default=HELD_OUT_GAIN
+        Points of fit percent a term must add.
+
+    Returns
+    -------
+    dict or None
+        None where the check does not run (more than
+        :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples, fewer
+        samples than folds, a constant output).  Otherwise ``"kept_terms"``
+        (the indices of the terms kept, in order), ``"kernel"`` (``kernel``
+        with only those terms, its hyperparameters unchanged; ``base_kernel``
+        when none is kept), ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in
+        percent of the whitened outputs, of ``base_kernel``, ``kernel`` and
+        the kept kernel), ``"raw_base"``, ``"raw_found"`` and ``"raw_kept"``
+        (the same of the outputs) and ``"dropped"`` (the number of terms
+        dropped).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC, PK
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(600), factor=3, order=100)
+    >>> y = op.matvec(0.9 ** np.arange(100)) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> base = C(5.0) * DC(0.9, 0.9)
+    >>> spurious = base + PK(alpha=0.98, omega=2.0, sigma1=0.3, sigma2=0.3)
+    >>> held_out_resonances(op, y, spurious, 1e-4, [0], base, 1e-4)["kept_terms"]
+    []
+    """
+    y = np.asarray(y, dtype=float)
+    if y.shape[0] > MAX_CHECKED_SAMPLES or np.ptp(y) == 0:
+        return None
+    sizes = [r.n_outputs for r in observation.records]
+    try:
+        folds = contiguous_folds(sizes, n_folds)
+    except ValueError:
+        return None
+
+    def held_out_mean(candidate, noise):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalWarning)
+            try:
+                return held_out_predictions(observation, candidate, noise, y, folds)[0]
+            except (ValueError, np.linalg.LinAlgError):
+                return None
+
+    base_mean = held_out_mean(base_kernel, base_noise)
+    if base_mean is None:
+        return None
+    whiten = _prewhitening(y - base_mean, sizes)
+    white_y = whiten(y)
+    if np.ptp(white_y) == 0:
+        return None
+
+    def held_out_fits(candidate, noise):
+        """(fit of the whitened outputs, fit of the outputs) in percent."""
+        mean = held_out_mean(candidate, noise)
+        if mean is None:
+            return -np.inf, -np.inf
+        return fit_percent(white_y, whiten(mean)), fit_percent(y, mean)
+
+    def cost(with_term, without_term):
+        # what removing a term costs: the smaller of its two gains
+        return min(w - o for w, o in zip(with_term, without_term))
+
+    terms = _terms_of(kernel, list(inputs))
+    kept = list(range(len(terms)))
+    found = current = held_out_fits(kernel, noise_level)
+    while kept:
+        without = {r: held_out_fits(_assembled(kernel, [terms[i] for i in kept if i != r]),
+                                    noise_level)
+                   for r in kept}
+        weakest = min(kept, key=lambda r: cost(current, without[r]))
+        if cost(current, without[weakest]) > margin:
+            break
+        kept.remove(weakest)
+        current = without[weakest]
+    base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
+    if kept and cost(current, base) <= margin:
+        kept = []
+    if not kept:
+        current = base
+    return {
+        "kept_terms": kept,
+        "kernel": _assembled(kernel, [terms[i] for i in kept]) if kept else base_kernel,
+        "base": base[0],
+        "found": found[0],
+        "kept": current[0],
+        "raw_base": base[1],
+        "raw_found": found[1],
+        "raw_kept": current[1],
+        "dropped": len(terms) - len(kept),
+    }
+
+
+def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
+    """The filter ``A(q)`` of an AR model of ``residual``, per record: ``series -> A(q) series``.
+
+    The coefficients are fitted by least squares to the residual of every
+    record at once; the filtered records, each without its first ``order``
+    samples, are concatenated.  The identity where a record is too short.
+    """
+    bounds = np.cumsum([0, *sizes])
+    rows, targets = [], []
+    for start, stop in zip(bounds[:-1], bounds[1:]):
+        e = residual[start:stop]
+        if e.shape[0] > 4 * order:
+            rows.append(np.column_stack([e[order - k - 1 : e.shape[0] - k - 1]
+                                         for k in range(order)]))
+            targets.append(e[order:])
+    if not rows:
+        return lambda series: np.asarray(series, dtype=float)
+    a = np.linalg.lstsq(np.vstack(rows), np.concatenate(targets), rcond=None)[0]
+    taps = np.concatenate([[1.0], -a])
+
+    def whiten(series):
+        parts = []
+        for start, stop in zip(bounds[:-1], bounds[1:]):
+            x = series[start:stop]
+            parts.append(np.convolve(x, taps)[order : x.shape[0]] if x.shape[0] > 4 * order
+                         else x)
+        return np.concatenate(parts)
+
+    return whiten
+
+
+def _refitted(evidence, kernel, noise):
+    """``kernel`` with its overall scale and the noise level re-fitted: kernel, noise, evidence."""
+    moved = evidence.moved_to(kernel, noise)
+    if moved.scale_positions() is None:
+        return kernel, noise, float(moved(moved.theta))
+    model = _ResonantModel(moved).optimized()
+    return model.kernel(), model.noise_level, model.value
 
 
 @dataclass
@@ -536,7 +765,7 @@ def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
     """
     while inputs:
         kernel, noise, result, value = _tune(
-            evidence.moved_to(kernel, noise), kernel, noise, random_state
+            evidence.moved_to(kernel, noise), kernel, noise, random_state, FINAL_EVALUATIONS
         )
         terms = _terms_of(kernel, inputs)
         gains = []
@@ -747,9 +976,9 @@ def _without_pk(kernel):
     return like_inputs([without_resonances(each) for each in input_kernels(kernel)], kernel)
 
 
-def _tune(evidence, kernel, noise, random_state):
+def _tune(evidence, kernel, noise, random_state, max_evaluations=None):
     """Tuned ``(kernel, noise, optimizer result, log evidence)`` from ``evidence``'s start."""
-    result = tuning.maximize(evidence, 0, random_state)
+    result = tuning.maximize(evidence, 0, random_state, max_evaluations)
     if result is None:
         return kernel, noise, None, float(evidence(evidence.theta))
     kernel, noise = evidence.split(result.x)

@@ -70,7 +70,7 @@ FISHER_MAX_OUTPUTS = 1000
 PRECISION_LBFGS_ABOVE = 200
 
 
-def maximize(evidence, n_restarts: int = 0, random_state=None):
+def maximize(evidence, n_restarts: int = 0, random_state=None, max_evaluations=None):
     """Maximize the log evidence over its ``theta``; the whole tuning strategy.
 
     Parameters
@@ -82,6 +82,11 @@ def maximize(evidence, n_restarts: int = 0, random_state=None):
         (log bounds of positive values, ``artanh`` bounds of correlations).
     random_state : int, RandomState, Generator or None
         Seed of the restarts.
+    max_evaluations : int, optional
+        A budget of evaluations per L-BFGS-B run (Fisher scoring, on small
+        problems, is not limited): a run that spends it stops there without
+        a :class:`~sklearn.exceptions.ConvergenceWarning` (a start already
+        near the optimum, whose last steps are not worth their cost).
 
     Returns
     -------
@@ -120,7 +125,8 @@ def maximize(evidence, n_restarts: int = 0, random_state=None):
             coupled = CorrelationScaleTransform(transform.indices, evidence.amplitude_couplings())
 
             def run(start):
-                return minimize_lbfgs(_negative(evidence), start, bounds, coupled)
+                return minimize_lbfgs(_negative(evidence), start, bounds, coupled,
+                                      max_evaluations)
 
         runs = [run(theta0)]
         rng = check_rng(random_state)
@@ -133,7 +139,8 @@ def maximize(evidence, n_restarts: int = 0, random_state=None):
             "check the kernel, its bounds and noise_level_bounds"
         )
     best = min(finite, key=lambda r: r.fun)
-    warn_if_not_converged(best)
+    if max_evaluations is None or best.nfev < max_evaluations:
+        warn_if_not_converged(best)
     return best
 
 
@@ -497,12 +504,19 @@ def resonance_window(theta, bounds, indices):
     return bounds
 
 
-def minimize_lbfgs(objective_and_gradient, theta0, bounds, transform=None):
-    """One bounded L-BFGS-B run in ``transform`` coordinates; returns the result in theta."""
+def minimize_lbfgs(objective_and_gradient, theta0, bounds, transform=None,
+                   max_evaluations=None):
+    """One bounded L-BFGS-B run in ``transform`` coordinates; returns the result in theta.
+
+    ``max_evaluations``: at most that many evaluations (``maxfun``).
+    """
+    options = dict(LBFGS_OPTIONS)
+    if max_evaluations is not None:
+        options["maxfun"] = int(max_evaluations)
     if transform is None:
         return optimize.minimize(
             objective_and_gradient, theta0, jac=True, method="L-BFGS-B",
-            bounds=bounds, options=LBFGS_OPTIONS,
+            bounds=bounds, options=options,
         )
 
     def in_z(z):
@@ -513,13 +527,14 @@ def minimize_lbfgs(objective_and_gradient, theta0, bounds, transform=None):
     z_bounds = transform.bounds(bounds)
     z0 = np.clip(transform.to_z(theta0), z_bounds[:, 0], z_bounds[:, 1])
     result = optimize.minimize(
-        in_z, z0, jac=True, method="L-BFGS-B", bounds=z_bounds, options=LBFGS_OPTIONS
+        in_z, z0, jac=True, method="L-BFGS-B", bounds=z_bounds, options=options
     )
     theta = transform.to_theta(result.x)
     result.x = np.clip(theta, bounds[:, 0], bounds[:, 1])
     if transform.couplings and not np.allclose(result.x, theta, 0.0, 1e-9):
         # a coupled amplitude left its bounds: polish the clipped point in plain coordinates
-        polished = minimize_lbfgs(objective_and_gradient, result.x, bounds, transform.plain())
+        polished = minimize_lbfgs(objective_and_gradient, result.x, bounds, transform.plain(),
+                                  max_evaluations)
         polished.nfev += result.nfev
         polished.nit += result.nit
         return polished

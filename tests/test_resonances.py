@@ -355,3 +355,106 @@ def test_no_resonance_is_searched_where_the_input_has_no_power():
     unexcited = gm.resonances.excitation(op.matrix, omegas) < gm.resonances.MIN_EXCITATION
     assert unexcited.any() and np.all(gain[:, unexcited] == 0.0)
     assert np.all(omegas[unexcited] > 0.25 * np.pi)
+
+
+# ------------------------------------------------------------ held-out check
+def _held_out_mean_by_refits(op, y, kernel, noise, folds):
+    """Each fold predicted by a GP conditioned on the other samples only (dense, no shortcut)."""
+    Phi = op.matrix
+    lags = np.arange(op.order, dtype=float)[:, None]
+    K = Phi @ kernel(lags) @ Phi.T
+    mean = np.empty_like(y)
+    for B in folds:
+        rest = np.setdiff1d(np.arange(y.shape[0]), B)
+        Ky = K[np.ix_(rest, rest)] + noise * np.eye(rest.size)
+        mean[B] = K[np.ix_(B, rest)] @ np.linalg.solve(Ky, y[rest])
+    return mean
+
+
+def test_held_out_check_drops_a_spurious_term_and_keeps_a_true_one():
+    from gpmultirate.crossvalidation import contiguous_folds
+    from gpmultirate.resonances import HELD_OUT_GAIN, held_out_resonances
+
+    op, y = _small_problem()
+    base = C(1.0) * DC(alpha=0.9, beta=0.9)
+    true = PK(alpha=0.97, omega=2.3, sigma1=1.0, sigma2=1.0)
+    spurious = PK(alpha=0.97, omega=1.1, sigma1=1.0, sigma2=1.0)
+    noise = 1e-4
+    check = held_out_resonances(op, y, base + true + spurious, noise, [0, 0], base, noise)
+    assert check["kept_terms"] == [0] and check["dropped"] == 1
+    # the fits are those of refits on the other folds, compared after the AR(4) filter that
+    # whitens the base kernel's held-out residuals (fitted here by its normal equations)
+    folds = contiguous_folds([op.n_outputs], 5)
+    base_mean = _held_out_mean_by_refits(op, y, base, noise, folds)
+    e = y - base_mean
+    lagged = np.column_stack([e[3 - k : e.size - 1 - k] for k in range(4)])
+    a = np.linalg.solve(lagged.T @ lagged, lagged.T @ e[4:])
+
+    def whitened_fit(mean):
+        def whiten(x):
+            return x[4:] - np.column_stack([x[3 - k : x.size - 1 - k] for k in range(4)]) @ a
+        return gm.fit_percent(whiten(y), whiten(mean))
+
+    for name, candidate in (("base", base), ("kept", base + true), ("found", base + true + spurious)):
+        expected = whitened_fit(_held_out_mean_by_refits(op, y, candidate, noise, folds))
+        assert check[name] == pytest.approx(expected, abs=1e-6)
+    assert check["kept"] > check["base"] + HELD_OUT_GAIN
+    assert check["kernel"].k2.omega == 2.3
+    # a term that only raises the fit within the margin is not kept
+    none = held_out_resonances(op, y, base + true, noise, [0], base, noise, margin=1e3)
+    assert none["kept_terms"] == [] and none["kernel"] is base
+    # more folds than slow samples: nothing to hold out, no check
+    assert held_out_resonances(op, y, base + true, noise, [0], base, noise, n_folds=500) is None
+
+
+def test_search_reports_the_held_out_check():
+    op, y = _small_problem(n=210, order=90)
+    found = search_resonances(op, y, C(1.0) * DC(), 1e-3, (1e-8, 1.0))
+    assert [round(r.frequency_hz * 2 * np.pi, 1) for r in found.resonances] == [2.3]
+    check = found.held_out
+    assert check["dropped"] == 0 and check["kept"] == check["found"] > check["base"]
+
+
+def test_tuning_budget_stops_early_without_a_warning():
+    from gpmultirate import tuning
+
+    rng = np.random.default_rng(3)
+    op = gm.DownsampledConvolution(rng.standard_normal(1500), factor=FACTOR, order=300)
+    y = op.matvec(0.9 ** np.arange(300)) + 0.01 * rng.standard_normal(op.n_outputs)
+    evidence = LogEvidence(op, y, C(1.0) * DC(alpha=0.7, beta=0.5), 1e-2, (1e-8, 10.0))
+    from sklearn.exceptions import ConvergenceWarning
+
+    full = tuning.maximize(evidence)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        short = tuning.maximize(evidence, max_evaluations=4)
+    assert short.nfev < full.nfev
+    # what it returns is the evidence at its point, better than the start and at most the optimum
+    assert -short.fun == pytest.approx(evidence(short.x), rel=1e-10)
+    assert evidence(evidence.theta) < -short.fun <= -full.fun + 1e-6
+
+
+@pytest.mark.slow
+def test_resonances_that_only_follow_a_disturbance_are_dropped():
+    """A smooth system under level steps: the search finds terms, the held-out check drops them.
+
+    Without the check the terms (slow, nearly undamped) follow the steps through the
+    input's history and the validation fit on a new record falls from about 90 % to 34 %.
+    """
+    rng = np.random.default_rng(0)
+    n = 900
+    u, u_val = (signal.lfilter([1], [1, -0.7], rng.standard_normal(n)) for _ in range(2))
+
+    def system(x):
+        return signal.lfilter([0.02, 0.02], [1, -1.8, 0.81], x)
+
+    y0 = system(u)
+    steps = np.repeat(rng.standard_normal(n // 100 + 1), 100)[:n]
+    y = y0 + 0.5 * np.std(y0) * steps / np.std(steps) + 0.01 * np.std(y0) * rng.standard_normal(n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = gm.FIRGaussianProcess(factor=FACTOR).fit(u, y[::FACTOR])
+        auto = gm.FIRGaussianProcess("auto", factor=FACTOR).fit(u, y[::FACTOR])
+    assert auto.resonances_ == []
+    fits = [gm.fit_percent(system(u_val), m.predict(u_val)) for m in (plain, auto)]
+    assert fits[1] >= fits[0] - 1.0 and fits[0] > 85.0
