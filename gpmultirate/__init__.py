@@ -20,7 +20,12 @@ from gpmultirate.responses import FrequencyResponse
 from gpmultirate.metrics import fit_percent, goodness_of_fit
 from gpmultirate.multioutput import MultiOutputFIR
 from gpmultirate.observed import ObservedKernel
-from gpmultirate.observations import DownsampledConvolution, SampledConvolution, TimedConvolution
+from gpmultirate.observations import (
+    DownsampledConvolution,
+    InterpolatedConvolution,
+    SampledConvolution,
+    TimedConvolution,
+)
 from gpmultirate.persistence import load_model, save_model
 
 __all__ = [
@@ -28,6 +33,7 @@ __all__ = [
     "FIRGaussianProcess",
     "FrequencyResponse",
     "IdentifiabilityError",
+    "InterpolatedConvolution",
     "LeastSquaresFIR",
     "ModelFileError",
     "MultiOutputFIR",

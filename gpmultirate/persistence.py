@@ -116,7 +116,12 @@ from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
 from gpmultirate.multioutput import MultiOutputFIR, stacked_coefficients
-from gpmultirate.observations import DownsampledConvolution, TimedConvolution, build_experiment
+from gpmultirate.observations import (
+    DownsampledConvolution,
+    InterpolatedConvolution,
+    TimedConvolution,
+    build_experiment,
+)
 from gpmultirate.observations.timed import QUADRATURE_NODES
 from gpmultirate.resonances import Resonance
 from gpmultirate.validation import check_n_jobs
@@ -308,6 +313,8 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         )
     check_is_fitted(model, "coef_")
     operator = model.observation_
+    if isinstance(operator, InterpolatedConvolution):  # the same readings, interpolated
+        operator = operator.timed
     if isinstance(operator, TimedConvolution):  # readings at their own instants
         version = 4
         fitted = {

@@ -582,8 +582,10 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
     try:
         # MATLAB's 25 lags, fewer for a short record
         max_lag = min(25, samples.values.shape[0] // 2)
-        analysis = analyze_residuals(model, u, samples.values, samples.indices,
-                                     max_lag=max(max_lag, 1))
+        times = getattr(samples, "sample_times", None)
+        analysis = analyze_residuals(model, u, samples.values,
+                                     None if times is not None else samples.indices,
+                                     sample_times=times, max_lag=max(max_lag, 1))
     except ValueError as error:
         notes.append(f"residuals.png was not written: {error}")
     report = fit_report(model, samples, file=file, inputs=inputs, output=output,

@@ -254,13 +254,17 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
     )
 
 
-def analyze_residuals(model, u, y_slow, sample_indices=None, *, max_lag: int = 25,
-                      input_lags=None, confidence: float = 0.99) -> ResidualAnalysis:
+def analyze_residuals(model, u, y_slow, sample_indices=None, *, sample_times=None,
+                      max_lag: int = 25, input_lags=None,
+                      confidence: float = 0.99) -> ResidualAnalysis:
     """Autocorrelation and input cross-correlations of a fitted model's slow residuals.
 
     The residuals are ``y_slow[m] - model.predict(u)[n_m]`` with
     ``n_m = offset + m * factor`` (the model's own ``factor`` and
-    ``offset``) or ``sample_indices[m]``.  With
+    ``offset``) or ``sample_indices[m]``; for readings at their own
+    instants, ``y_slow[m] - model.predict(u, sample_times=t)[m]`` (the
+    model's reading, exposure and latency applied), with ``n_m`` the tick
+    of ``t[m]`` for the cross-correlations.  With
     ``initial_conditions="discard"`` the samples the fit did not use (fast
     index below ``order - 1``) are left out, as are ``NaN`` samples.
 
@@ -276,6 +280,9 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, max_lag: int = 2
     sample_indices : array-like of int, optional
         Fast-sample index of each slow sample; ``factor`` and ``offset`` are
         then not used.
+    sample_times : array-like of float, optional
+        The instant of each slow sample in fast sample periods, as in
+        ``fit(..., sample_times=t)``; not with ``sample_indices``.
     max_lag : int, default=25
         Largest autocorrelation lag, in slow samples (also the number of
         lags of the Ljung-Box test).
@@ -323,7 +330,16 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, max_lag: int = 2
         raise ValueError(f"y_slow must be 1-D (one record); got shape {y.shape}")
     if np.any(np.isinf(y)):
         raise ValueError("y_slow must be finite or NaN (not measured)")
-    if sample_indices is None:
+    if sample_times is not None:
+        if sample_indices is not None:
+            raise ValueError("give sample_indices or sample_times, not both")
+        times = np.array(sample_times, dtype=float).reshape(-1)
+        if times.shape[0] != y.shape[0] or not np.all(np.isfinite(times)):
+            raise ValueError(f"sample_times must hold one finite instant per slow sample "
+                             f"({y.shape[0]}); got {np.shape(sample_times)}")
+        index = np.floor(times).astype(np.int64)
+        factor = max(1, int(round(float(np.median(np.diff(times)))))) if times.size > 1 else 1
+    elif sample_indices is None:
         factor, offset = model.factor, model.offset
         index = np.arange(offset, N, factor)
         if index.shape[0] != y.shape[0]:
@@ -342,8 +358,11 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, max_lag: int = 2
         steps = np.diff(index)
         if steps.size:
             factor = int(np.median(steps))
-    prediction = np.asarray(model.predict(x if x.shape[1] > 1 else x[:, 0]), dtype=float)
-    residuals = y - prediction[index]
+    inputs = x if x.shape[1] > 1 else x[:, 0]
+    if sample_times is not None:
+        residuals = y - np.asarray(model.predict(inputs, sample_times=times), dtype=float)
+    else:
+        residuals = y - np.asarray(model.predict(inputs), dtype=float)[index]
     if getattr(model, "initial_conditions", "zero") == "discard":
         order = int(np.asarray(model.coef_).shape[-1])
         residuals[index < order - 1] = np.nan

@@ -209,6 +209,24 @@ def test_sample_indices_and_discarded_samples():
     assert analyze_residuals(model.set_params(), u, with_gap, np.arange(0, N, 3)).n_residuals == 199
 
 
+def test_readings_at_their_own_instants():
+    rng = np.random.default_rng(11)
+    N = 240
+    u, y = _system(rng, N, 0.0 * rng.standard_normal(N))
+    times = np.arange(1, N - 3, 3) + rng.uniform(0.0, 1.0, 79)
+    g = np.convolve(u, np.ones(2))[:N]  # any readings: the residuals are what is checked
+    readings = np.interp(times, np.arange(N), g) + 0.01 * rng.standard_normal(times.shape[0])
+    model = gm.FIRGaussianProcess(order=20, exposure=0.3, noise_kernel="white").fit(
+        u, readings, sample_times=times)
+    a = analyze_residuals(model, u, readings, sample_times=times, input_lags=np.arange(3))
+    np.testing.assert_allclose(a.residuals, readings - model.predict(u, sample_times=times))
+    np.testing.assert_array_equal(a.sample_indices, np.floor(times).astype(int))
+    with pytest.raises(ValueError, match="not both"):
+        analyze_residuals(model, u, readings, np.floor(times).astype(int), sample_times=times)
+    with pytest.raises(ValueError, match="^sample_times"):
+        analyze_residuals(model, u, readings, sample_times=times[:-1])
+
+
 def test_arguments_are_checked_and_not_modified():
     rng = np.random.default_rng(11)
     u, y = _system(rng, 300, 0.05 * rng.standard_normal(300))

@@ -106,6 +106,21 @@ def test_tuned_model_round_trips_with_its_optimizer_result():
     assert refit.kernel_ == model.kernel_
 
 
+@pytest.mark.parametrize("exposure", [0.0, 0.5])
+def test_interpolated_readings_round_trip(exposure):
+    u, y, stamps = _record(4)
+    model = gm.FIRGaussianProcess(C(1.5) * DC(0.8, 0.5), order=P, exposure=exposure,
+                                  latency=0.3, between_ticks="interpolated", optimizer=None,
+                                  noise_level=1e-4)
+    model.fit(u, y, sample_times=stamps)
+    assert isinstance(model.observation_, gm.InterpolatedConvolution)
+    buffer, loaded = _saved_and_loaded(model)
+    assert _header(buffer)[0]["fitted"]["layout"] == "timed"
+    assert isinstance(loaded.observation_, gm.InterpolatedConvolution)
+    assert loaded.log_marginal_likelihood_value_ == model.log_marginal_likelihood_value_
+    _assert_same_predictions(model, loaded, u, np.array([1.5, 22.75]))
+
+
 def test_two_inputs_round_trip():
     # the readings share their offset from the ticks: the dense route of two inputs is quick
     records = [_record(4, n_inputs=2, between=0.5), _record(5, n_inputs=2, between=0.5)]
@@ -208,6 +223,7 @@ def _camera_files(tmp_path, n=300):
 @pytest.mark.slow  # the figures of the fit take most of its 15 s
 def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
     from gpmultirate.io import read_slow_log
+    from gpmultirate.residuals import analyze_residuals
 
     u, y, _, fast, slow = _camera_files(tmp_path)
     out = tmp_path / "fit"
@@ -216,6 +232,8 @@ def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
                  "--order", str(P), "--kernel", "dc", "--out", str(out), "--quiet"]) == 0
     assert "not written" not in capsys.readouterr().err
     model = gm.load_model(out / "model.npz")
+    # the residuals are those of the readings at their instants (exposure and latency applied)
+    assert (out / "residuals.png").exists()
     assert (model.exposure, model.latency, model.sample_time) == (0.5, 0.2, T)
     # the saved model is the fit of the library on the same data
     stamps = read_slow_log(slow, "t", sample_time=T, n_samples=u.shape[0]).sample_times
@@ -225,6 +243,9 @@ def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
     assert np.isclose(summary["model"]["log_evidence"], direct.log_marginal_likelihood_value_,
                       rtol=1e-9)
     np.testing.assert_allclose(model.coef_, direct.coef_, rtol=1e-7, atol=1e-9)
+    whiteness = analyze_residuals(direct, u, y, sample_times=stamps, max_lag=25)
+    assert summary["model"]["noise"]["ljung_box_p_value"] == pytest.approx(whiteness.p_value,
+                                                                  rel=1e-6)
     # readings at the instants of another log, with their bands, as the library gives them
     other = tmp_path / "frames.csv"
     instants = np.array([10.25, 57.5, 123.875, 250.0])

@@ -157,6 +157,16 @@ class InterpolatedConvolution(Observation):
         """The fast-rate input of the first record."""
         return self.timed.u
 
+    @property
+    def n_samples(self) -> int:
+        """The length of the longest record."""
+        return self.timed.n_samples
+
+    @property
+    def slow_factor(self) -> int:
+        """The ratio of the fast to the slow rate, as the timed readings give it."""
+        return self.timed.slow_factor
+
     def _windows(self, part):
         """The fast regressor rows of a record as a view: row ``n`` is ``x[n - k]``, ``k < P``."""
         periodic = part.initial_conditions == "periodic"
