@@ -24,7 +24,10 @@ terms one at a time, greedily:
    tuned log evidence minus that of the model without it (scale and noise
    refitted); while a term gains at most :data:`EVIDENCE_THRESHOLD` nats
    or is not resonant, the weakest is removed and the rest tuned again;
-4. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
+4. **slow-rate twins** (:func:`alias_twins`): a term at ``k / F +- f`` of a
+   stronger one at ``f`` on the same input shows at the same slow-rate
+   frequency; the slow samples cannot tell them apart, and it is dropped;
+5. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
    model, and on measured data a term can raise it by fitting a
    disturbance that does not repeat.  The slow samples are cut into
    contiguous blocks over time (as for ``tuning="cross_validation"``) and
