@@ -44,6 +44,7 @@ from sklearn.gaussian_process.kernels import (
 )
 
 __all__ = [
+    "AR1_DISTURBANCE",
     "NAMED_DISTURBANCES",
     "AR1Noise",
     "AR1Statistics",
@@ -60,6 +61,10 @@ __all__ = [
 
 #: The named disturbances of ``make_noise``: Matérn smoothness ``nu`` of each.
 NAMED_DISTURBANCES = {"matern12": 0.5, "matern32": 1.5}
+#: The named choice of a pure AR(1) noise ``C * Matern(nu=0.5)`` without white
+#: noise: on one uniform grid with more samples than coefficients it is tuned
+#: through its tridiagonal precision (:class:`gpmultirate.covariance.AR1Covariance`).
+AR1_DISTURBANCE = "ar1"
 
 LOG_2PI = np.log(2.0 * np.pi)
 
@@ -934,13 +939,16 @@ def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
 
     Parameters
     ----------
-    noise_kernel : "white", "matern12", "matern32" or sklearn Kernel
+    noise_kernel : "white", "matern12", "matern32", "ar1" or sklearn Kernel
         ``"white"``: ``gamma I`` (:class:`gpmultirate.covariance.WhiteNoise`).
         ``"matern12"``/``"matern32"``: white noise plus
         ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the instants, the
         constant started at ``noise_level`` with the noise level's bounds.
+        ``"ar1"``: ``C * Matern(length_scale, nu=1/2)`` alone (no white
+        noise), an AR(1) process on a uniform grid.
         A kernel: a disturbance over the instants, added to white noise of
-        ``noise_level`` unless it holds a ``WhiteKernel`` summand itself.
+        ``noise_level`` unless it holds a ``WhiteKernel`` summand itself or
+        is the AR(1) form ``[C *] Matern(nu=0.5)``, used as it is.
     noise_level : float
         The white noise variance ``gamma`` (the start when it is tuned).
     noise_level_bounds : pair of floats or "fixed"
@@ -961,6 +969,8 @@ def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
     WhiteKernel(noise_level=0.1) + 0.316**2 * Matern(length_scale=10, nu=1.5)
     >>> type(make_noise("white", 0.1, "fixed", np.arange(5))).__name__
     'WhiteNoise'
+    >>> round(make_noise("ar1", 0.1, (1e-3, 1.0), np.arange(5) * 3.0).structure().pole, 4)
+    0.7408
     """
     from gpmultirate.covariance import WhiteNoise
 
@@ -971,18 +981,20 @@ def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
     if isinstance(noise_kernel, str):
         if noise_kernel == "white":
             return WhiteNoise(gamma, bounds)
-        if noise_kernel not in NAMED_DISTURBANCES:
+        if noise_kernel not in NAMED_DISTURBANCES and noise_kernel != AR1_DISTURBANCE:
             raise ValueError(
-                f"noise_kernel must be 'white', {', '.join(map(repr, NAMED_DISTURBANCES))} or a "
-                f"scikit-learn kernel; got {noise_kernel!r}"
+                f"noise_kernel must be 'white', {', '.join(map(repr, NAMED_DISTURBANCES))}, "
+                f"{AR1_DISTURBANCE!r} or a scikit-learn kernel; got {noise_kernel!r}"
             )
         disturbance = ConstantKernel(gamma, bounds) * Matern(
             length_scale, "fixed" if isinstance(bounds, str) else (1.0, 1e4),
-            nu=NAMED_DISTURBANCES[noise_kernel])
+            nu=NAMED_DISTURBANCES.get(noise_kernel, 0.5))
+        if noise_kernel == AR1_DISTURBANCE:
+            return KernelNoise(disturbance, instants)
         return KernelNoise(WhiteKernel(gamma, bounds) + disturbance, instants)
     if not isinstance(noise_kernel, Kernel):
         raise ValueError(f"noise_kernel must be 'white', a named disturbance or a scikit-learn "
                          f"kernel; got {type(noise_kernel).__name__}")
-    if _has_white(noise_kernel):
+    if _has_white(noise_kernel) or _exponential_parts(noise_kernel) is not None:
         return KernelNoise(noise_kernel, instants)
     return KernelNoise(WhiteKernel(gamma, bounds) + noise_kernel, instants)
