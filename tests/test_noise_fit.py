@@ -392,3 +392,15 @@ def test_ar1_posterior_at_real_lags_against_the_dense_route(monkeypatch):
     ref_mean, ref_std = dense.impulse_response(lags, return_std=True)
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-8, atol=1e-10 * np.abs(ref_mean).max())
     np.testing.assert_allclose(std, ref_std, rtol=1e-8)
+
+
+def test_summary_of_an_ar1_noise_has_no_white_part():
+    from gpmultirate.report import noise_summary
+
+    u, y = _data(1)
+    model = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="ar1").fit(u, y)
+    noise = noise_summary(model)
+    assert noise["white_level"] == 0.0
+    assert noise["disturbance_level"] == pytest.approx(model.noise_kernel_.k1.constant_value,
+                                                       rel=1e-12)
+    assert noise["time_scale"]["k2__length_scale"] == model.noise_kernel_.k2.length_scale
