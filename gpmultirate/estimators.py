@@ -706,21 +706,30 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         more readings than coefficients and than 1,000 (where the exact
         route's ``M x M`` covariance costs many seconds per evaluation),
         exact otherwise.
-    noise_kernel : "auto", "white", "matern12", "matern32" or sklearn Kernel, default="auto"
+    noise_kernel : "auto", "white", "matern12", "matern32", "ar1" or sklearn Kernel, default="auto"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
         ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the samples'
         instants in fast samples (``Matern(length_scale=10)`` spans ten fast
-        samples).  A kernel: a disturbance over the instants (a periodic one
-        with ``ExpSineSquared``), added to white noise unless it holds a
-        ``WhiteKernel``.  A disturbance is tuned with everything else by the
-        evidence, starting from the white fit, on the samples themselves
-        (the data-space route: ``O(M^3)`` per evaluation).  ``"auto"`` fits
+        samples).  ``"ar1"``: ``C * Matern(length_scale, nu=1/2)`` alone, no
+        white part (an AR(1) process on a uniform grid).  A kernel: a
+        disturbance over the instants (a periodic one with
+        ``ExpSineSquared``), added to white noise unless it holds a
+        ``WhiteKernel`` or is ``[C *] Matern(nu=0.5)`` alone.  A disturbance
+        is tuned with everything else by the evidence, starting from the
+        white fit, on the samples themselves (the data-space route:
+        ``O(M^3)`` per evaluation); an AR(1) one on one uniform grid with
+        more samples than coefficients through its tridiagonal precision
+        instead (:class:`~gpmultirate.covariance.AR1Covariance`: ``O(M P^2)``
+        once, ``O(P^3)`` per evaluation).  ``"auto"`` fits
         white first and keeps it unless the data call for more: when the
         order covers the data's memory and a fixed Matérn disturbance at the
         tuned prior gains ``AUTO_NOISE_GATE`` (3) nats of evidence, it tunes
-        Matérn 1/2 and 3/2 disturbances and keeps the better one only when
-        its log evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
+        Matérn 1/2 and 3/2 disturbances (beyond ``AUTO_NOISE_DENSE_GATE``
+        (1000) slow samples on one uniform grid, more than the
+        coefficients: the AR(1) disturbance ``"ar1"`` instead) and keeps the
+        better one only when its log evidence exceeds white's by
+        ``AUTO_NOISE_MARGIN`` (10) nats.
         An explicit disturbance is not allowed with
         ``tuning="cross_validation"`` (``"auto"`` is white there, and with
         ``optimizer=None``, where nothing is tuned).  See
@@ -765,7 +774,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The kernel with the tuned hyperparameters.
     noise_level_ : float
         The tuned (or given) white noise variance (the ``WhiteKernel`` part
-        of a disturbance model).
+        of a disturbance model; for a disturbance without one, ``"ar1"``,
+        the level of the white-noise fit it started from).
     noise_kernel_ : "white" or sklearn Kernel
         The fitted noise: ``"white"``, or the tuned noise kernel over the
         instants (white part included), such as
