@@ -404,3 +404,29 @@ def test_summary_of_an_ar1_noise_has_no_white_part():
     assert noise["disturbance_level"] == pytest.approx(model.noise_kernel_.k1.constant_value,
                                                        rel=1e-12)
     assert noise["time_scale"]["k2__length_scale"] == model.noise_kernel_.k2.length_scale
+
+
+def test_auto_on_a_long_drifting_record_tunes_the_ar1_disturbance(monkeypatch):
+    """Beyond 1000 slow samples on one grid: "ar1", never an M x M factorization."""
+    import gpmultirate.covariance as covariance
+
+    rng = np.random.default_rng(12)
+    n = 3 * 1100
+    u = rng.standard_normal(n)
+    drift = np.cumsum(0.05 * rng.standard_normal(n))
+    y = (np.convolve(u, 0.6 ** np.arange(20))[:n] + drift + 0.05 * rng.standard_normal(n))[::3]
+    original = covariance.robust_cholesky
+
+    def small_only(A, *args, **kwargs):
+        assert A.shape[0] < 1100, "a dense M x M factorization"
+        return original(A, *args, **kwargs)
+
+    monkeypatch.setattr(covariance, "robust_cholesky", small_only)
+    auto = FIRGaussianProcess(factor=FACTOR, order=40).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=40, noise_kernel="white").fit(u, y)
+    ar1 = FIRGaussianProcess(factor=FACTOR, order=40, noise_kernel="ar1").fit(u, y)
+    assert repr(auto.noise_kernel_) == repr(ar1.noise_kernel_)
+    assert "WhiteKernel" not in repr(auto.noise_kernel_)
+    assert auto.log_marginal_likelihood_value_ == pytest.approx(
+        ar1.log_marginal_likelihood_value_, rel=1e-12)
+    assert auto.log_marginal_likelihood_value_ > white.log_marginal_likelihood_value_ + 10
