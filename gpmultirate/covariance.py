@@ -756,6 +756,24 @@ class AR1Covariance(DataCovariance):
         The noise model whose ``structure()`` is ``ar1``.
     remainder : Remainder
     ar1 : AR1Noise
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C, Matern
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import TC
+    >>> from gpmultirate.noise import KernelNoise, dense_log_evidence, noise_instants
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(120), factor=3, order=10)
+    >>> y = rng.standard_normal(op.n_outputs)
+    >>> noise = KernelNoise(C(0.5) * Matern(6.0, nu=0.5), noise_instants(op))
+    >>> covariance = data_covariance(TC(0.7), op, noise)
+    >>> type(covariance).__name__
+    'AR1Covariance'
+    >>> reference = dense_log_evidence(op.matrix, TC(0.7)(op.lags), y, noise.matrix())
+    >>> bool(np.isclose(covariance.log_likelihood(y), reference, rtol=1e-10))
+    True
     """
 
     def __init__(self, term, noise, remainder, ar1):
