@@ -74,7 +74,7 @@ EXAMPLES = {"robot-arm": ("robot_arm_csv", ("u",), "y_slow")}
 FIT_FILES = ("model.npz", "bode.png", "impulse.png", "intersample.png", "residuals.png",
              "summary.json", "summary.md", "state_space.npz")
 #: Choices of ``gpmultirate fit --noise`` (``FIRGaussianProcess(noise_kernel=...)``).
-FIT_NOISES = ("white", "auto", "matern12", "matern32")
+FIT_NOISES = ("white", "auto", "matern12", "matern32", "ar1")
 FIT_OUT = "gpmultirate-fit"
 PREDICT_OUT = "gpmultirate-prediction.csv"
 
@@ -130,8 +130,9 @@ def _add_fit_parser(commands) -> None:
                           "amplitude, or auto (resonances found from the data) "
                           "(default: dc)")
     fit.add_argument("--noise", choices=FIT_NOISES, default="auto",
-                     help="noise of the slow samples: white, or white plus a Matern 1/2 or "
-                          "3/2 disturbance over time tuned by the evidence; auto keeps a "
+                     help="noise of the slow samples: white, white plus a Matern 1/2 or "
+                          "3/2 disturbance over time, or an AR(1) one alone (ar1), tuned by "
+                          "the evidence; auto keeps a "
                           "disturbance only where the evidence clearly calls for it "
                           "(default: auto)")
     fit.add_argument("--initial-conditions", choices=("zero", "discard", "periodic"),

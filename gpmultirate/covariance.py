@@ -42,6 +42,7 @@ The Gaussian log density is written once, in :func:`log_gaussian`.
 from __future__ import annotations
 
 import warnings
+import weakref
 
 import numpy as np
 from scipy import linalg
@@ -50,6 +51,7 @@ from gpmultirate.exceptions import NotPositiveDefinite, NumericalWarning
 from gpmultirate.kernels import observe
 
 __all__ = [
+    "AR1Covariance",
     "DataCovariance",
     "DenseCovariance",
     "ParameterSpaceCovariance",
@@ -711,6 +713,155 @@ class ParameterSpaceCovariance(DataCovariance):
         return quad, log_det
 
 
+#: the ``O(M P^2)`` products of the regressor that :class:`AR1Covariance` reuses:
+#: ``(weak references to the observation and its regressor, the records' sizes, products)``
+_AR1_GRAMS: list = []
+
+
+def _ar1_gram(observation, Phi, ar1):
+    """The :class:`~gpmultirate.noise.AR1Statistics` Gram of ``Phi``, formed once per observation."""
+    counts = tuple(ar1.counts)
+    for ref, matrix, sizes, gram in _AR1_GRAMS:
+        if ref() is observation and matrix() is Phi and sizes == counts:
+            return gram
+    gram = ar1.statistics(Phi, np.zeros(Phi.shape[0])).gram
+    _AR1_GRAMS.insert(0, (weakref.ref(observation), weakref.ref(Phi), counts, gram))
+    del _AR1_GRAMS[4:]
+    return gram
+
+
+class AR1Covariance(DataCovariance):
+    """``S + N`` for AR(1) noise ``N`` (a Matérn 1/2 disturbance on one uniform grid), ``M > P``.
+
+    The noise's precision ``Q = T(a) / q`` is tridiagonal, so prewhitening
+    the data and the regressor is exact: the problem is a white-noise one in
+    the parameter space.  With ``G = Phi^T Q Phi``, ``b = Phi^T Q y``,
+    ``c = y^T Q y`` (combinations of products formed once in ``O(M P^2)``,
+    :class:`~gpmultirate.noise.AR1Statistics`), ``K = F F^T`` and
+    ``C = I + F^T G F = R^T R``:
+
+    * ``y^T Ky^{-1} y = c - |R^{-T} F^T b|^2``;
+    * ``log det Ky = log det N + log det C``;
+
+    each evaluation costs ``O(P^3)``, none ``O(M^3)``.  The posterior of
+    ``g = F z`` has mean ``F C^{-1} F^T b`` and covariance ``F C^{-1} F^T``:
+    the attributes of :class:`ParameterSpaceCovariance` (``F``,
+    ``inv_root``, ``R``, :meth:`whitened_coefficients`), so
+    :class:`~gpmultirate.inference.ParameterSpacePosterior` answers it.
+
+    Parameters
+    ----------
+    term : ObservedTerm
+    noise : KernelNoise
+        The noise model whose ``structure()`` is ``ar1``.
+    remainder : Remainder
+    ar1 : AR1Noise
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C, Matern
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import TC
+    >>> from gpmultirate.noise import KernelNoise, dense_log_evidence, noise_instants
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(120), factor=3, order=10)
+    >>> y = rng.standard_normal(op.n_outputs)
+    >>> noise = KernelNoise(C(0.5) * Matern(6.0, nu=0.5), noise_instants(op))
+    >>> covariance = data_covariance(TC(0.7), op, noise)
+    >>> type(covariance).__name__
+    'AR1Covariance'
+    >>> reference = dense_log_evidence(op.matrix, TC(0.7)(op.lags), y, noise.matrix())
+    >>> bool(np.isclose(covariance.log_likelihood(y), reference, rtol=1e-10))
+    True
+    """
+
+    def __init__(self, term, noise, remainder, ar1):
+        super().__init__(term, noise, remainder)
+        self.ar1 = ar1
+        observation = self.observation
+        Phi = observation.matrix
+        self.Phi = Phi
+        K = term.kernel_matrix()
+        values, vectors = linalg.eigh(0.5 * (K + K.T), check_finite=False)
+        keep = values > max(values.max(), 0.0) * 1e-14
+        if not np.any(keep):
+            raise ValueError("the kernel matrix is zero at lags 0..order-1")
+        self.K = K
+        self.inv_root = vectors[:, keep] / np.sqrt(values[keep])  # F^{+T}
+        self.F = vectors[:, keep] * np.sqrt(values[keep])
+        self.gram = _ar1_gram(observation, Phi, ar1)
+        a, q = ar1.pole, ar1.innovation_variance
+        plain, interior, off = self.gram
+        self.G = (plain + a * a * interior - a * off) / q
+        C = self.F.T @ self.G @ self.F
+        C[np.diag_indices_from(C)] += 1.0
+        try:
+            self.R = linalg.cholesky(C, lower=False, check_finite=False)
+        except linalg.LinAlgError as error:
+            raise NotPositiveDefinite(str(error)) from None
+        self._solved = None
+
+    def _of(self, y: np.ndarray):
+        """``(statistics, b, c, v, z)`` for ``y``, kept for the last ``y``."""
+        if self._solved is None or self._solved[0] is not y:
+            statistics = self.ar1.statistics(self.Phi, y, self.gram)
+            _, bt, ct = statistics.quadratic_forms(self.ar1.pole)
+            q = self.ar1.innovation_variance
+            b, c = bt / q, ct / q
+            v = linalg.solve_triangular(self.R, self.F.T @ b, trans="T", check_finite=False)
+            z = linalg.solve_triangular(self.R, v, check_finite=False)
+            self._solved = (y, (statistics, b, c, v, z))
+        return self._solved[1]
+
+    def whitened_coefficients(self, y: np.ndarray) -> np.ndarray:
+        """The posterior mean of ``z`` (``g = F z``)."""
+        return self._of(y)[4]
+
+    def _apply_precision(self, b: np.ndarray) -> np.ndarray:
+        d, o = self.ar1.precision()
+        out = d.reshape((-1,) + (1,) * (b.ndim - 1)) * b
+        o = o.reshape((-1,) + (1,) * (b.ndim - 1))
+        out[:-1] += o * b[1:]
+        out[1:] += o * b[:-1]
+        return out
+
+    def solve(self, b):
+        # Ky^{-1} b = Q b - Q Phi F C^{-1} F^T Phi^T Q b
+        Qb = self._apply_precision(np.asarray(b, dtype=float))
+        PhiF = self.Phi @ self.F
+        inner = linalg.solve_triangular(self.R, PhiF.T @ Qb, trans="T", check_finite=False)
+        inner = linalg.solve_triangular(self.R, inner, check_finite=False)
+        return Qb - self._apply_precision(PhiF @ inner)
+
+    def inv_quad_logdet(self, y):
+        _, _, c, v, _ = self._of(y)
+        log_det = self.ar1.log_det() + 2.0 * np.log(np.diag(self.R)).sum()
+        return float(c - v @ v), float(log_det)
+
+    def log_likelihood_gradient(self, y):
+        """The log evidence and its gradient (the kernel's, then the noise's), in ``O(P^3)``.
+
+        With ``mu``, ``Sigma`` the posterior: the kernel's entries are
+        ``1/2 (beta^T dK_j beta - tr(H dK_j))``, ``beta = b - G mu``,
+        ``H = G - G Sigma G``; the noise's
+        :meth:`~gpmultirate.noise.AR1Noise.evidence_gradient`.
+        """
+        value = self.log_likelihood(y)
+        statistics, b, _, _, z = self._of(y)
+        mu = self.F @ z
+        root = linalg.solve_triangular(self.R, self.F.T, trans="T", check_finite=False)
+        Sigma = root.T @ root
+        beta = b - self.G @ mu
+        GS = self.G @ Sigma
+        H = self.G - GS @ self.G
+        _, contract = self.term.parameter_contractor()
+        grad = 0.5 * np.asarray(contract(np.outer(beta, beta) - H), dtype=float)
+        if self.noise.is_free:
+            grad = np.append(grad, self.ar1.evidence_gradient(statistics, mu, Sigma))
+        return value, grad
+
+
 class SpectralCovariance:
     """``c S + gamma I``, and a low-rank update of it, for any ``c`` and ``gamma``.
 
@@ -800,6 +951,12 @@ def data_covariance(kernel, observation, noise, derivatives: str | None = None,
     """
     term = observe(kernel, observation)
     remainder = noise.remainder(observation)
+    ar1 = _ar1_structure(observation, noise)
+    if ar1 is not None and derivatives != "matrices":
+        try:
+            return AR1Covariance(term, noise, remainder, ar1)
+        except NotPositiveDefinite:
+            pass
     if derivatives != "matrices" and _precision_applies(observation, noise, space):
         precision = term.precision()
         if precision is not None:
@@ -810,6 +967,26 @@ def data_covariance(kernel, observation, noise, derivatives: str | None = None,
     if space == "posterior" and observation.n_discarded > 0:
         return ParameterSpaceCovariance(term, noise, remainder)
     return DenseCovariance._of_term(term, noise, remainder, derivatives)
+
+
+def _ar1_structure(observation, noise):
+    """The AR(1) form of a coloured noise model on a long record (``M > P``), or None.
+
+    So it is for a noise model whose ``structure()`` is an
+    :class:`~gpmultirate.noise.AR1Noise` (a pure ``C * Matern(nu=0.5)``
+    disturbance on one uniform grid), on data that are not a reduction and
+    have more samples than coefficients: there :class:`AR1Covariance` keeps
+    the long-record cost.
+    """
+    if noise.white or getattr(observation, "n_discarded", 0) > 0:
+        return None
+    if observation.n_outputs <= observation.n_coefficients:
+        return None
+    structure = getattr(noise, "structure", None)
+    ar1 = structure() if structure is not None else None
+    if ar1 is None or ar1.n_samples != observation.n_outputs:
+        return None
+    return ar1
 
 
 def _precision_applies(observation, noise, space: str) -> bool:

@@ -50,6 +50,7 @@ from gpmultirate.kernels import (
 )
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.noise import (
+    AR1_DISTURBANCE,
     NAMED_DISTURBANCES,
     ar1_evidence_gain,
     disturbance_evidence_gain,
@@ -509,12 +510,38 @@ def _check_noise_kernel(noise_kernel):
     """``noise_kernel`` checked: ``"white"``, a named disturbance or a scikit-learn kernel."""
     if isinstance(noise_kernel, Kernel):
         return noise_kernel
-    if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white")
+    if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white", AR1_DISTURBANCE)
                                           or noise_kernel in NAMED_DISTURBANCES):
         return noise_kernel
-    names = ", ".join(repr(name) for name in ("auto", "white", *NAMED_DISTURBANCES))
+    names = ", ".join(repr(name) for name in ("auto", "white", *NAMED_DISTURBANCES,
+                                              AR1_DISTURBANCE))
     raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
                      f"got {noise_kernel!r}")
+
+
+def _takes_ar1_route(operator) -> bool:
+    """Whether ``noise_kernel="auto"`` tunes an AR(1) disturbance instead of dense Matérn ones.
+
+    So it does for more than ``AUTO_NOISE_DENSE_GATE`` slow samples, more
+    than the coefficients, on one uniform grid: there the AR(1) noise is
+    tuned through its tridiagonal precision
+    (:class:`~gpmultirate.covariance.AR1Covariance`) and the dense route's
+    ``M x M`` factorizations would dominate the fit.
+    """
+    if operator.n_outputs <= max(AUTO_NOISE_DENSE_GATE, operator.n_coefficients):
+        return False
+    return _is_ar1(AR1_DISTURBANCE, operator)
+
+
+def _is_ar1(choice, operator) -> bool:
+    """Whether the noise ``choice`` takes the AR(1) route on ``operator``."""
+    try:
+        noise = make_noise(choice, 1.0, (1e-5, 1e5), noise_instants(operator))
+    except ValueError:
+        return False
+    structure = getattr(noise, "structure", None)
+    return (structure is not None and structure() is not None
+            and operator.n_outputs > operator.n_coefficients)
 
 
 def _check_tuning(tuning_criterion) -> str:
@@ -679,21 +706,30 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         more readings than coefficients and than 1,000 (where the exact
         route's ``M x M`` covariance costs many seconds per evaluation),
         exact otherwise.
-    noise_kernel : "auto", "white", "matern12", "matern32" or sklearn Kernel, default="auto"
+    noise_kernel : "auto", "white", "matern12", "matern32", "ar1" or sklearn Kernel, default="auto"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
         ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the samples'
         instants in fast samples (``Matern(length_scale=10)`` spans ten fast
-        samples).  A kernel: a disturbance over the instants (a periodic one
-        with ``ExpSineSquared``), added to white noise unless it holds a
-        ``WhiteKernel``.  A disturbance is tuned with everything else by the
-        evidence, starting from the white fit, on the samples themselves
-        (the data-space route: ``O(M^3)`` per evaluation).  ``"auto"`` fits
+        samples).  ``"ar1"``: ``C * Matern(length_scale, nu=1/2)`` alone, no
+        white part (an AR(1) process on a uniform grid).  A kernel: a
+        disturbance over the instants (a periodic one with
+        ``ExpSineSquared``), added to white noise unless it holds a
+        ``WhiteKernel`` or is ``[C *] Matern(nu=0.5)`` alone.  A disturbance
+        is tuned with everything else by the evidence, starting from the
+        white fit, on the samples themselves (the data-space route:
+        ``O(M^3)`` per evaluation); an AR(1) one on one uniform grid with
+        more samples than coefficients through its tridiagonal precision
+        instead (:class:`~gpmultirate.covariance.AR1Covariance`: ``O(M P^2)``
+        once, ``O(P^3)`` per evaluation).  ``"auto"`` fits
         white first and keeps it unless the data call for more: when the
         order covers the data's memory and a fixed Matérn disturbance at the
         tuned prior gains ``AUTO_NOISE_GATE`` (3) nats of evidence, it tunes
-        Matérn 1/2 and 3/2 disturbances and keeps the better one only when
-        its log evidence exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
+        Matérn 1/2 and 3/2 disturbances (beyond ``AUTO_NOISE_DENSE_GATE``
+        (1000) slow samples on one uniform grid, more than the
+        coefficients: the AR(1) disturbance ``"ar1"`` instead) and keeps the
+        better one only when its log evidence exceeds white's by
+        ``AUTO_NOISE_MARGIN`` (10) nats.
         An explicit disturbance is not allowed with
         ``tuning="cross_validation"`` (``"auto"`` is white there, and with
         ``optimizer=None``, where nothing is tuned).  See
@@ -738,7 +774,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         The kernel with the tuned hyperparameters.
     noise_level_ : float
         The tuned (or given) white noise variance (the ``WhiteKernel`` part
-        of a disturbance model).
+        of a disturbance model; for a disturbance without one, ``"ar1"``,
+        the level of the white-noise fit it started from).
     noise_kernel_ : "white" or sklearn Kernel
         The fitted noise: ``"white"``, or the tuned noise kernel over the
         instants (white part included), such as
@@ -1194,9 +1231,16 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                     settings.noise_kernel != "auto" or self._calls_for_disturbance(
                         experiment, kernel, noise, check_tail=not settings.order_from_data)):
                 # the disturbance is tuned with everything else, from the white fit
-                check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
-                choices = (list(NAMED_DISTURBANCES) if settings.noise_kernel == "auto"
-                           else [self._noise_kernel_in_fit_units(settings)])
+                if settings.noise_kernel != "auto":
+                    choices = [self._noise_kernel_in_fit_units(settings)]
+                elif _takes_ar1_route(operator):
+                    # a long record on one uniform grid: the AR(1) disturbance keeps the
+                    # long-record cost where the dense Matérn ones need M x M matrices
+                    choices = [AR1_DISTURBANCE]
+                else:
+                    choices = list(NAMED_DISTURBANCES)
+                if not (len(choices) == 1 and _is_ar1(choices[0], operator)):
+                    check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
                 best = None
                 for choice in choices:
                     tried = self._fit_disturbance(operator, y, kernel, noise, noise_bounds,
@@ -1208,7 +1252,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                         posterior.log_marginal_likelihood + AUTO_NOISE_MARGIN:
                     evidence, kernel, noise_model, posterior, result = best
                     optimizer_result = result if result is not None else optimizer_result
-                    noise = noise_model.level
+                    # a disturbance without white noise (AR(1)) keeps the white fit's level
+                    noise = noise_model.level or noise
         moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
         if optimizer_result is not None:
             tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))

@@ -37,6 +37,7 @@ from threadpoolctl import ThreadpoolController
 
 from gpmultirate.covariance import (
     LOG_2PI,
+    AR1Covariance,
     DenseCovariance,
     ParameterSpaceCovariance,
     PrecisionCovariance,
@@ -393,6 +394,7 @@ _POSTERIORS = {
     DenseCovariance: DataSpacePosterior,
     PrecisionCovariance: PrecisionPosterior,
     ParameterSpaceCovariance: ParameterSpacePosterior,
+    AR1Covariance: ParameterSpacePosterior,
 }
 
 
@@ -720,4 +722,4 @@ class LogEvidence(TuningObjective):
         if noise_level.white:
             return posterior(self.data, kernel, noise_level.level, self.z)
         covariance = data_covariance(kernel, self.data, noise_level, space="posterior")
-        return DataSpacePosterior(covariance, self.z)
+        return _POSTERIORS[type(covariance)](covariance, self.z)

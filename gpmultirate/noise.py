@@ -44,6 +44,7 @@ from sklearn.gaussian_process.kernels import (
 )
 
 __all__ = [
+    "AR1_DISTURBANCE",
     "NAMED_DISTURBANCES",
     "AR1Noise",
     "AR1Statistics",
@@ -60,6 +61,10 @@ __all__ = [
 
 #: The named disturbances of ``make_noise``: Matérn smoothness ``nu`` of each.
 NAMED_DISTURBANCES = {"matern12": 0.5, "matern32": 1.5}
+#: The named choice of a pure AR(1) noise ``C * Matern(nu=0.5)`` without white
+#: noise: on one uniform grid with more samples than coefficients it is tuned
+#: through its tridiagonal precision (:class:`gpmultirate.covariance.AR1Covariance`).
+AR1_DISTURBANCE = "ar1"
 
 LOG_2PI = np.log(2.0 * np.pi)
 
@@ -299,6 +304,9 @@ class AR1Noise:
             raise ValueError("variance, length_scale and spacing must be positive")
         self.variance_bounds = variance_bounds
         self.length_scale_bounds = length_scale_bounds
+        #: whether the variance comes before the length scale in ``theta``
+        #: (``C * Matern``; ``Matern * C`` puts the length scale first)
+        self.variance_first = True
 
     @classmethod
     def from_kernel(cls, kernel, instants) -> "AR1Noise | None":
@@ -311,9 +319,11 @@ class AR1Noise:
         if steps.size == 0 or np.ptp(steps) > 1e-9 * abs(steps[0]) or steps[0] <= 0:
             return None
         constant, matern = parts
-        return cls(constant.constant_value, matern.length_scale, steps[0],
-                   [t.shape[0] for t in blocks], constant.constant_value_bounds,
-                   matern.length_scale_bounds)
+        noise = cls(constant.constant_value, matern.length_scale, steps[0],
+                    [t.shape[0] for t in blocks], constant.constant_value_bounds,
+                    matern.length_scale_bounds)
+        noise.variance_first = not (isinstance(kernel, Product) and kernel.k1 is matern)
+        return noise
 
     # ---------------------------------------------------------- parameters
     @property
@@ -340,13 +350,12 @@ class AR1Noise:
 
     @property
     def theta(self) -> np.ndarray:
-        values = np.log([self.variance, self.length_scale])
-        return values[self._free()]
+        return np.log(np.array(self.in_theta_order(self.variance, self.length_scale), dtype=float))
 
     @property
     def bounds(self) -> np.ndarray:
-        rows = [np.log(b) for b, free in zip((self.variance_bounds, self.length_scale_bounds),
-                                            self._free()) if free]
+        rows = [np.log(b) for b in self.in_theta_order(self.variance_bounds,
+                                                        self.length_scale_bounds)]
         return np.array(rows, dtype=float).reshape(-1, 2)
 
     @property
@@ -356,11 +365,62 @@ class AR1Noise:
     def with_theta(self, theta) -> "AR1Noise":
         values = [self.variance, self.length_scale]
         entries = iter(np.asarray(theta, dtype=float))
-        for i, free in enumerate(self._free()):
-            if free:
+        order = (0, 1) if self.variance_first else (1, 0)
+        free = self._free()
+        for i in order:
+            if free[i]:
                 values[i] = float(np.exp(next(entries)))
-        return AR1Noise(values[0], values[1], self.spacing, self.counts, self.variance_bounds,
-                        self.length_scale_bounds)
+        moved = AR1Noise(values[0], values[1], self.spacing, self.counts, self.variance_bounds,
+                         self.length_scale_bounds)
+        moved.variance_first = self.variance_first
+        return moved
+
+    def statistics(self, Phi: np.ndarray, y: np.ndarray, gram=None) -> "AR1Statistics":
+        """The :class:`AR1Statistics` of ``Phi`` and ``y`` on this noise's records."""
+        return AR1Statistics(Phi, y, self.counts, gram)
+
+    def evidence_gradient(self, statistics: "AR1Statistics", mu: np.ndarray,
+                          Sigma: np.ndarray) -> list:
+        """The log evidence's derivatives in this noise's ``theta``, in ``O(P^2)``.
+
+        With ``Q = T(a) / q``, ``q = sigma^2 (1 - a^2)``, and ``mu``, ``Sigma``
+        the posterior of the coefficients under this noise: each entry is
+        ``-1/2 (r^T dQ r + tr(Sigma Phi^T dQ Phi) + d log det N)`` with
+        ``r = y - Phi mu`` (``dN = -N dQ N``), every term a combination of
+        the ``statistics`` (:class:`AR1Statistics` of ``Phi`` and ``y``).
+        """
+        a, q = self.pole, self.innovation_variance
+        Gt, bt, ct = statistics.quadratic_forms(a)
+        G, b, c = Gt / q, bt / q, ct / q
+
+        def entry(dG, db, dc, dlogdet):
+            # r^T dQ r = dc - 2 mu^T db + mu^T dG mu ; tr(Sigma Phi^T dQ Phi) = sum(Sigma * dG)
+            quad = dc - 2.0 * mu @ db + mu @ dG @ mu
+            return -0.5 * (quad + np.sum(Sigma * dG) + dlogdet)
+
+        free = self._free()
+        variance = length_scale = None
+        if free[0]:  # d/d log sigma^2: dQ = -Q
+            variance = entry(-G, -b, -c, float(self.n_samples))
+        if free[1]:  # d/d log length_scale = (d a / d log l) d/da, d a / d log l = -a log a
+            dT = statistics.quadratic_forms(a, derivative=True)
+            n_pairs = sum(n - 1 for n in self.counts)
+            da = -a * np.log(a)
+            dq = -2.0 * a * self.variance  # d q / d a
+            dG = (dT[0] - Gt * dq / q) / q
+            db = (dT[1] - bt * dq / q) / q
+            dc = (dT[2] - ct * dq / q) / q
+            dlogdet = -2.0 * a * n_pairs / (1.0 - a * a)
+            length_scale = da * entry(dG, db, dc, dlogdet)
+        return self.in_theta_order(variance, length_scale)
+
+    def in_theta_order(self, variance_entry, length_scale_entry) -> list:
+        """The free ones of the two entries, in the order of the kernel's ``theta``."""
+        free = self._free()
+        entries = [(variance_entry, free[0]), (length_scale_entry, free[1])]
+        if not self.variance_first:
+            entries.reverse()
+        return [value for value, is_free in entries if is_free]
 
     # ------------------------------------------------------------ matrices
     def matrix(self) -> np.ndarray:
@@ -452,6 +512,10 @@ class AR1Statistics:
     y : ndarray of shape (M,)
     counts : sequence of int
         Samples per record (rows of ``Phi`` in record order).
+    gram : tuple of three ndarrays, optional
+        The :attr:`gram` of an earlier instance on the same ``Phi`` and
+        ``counts`` (its ``O(M P^2)`` products reused; only those with ``y``
+        are formed).
 
     Examples
     --------
@@ -466,7 +530,7 @@ class AR1Statistics:
     (True, True)
     """
 
-    def __init__(self, Phi: np.ndarray, y: np.ndarray, counts):
+    def __init__(self, Phi: np.ndarray, y: np.ndarray, counts, gram=None):
         Phi = np.asarray(Phi, dtype=float)
         y = np.asarray(y, dtype=float)
         interior = np.ones(Phi.shape[0])
@@ -489,15 +553,18 @@ class AR1Statistics:
                 interior[start] = -1.0
             start += n
 
-        def parts(X, Z):
-            XZ = X.T @ Z
-            XDZ = (X.T * interior) @ Z
-            XEZ = X[pairs].T @ Z[pairs - 1] + X[pairs - 1].T @ Z[pairs]
-            return XZ, XDZ, XEZ
+        self._interior, self._pairs = interior, pairs
+        self.gram = self.band_products(Phi, Phi) if gram is None else gram
+        self.cross = self.band_products(Phi, y)
+        self.energy = self.band_products(y, y)
 
-        self.gram = parts(Phi, Phi)
-        self.cross = parts(Phi, y)
-        self.energy = parts(y, y)
+    def band_products(self, X: np.ndarray, Z: np.ndarray):
+        """``(X^T Z, X^T D Z, X^T E Z)``: ``X^T T(a) Z`` is ``first + a^2 second - a third``."""
+        interior, pairs = self._interior, self._pairs
+        XZ = X.T @ Z
+        XDZ = (X.T * interior) @ Z
+        XEZ = X[pairs].T @ Z[pairs - 1] + X[pairs - 1].T @ Z[pairs]
+        return XZ, XDZ, XEZ
 
     @staticmethod
     def _combine(parts, a: float, derivative: bool = False):
@@ -585,26 +652,7 @@ def ar1_log_evidence(statistics: AR1Statistics, K: np.ndarray, noise: AR1Noise,
         for j in range(dK.shape[2]):
             dKj = dK[:, :, j]
             grad.append(0.5 * (beta @ dKj @ beta - np.sum(H * dKj)))
-    # the noise: Q = T(a) / q(sigma^2, a)
-    free = noise._free()
-    dT = statistics.quadratic_forms(a, derivative=True)
-    n_pairs = sum(n - 1 for n in statistics.counts)
-
-    def noise_entry(dG, db, dc, dlogdet):
-        # r^T dQ r = dc - 2 mu^T db + mu^T dG mu ; tr(Sigma Phi^T dQ Phi) = sum(Sigma * dG)
-        quad = dc - 2.0 * mu @ db + mu @ dG @ mu
-        return -0.5 * (quad + np.sum(Sigma * dG) + dlogdet)
-
-    if free[0]:  # d/d log sigma^2: dQ = -Q
-        grad.append(noise_entry(-G, -b, -c, float(noise.n_samples)))
-    if free[1]:  # d/d log length_scale = (d a / d log l) d/da, d a / d log l = -a log a
-        da = -a * np.log(a)
-        dq = -2.0 * a * noise.variance  # d q / d a
-        dG = (dT[0] - Gt * dq / q) / q
-        db = (dT[1] - bt * dq / q) / q
-        dc = (dT[2] - ct * dq / q) / q
-        dlogdet = -2.0 * a * n_pairs / (1.0 - a * a)
-        grad.append(da * noise_entry(dG, db, dc, dlogdet))
+    grad.extend(noise.evidence_gradient(statistics, mu, Sigma))
     return value, np.array(grad)
 
 
@@ -891,13 +939,16 @@ def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
 
     Parameters
     ----------
-    noise_kernel : "white", "matern12", "matern32" or sklearn Kernel
+    noise_kernel : "white", "matern12", "matern32", "ar1" or sklearn Kernel
         ``"white"``: ``gamma I`` (:class:`gpmultirate.covariance.WhiteNoise`).
         ``"matern12"``/``"matern32"``: white noise plus
         ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the instants, the
         constant started at ``noise_level`` with the noise level's bounds.
+        ``"ar1"``: ``C * Matern(length_scale, nu=1/2)`` alone (no white
+        noise), an AR(1) process on a uniform grid.
         A kernel: a disturbance over the instants, added to white noise of
-        ``noise_level`` unless it holds a ``WhiteKernel`` summand itself.
+        ``noise_level`` unless it holds a ``WhiteKernel`` summand itself or
+        is the AR(1) form ``[C *] Matern(nu=0.5)``, used as it is.
     noise_level : float
         The white noise variance ``gamma`` (the start when it is tuned).
     noise_level_bounds : pair of floats or "fixed"
@@ -918,6 +969,8 @@ def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
     WhiteKernel(noise_level=0.1) + 0.316**2 * Matern(length_scale=10, nu=1.5)
     >>> type(make_noise("white", 0.1, "fixed", np.arange(5))).__name__
     'WhiteNoise'
+    >>> round(make_noise("ar1", 0.1, (1e-3, 1.0), np.arange(5) * 3.0).structure().pole, 4)
+    0.7408
     """
     from gpmultirate.covariance import WhiteNoise
 
@@ -928,18 +981,20 @@ def make_noise(noise_kernel, noise_level: float, noise_level_bounds, instants,
     if isinstance(noise_kernel, str):
         if noise_kernel == "white":
             return WhiteNoise(gamma, bounds)
-        if noise_kernel not in NAMED_DISTURBANCES:
+        if noise_kernel not in NAMED_DISTURBANCES and noise_kernel != AR1_DISTURBANCE:
             raise ValueError(
-                f"noise_kernel must be 'white', {', '.join(map(repr, NAMED_DISTURBANCES))} or a "
-                f"scikit-learn kernel; got {noise_kernel!r}"
+                f"noise_kernel must be 'white', {', '.join(map(repr, NAMED_DISTURBANCES))}, "
+                f"{AR1_DISTURBANCE!r} or a scikit-learn kernel; got {noise_kernel!r}"
             )
         disturbance = ConstantKernel(gamma, bounds) * Matern(
             length_scale, "fixed" if isinstance(bounds, str) else (1.0, 1e4),
-            nu=NAMED_DISTURBANCES[noise_kernel])
+            nu=NAMED_DISTURBANCES.get(noise_kernel, 0.5))
+        if noise_kernel == AR1_DISTURBANCE:
+            return KernelNoise(disturbance, instants)
         return KernelNoise(WhiteKernel(gamma, bounds) + disturbance, instants)
     if not isinstance(noise_kernel, Kernel):
         raise ValueError(f"noise_kernel must be 'white', a named disturbance or a scikit-learn "
                          f"kernel; got {type(noise_kernel).__name__}")
-    if _has_white(noise_kernel):
+    if _has_white(noise_kernel) or _exponential_parts(noise_kernel) is not None:
         return KernelNoise(noise_kernel, instants)
     return KernelNoise(WhiteKernel(gamma, bounds) + noise_kernel, instants)

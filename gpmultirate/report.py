@@ -270,8 +270,12 @@ def noise_summary(model, residuals=None) -> dict:
     found = {"model": "white" if isinstance(kernel, str) else str(kernel),
              "white_level": float(model.noise_level_)}
     if not isinstance(kernel, str):
+        from gpmultirate.noise import white_level
+
+        # the kernel's own white part (none for an AR(1) disturbance, "ar1")
+        found["white_level"] = white_level(kernel)
         total = float(kernel.diag(np.zeros((1, 1)))[0])
-        found["disturbance_level"] = total - float(model.noise_level_)
+        found["disturbance_level"] = total - found["white_level"]
         found["time_scale"] = {
             name: float(np.ravel(value)[0]) for name, value in kernel.get_params().items()
             if name.endswith(("length_scale", "periodicity")) and not name.endswith("_bounds")
@@ -290,9 +294,11 @@ def _noise_lines(noise) -> list[str]:
     else:
         scales = ", ".join(f"{name.rsplit('__', 1)[-1]} {value:.4g}"
                            for name, value in noise["time_scale"].items())
+        white = (f"plus white noise of variance {noise['white_level']:.4g}"
+                 if noise["white_level"] > 0 else "alone (no white part)")
         lines = [f"- noise model: `{noise['model']}`: a disturbance of variance "
                  f"{noise['disturbance_level']:.4g} over time ({scales} fast samples) "
-                 f"plus white noise of variance {noise['white_level']:.4g}"]
+                 f"{white}"]
     if "residuals_white" in noise:
         verdict = "look white" if noise["residuals_white"] else "do not look white"
         lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "

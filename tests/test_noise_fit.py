@@ -56,6 +56,8 @@ def _dense_parts(model, theta):
     "matern12",
     "matern32",
     C(0.1) * ExpSineSquared(2.0, 24.0, periodicity_bounds="fixed"),
+    "ar1",  # M = 80 > P = 30 on one uniform grid: the AR(1) route
+    Matern(9.0, nu=0.5) * C(0.1),  # the same, its theta in the other order
 ])
 def test_fitted_evidence_gradient_and_posterior_against_dense_formulas(noise_kernel):
     u, y = _data()
@@ -180,7 +182,7 @@ def test_auto_chooses_the_disturbance_of_a_drifting_record_by_the_evidence():
         fits[best].log_marginal_likelihood_value_, rel=1e-12)
 
 
-@pytest.mark.parametrize("noise_kernel", ["matern32", C(0.1) * ExpSineSquared(2.0, 24.0)])
+@pytest.mark.parametrize("noise_kernel", ["matern32", C(0.1) * ExpSineSquared(2.0, 24.0), "ar1"])
 def test_a_disturbance_model_is_saved_and_loaded(tmp_path, noise_kernel):
     from gpmultirate import load_model, save_model
 
@@ -335,3 +337,96 @@ def test_auto_on_a_long_white_record_takes_the_ar1_check_and_keeps_white(monkeyp
     assert len(seen) == 1 and seen[0] < estimators.AUTO_NOISE_GATE
     assert auto.noise_kernel_ == "white"
     np.testing.assert_array_equal(auto.coef_, white.coef_)
+
+
+def _dense_route_only(monkeypatch):
+    """Every disturbance takes the dense M x M route (no AR(1) structure is seen)."""
+    monkeypatch.setattr(KernelNoise, "structure", lambda self: None)
+
+
+def test_ar1_route_is_taken_and_gives_the_dense_route_fit(monkeypatch):
+    """The same AR(1) noise model tuned through its tridiagonal precision and densely."""
+    from gpmultirate.covariance import AR1Covariance, DenseCovariance
+
+    u, y = _data(1)
+    structured = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="ar1").fit(u, y)
+    assert type(structured._evidence.data_covariance(structured._evidence.theta)) is \
+        AR1Covariance
+    assert repr(structured.noise_kernel_).count("WhiteKernel") == 0
+    _dense_route_only(monkeypatch)
+    dense = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="ar1").fit(u, y)
+    assert type(dense._evidence.data_covariance(dense._evidence.theta)) is DenseCovariance
+    np.testing.assert_allclose(structured.noise_kernel_.theta, dense.noise_kernel_.theta,
+                               rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(structured.kernel_.theta, dense.kernel_.theta, rtol=1e-6,
+                               atol=1e-6)
+    assert structured.log_marginal_likelihood_value_ == pytest.approx(
+        dense.log_marginal_likelihood_value_, rel=1e-6)
+    np.testing.assert_allclose(structured.coef_, dense.coef_, rtol=1e-6,
+                               atol=1e-6 * np.abs(dense.coef_).max())
+    mean, std = structured.impulse_response(np.linspace(0, ORDER - 1, 7), return_std=True)
+    ref_mean, ref_std = dense.impulse_response(np.linspace(0, ORDER - 1, 7), return_std=True)
+    np.testing.assert_allclose(mean, ref_mean, rtol=1e-6, atol=1e-6 * np.abs(ref_mean).max())
+    np.testing.assert_allclose(std, ref_std, rtol=1e-6)
+    # the white-noise level of the fit is kept (an AR(1) noise has no white part)
+    assert structured.noise_level_ > 0
+
+
+def test_ar1_posterior_at_real_lags_against_the_dense_route(monkeypatch):
+    """Evidence, gradient and posterior at fractional lags: AR(1) route vs dense, same model."""
+    u, y = _data(2)
+    kernel = C(0.8) * DC(0.85, 0.3)
+    noise_kernel = C(0.02) * Matern(7.0, nu=0.5)
+    model = FIRGaussianProcess(kernel, factor=FACTOR, order=ORDER, optimizer=None,
+                               noise_kernel=noise_kernel).fit(u, y)
+    theta = np.concatenate([model.kernel_.theta + 0.05, model.noise_kernel_.theta + 0.2])
+    value, grad = model.log_marginal_likelihood(theta, eval_gradient=True)
+    lags = np.array([0.0, 0.5, 2.25, 11.7, ORDER - 1.5])
+    mean, std = model.impulse_response(lags, return_std=True)
+    _dense_route_only(monkeypatch)
+    dense = FIRGaussianProcess(kernel, factor=FACTOR, order=ORDER, optimizer=None,
+                               noise_kernel=noise_kernel).fit(u, y)
+    ref, ref_grad = dense.log_marginal_likelihood(theta, eval_gradient=True)
+    assert value == pytest.approx(ref, rel=1e-8)
+    np.testing.assert_allclose(grad, ref_grad, rtol=1e-8, atol=1e-8 * np.abs(ref_grad).max())
+    ref_mean, ref_std = dense.impulse_response(lags, return_std=True)
+    np.testing.assert_allclose(mean, ref_mean, rtol=1e-8, atol=1e-10 * np.abs(ref_mean).max())
+    np.testing.assert_allclose(std, ref_std, rtol=1e-8)
+
+
+def test_summary_of_an_ar1_noise_has_no_white_part():
+    from gpmultirate.report import noise_summary
+
+    u, y = _data(1)
+    model = FIRGaussianProcess(factor=FACTOR, order=ORDER, noise_kernel="ar1").fit(u, y)
+    noise = noise_summary(model)
+    assert noise["white_level"] == 0.0
+    assert noise["disturbance_level"] == pytest.approx(model.noise_kernel_.k1.constant_value,
+                                                       rel=1e-12)
+    assert noise["time_scale"]["k2__length_scale"] == model.noise_kernel_.k2.length_scale
+
+
+def test_auto_on_a_long_drifting_record_tunes_the_ar1_disturbance(monkeypatch):
+    """Beyond 1000 slow samples on one grid: "ar1", never an M x M factorization."""
+    import gpmultirate.covariance as covariance
+
+    rng = np.random.default_rng(12)
+    n = 3 * 1100
+    u = rng.standard_normal(n)
+    drift = np.cumsum(0.05 * rng.standard_normal(n))
+    y = (np.convolve(u, 0.6 ** np.arange(20))[:n] + drift + 0.05 * rng.standard_normal(n))[::3]
+    original = covariance.robust_cholesky
+
+    def small_only(A, *args, **kwargs):
+        assert A.shape[0] < 1100, "a dense M x M factorization"
+        return original(A, *args, **kwargs)
+
+    monkeypatch.setattr(covariance, "robust_cholesky", small_only)
+    auto = FIRGaussianProcess(factor=FACTOR, order=40).fit(u, y)
+    white = FIRGaussianProcess(factor=FACTOR, order=40, noise_kernel="white").fit(u, y)
+    ar1 = FIRGaussianProcess(factor=FACTOR, order=40, noise_kernel="ar1").fit(u, y)
+    assert repr(auto.noise_kernel_) == repr(ar1.noise_kernel_)
+    assert "WhiteKernel" not in repr(auto.noise_kernel_)
+    assert auto.log_marginal_likelihood_value_ == pytest.approx(
+        ar1.log_marginal_likelihood_value_, rel=1e-12)
+    assert auto.log_marginal_likelihood_value_ > white.log_marginal_likelihood_value_ + 10
