@@ -1296,10 +1296,12 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
           with the ``M x M`` data covariance);
         * a fixed Matérn disturbance, with the tuned prior held, gains at
           least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
-          (:func:`~gpmultirate.noise.disturbance_evidence_gain`; beyond
-          ``AUTO_NOISE_DENSE_GATE`` slow samples an AR(1) one on a uniform
-          grid, :func:`~gpmultirate.noise.ar1_evidence_gain`, and white
-          noise elsewhere).
+          (:func:`~gpmultirate.noise.disturbance_evidence_gain`; with more
+          slow samples than coefficients, where the fit has no ``M x M``
+          matrix, an AR(1) one on a uniform grid,
+          :func:`~gpmultirate.noise.ar1_evidence_gain`; off a uniform grid
+          the dense one up to ``AUTO_NOISE_DENSE_GATE`` slow samples, and
+          white noise beyond).
         """
         operator, y = experiment.observation, experiment.y
         order, n_samples = operator.order, y.shape[0]
@@ -1315,15 +1317,18 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                       n_samples, MAX_CHECKED_SAMPLES)
             return False
         term = observe(kernel, operator)
-        if n_samples <= AUTO_NOISE_DENSE_GATE:
-            gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
-                                             noise_instants(operator))
-        else:  # the AR(1) form: O(M P^2) once, then P x P per grid point
+        gain = None
+        if n_samples > operator.n_coefficients:
+            # the AR(1) form, O(M P^2) once, then P x P per grid point: the long-record
+            # route has no M x M matrix, and the check must not bring one
             gain = ar1_evidence_gain(operator.matrix, term.kernel_matrix(), y, noise_level,
                                      noise_instants(operator))
-            if gain is None:
-                _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
-                return False
+        if gain is None and n_samples <= AUTO_NOISE_DENSE_GATE:
+            gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
+                                             noise_instants(operator))
+        if gain is None:
+            _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
+            return False
         _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
         return gain >= AUTO_NOISE_GATE
 
