@@ -501,8 +501,9 @@ AUTO_NOISE_MARGIN = 10.0
 #: nats of log evidence a fixed disturbance must gain over the tuned white-noise
 #: fit for ``noise_kernel="auto"`` to tune disturbances at all
 AUTO_NOISE_GATE = 3.0
-#: beyond this many slow samples the check of ``noise_kernel="auto"`` takes the
-#: AR(1) route (``P x P`` per point) instead of ``M x M`` factorizations
+#: beyond this many slow samples ``noise_kernel="auto"`` tunes the AR(1) disturbance
+#: of a long record (more samples than coefficients), and its check of samples off a
+#: uniform grid keeps white noise instead of ``M x M`` factorizations
 AUTO_NOISE_DENSE_GATE = 1000
 
 
