@@ -27,6 +27,11 @@ terms one at a time, greedily:
 4. **slow-rate twins** (:func:`alias_twins`): a term at ``k / F +- f`` of a
    stronger one at ``f`` on the same input shows at the same slow-rate
    frequency; the slow samples cannot tell them apart, and it is dropped;
+   so is a nearly undamped term whose folded frequency is near DC
+   (:func:`persistent_aliases`: within :data:`PERSISTENT_CYCLES` cycles
+   over the record of ``k / F``): in the slow samples it is a slowly
+   wandering signal on which a slow disturbance regresses, in held-out
+   blocks too;
 5. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
    model, and on measured data a term can raise it by fitting a
    disturbance that does not repeat.  The slow samples are cut into
