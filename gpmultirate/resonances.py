@@ -27,6 +27,11 @@ terms one at a time, greedily:
 4. **slow-rate twins** (:func:`alias_twins`): a term at ``k / F +- f`` of a
    stronger one at ``f`` on the same input shows at the same slow-rate
    frequency; the slow samples cannot tell them apart, and it is dropped;
+   so is a nearly undamped term whose folded frequency is near DC
+   (:func:`persistent_aliases`: within :data:`PERSISTENT_CYCLES` cycles
+   over the record of ``k / F``): in the slow samples it is a slowly
+   wandering signal on which a slow disturbance regresses, in held-out
+   blocks too;
 5. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
    model, and on measured data a term can raise it by fitting a
    disturbance that does not repeat.  The slow samples are cut into
@@ -98,8 +103,8 @@ from gpmultirate.validation import check_positive
 
 __all__ = [
     "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
-    "PREWHITENING_ORDER", "SEARCH_THRESHOLD", "Resonance", "ResonanceSearch", "damping_ratio",
-    "alias_twins", "excitation", "held_out_resonances", "resonance_scan", "search_resonances",
+    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD", "Resonance", "ResonanceSearch", "damping_ratio",
+    "alias_twins", "excitation", "held_out_resonances", "persistent_aliases", "resonance_scan", "search_resonances",
     "slowest_decay",
 ]
 
@@ -120,6 +125,11 @@ HELD_OUT_GAIN = 0.1
 #: the order of the AR model of the base kernel's held-out residuals that whitens
 #: them before the held-out fits are compared
 PREWHITENING_ORDER = 4
+#: cycles over the record below which a nearly undamped term's slow-rate image is a
+#: persistent signal that a slow disturbance regresses on (:func:`persistent_aliases`)
+PERSISTENT_CYCLES = 16
+#: damping ratio below which a term near a slow-rate alias of DC is nearly undamped
+PERSISTENT_DAMPING = 0.01
 #: excitation (relative to its mean over the band) below which no resonance is searched
 MIN_EXCITATION = 1e-2
 # decay rates of the scan's candidates, in units of 1 / P (the envelope
@@ -530,8 +540,10 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             evidence, model.kernel(), model.noise_level, [k for k, _ in model.terms],
             random_state,
         )
-        twins = alias_twins(_terms_of(kernel, [g.input for g in gains]),
-                            [g.value for g in gains], observation.slow_factor, y.shape[0])
+        found = _terms_of(kernel, [g.input for g in gains])
+        twins = sorted(set(alias_twins(found, [g.value for g in gains],
+                                       observation.slow_factor, y.shape[0]))
+                       | set(persistent_aliases(found, observation.slow_factor, y.shape[0])))
         if twins:
             _LOG.info("resonance search: %d term(s) dropped, slow-rate aliases of stronger ones",
                       len(twins))
@@ -641,6 +653,61 @@ def alias_twins(terms, gains, factor: int, n_slow: int) -> list[int]:
                     and abs(frequencies[i] - frequencies[j]) > within):
                 twins.add(j)
     return sorted(twins)
+
+
+def persistent_aliases(terms, factor: int, n_slow: int,
+                       cycles: float = PERSISTENT_CYCLES) -> list[int]:
+    """The nearly undamped terms whose slow-rate image is a slowly wandering signal.
+
+    Sampled every ``factor`` fast samples, a term at ``f`` cycles per fast
+    sample shows at its folded frequency ``f mod 1 / factor`` (folded to
+    ``[0, 1 / (2 factor)]``).  Near ``k / factor`` (``k = 0`` included) that
+    is near DC: the term turns the input's history into a signal that
+    completes only a few cycles over the record, a persistent signal on
+    which a slow disturbance (drift, level steps, low-frequency noise)
+    regresses, in held-out blocks as well as in the evidence (a spurious
+    regression of one persistent signal on another), but not on a new
+    record.  A term is returned (by index) when it is nearly undamped
+    (damping ratio below :data:`PERSISTENT_DAMPING`) and its folded
+    frequency is below ``cycles`` times the record's frequency resolution
+    ``1 / (factor * n_slow)``: its image completes fewer than ``cycles``
+    cycles over the record.  Such a resonance cannot be told from a slow
+    disturbance by the slow samples; one further from the alias, or more
+    damped, is kept.
+
+    Parameters
+    ----------
+    terms : list of (int, PK)
+        The input and the PK term of each resonance.
+    factor : int
+        Fast samples per slow sample.
+    n_slow : int
+        The number of slow samples.
+    cycles : float, default=PERSISTENT_CYCLES
+
+    Returns
+    -------
+    list of int
+
+    Examples
+    --------
+    >>> from gpmultirate.kernels import PK
+    >>> lure = PK(alpha=0.99, omega=2 * np.pi * 0.331)  # 0.0023 from 1/3
+    >>> mode = PK(alpha=0.99, omega=2 * np.pi * 0.30)
+    >>> persistent_aliases([(0, lure), (0, mode)], 3, 300)
+    [0]
+    """
+    factor = max(int(factor), 1)
+    period = 1.0 / factor
+    band = cycles / (factor * max(int(n_slow), 1))
+    persistent = []
+    for i, (_, term) in enumerate(terms):
+        f = float(term.omega) / (2.0 * np.pi)
+        folded = f % period
+        folded = min(folded, period - folded)
+        if folded < band and damping_ratio(term.alpha, term.omega) < PERSISTENT_DAMPING:
+            persistent.append(i)
+    return persistent
 
 
 def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base_kernel,
