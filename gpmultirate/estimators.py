@@ -1130,16 +1130,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
         noise_kernel = _check_noise_kernel(self.noise_kernel)
-        if noise_kernel == "auto" and (criterion == "cross_validation" or self.optimizer is None):
-            # cross-validation tunes the white-noise model only; without an optimizer
-            # the hyperparameters are the user's and nothing is tuned
+        if noise_kernel == "auto" and self.optimizer is None:
+            # without an optimizer the hyperparameters are the user's and nothing is tuned
             noise_kernel = "white"
-        if noise_kernel != "white" and criterion == "cross_validation":
-            raise ValueError(
-                "tuning='cross_validation' does not take a disturbance model: use "
-                "noise_kernel='white' with it, or tuning='evidence' with "
-                f"noise_kernel={noise_kernel!r}"
-            )
         # normalized units are a start and bounds for tuning: without tuning
         # the kernel and the noise level are used exactly as given
         normalize = bool(self.normalize) and self.optimizer is not None
@@ -1242,17 +1235,20 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                     choices = list(NAMED_DISTURBANCES)
                 if not (len(choices) == 1 and _is_ar1(choices[0], operator)):
                     check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
+                # the criterion of the tuning judges: the evidence, or the cross-validated
+                # log predictive likelihood (cv_value, the white fit's, is then set)
+                white_score = posterior.log_marginal_likelihood if cv_value is None else cv_value
                 best = None
                 for choice in choices:
                     tried = self._fit_disturbance(operator, y, kernel, noise, noise_bounds,
                                                   choice, settings)
-                    if best is None or tried[3].log_marginal_likelihood > \
-                            best[3].log_marginal_likelihood:
+                    if best is None or tried[-1] > best[-1]:
                         best = tried
-                if settings.noise_kernel != "auto" or best[3].log_marginal_likelihood > \
-                        posterior.log_marginal_likelihood + AUTO_NOISE_MARGIN:
-                    evidence, kernel, noise_model, posterior, result = best
+                if settings.noise_kernel != "auto" or best[-1] > white_score + AUTO_NOISE_MARGIN:
+                    evidence, kernel, noise_model, posterior, result, score = best
                     optimizer_result = result if result is not None else optimizer_result
+                    if cv_value is not None:
+                        cv_value = score
                     # a disturbance without white noise (AR(1)) keeps the white fit's level
                     noise = noise_model.level or noise
         moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
@@ -1345,16 +1341,31 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                          settings: _Settings):
         """Tune a disturbance model with everything else, from the white fit's point.
 
-        Returns ``(evidence, kernel, noise_model, posterior, optimizer_result)``.
+        By the criterion of ``settings``: the log evidence, or the
+        cross-validated log predictive likelihood
+        (:class:`~gpmultirate.crossvalidation.CrossValidation` with the noise
+        model, on the same folds as the white fit).  Returns ``(evidence,
+        kernel, noise_model, posterior, optimizer_result, score)``, ``score``
+        the criterion's value at the tuned point.
         """
         noise_model = make_noise(choice, noise_level, noise_bounds, noise_instants(operator))
         evidence = LogEvidence(operator, y, kernel, noise_level, noise_bounds, noise=noise_model)
+        objective = evidence
+        if settings.criterion == "cross_validation":
+            objective = CrossValidation(operator, y, kernel, noise_level, noise_bounds,
+                                        settings.n_folds, noise=noise_model)
         result = None
         if self.optimizer is not None:
-            result = tuning.maximize(evidence, settings.n_restarts, self.random_state)
+            result = tuning.maximize(objective, settings.n_restarts, self.random_state)
             if result is not None:
-                kernel, noise_model = evidence.split_models(result.x)
-        return evidence, kernel, noise_model, evidence.posterior(kernel, noise_model), result
+                kernel, noise_model = objective.split_models(result.x)
+        posterior = evidence.posterior(kernel, noise_model)
+        if objective is evidence:
+            score = posterior.log_marginal_likelihood
+        else:
+            moved = objective.moved_to(kernel, noise_model)
+            score = float(moved(moved.theta))
+        return evidence, kernel, noise_model, posterior, result, score
 
     def _check_shorter_orders(self, data, experiment, settings: _Settings):
         """Compare the held-out fit of the tuned model with that of shorter orders; act on it.
