@@ -495,8 +495,9 @@ ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
 
 
-#: nats of log evidence a disturbance model must gain over white noise for
-#: ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
+#: nats of log evidence (of cross-validated log predictive likelihood with
+#: ``tuning="cross_validation"``) a disturbance model must gain over white noise
+#: for ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
 AUTO_NOISE_MARGIN = 10.0
 #: nats of log evidence a fixed disturbance must gain over the tuned white-noise
 #: fit for ``noise_kernel="auto"`` to tune disturbances at all
@@ -682,6 +683,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         is compared with that of shorter orders (same folds, same
         hyperparameters): with the default order a clearly better shorter
         order replaces ``N``, with an explicit order a warning names it.
+        A disturbance model (``noise_kernel``) is tuned by the same
+        criterion: under ``"cross_validation"`` each held-out block is
+        predicted with the disturbance's correlation across its edges.
     cv : int, default=5
         The number of folds of ``"cross_validation"`` (and of the held-out
         check after evidence tuning): contiguous blocks of slow samples of
@@ -730,11 +734,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         (1000) slow samples on one uniform grid, more than the
         coefficients: the AR(1) disturbance ``"ar1"`` instead) and keeps the
         better one only when its log evidence exceeds white's by
-        ``AUTO_NOISE_MARGIN`` (10) nats.
-        An explicit disturbance is not allowed with
-        ``tuning="cross_validation"`` (``"auto"`` is white there, and with
-        ``optimizer=None``, where nothing is tuned).  See
-        :doc:`/disturbances`.
+        ``AUTO_NOISE_MARGIN`` (10) nats.  With
+        ``tuning="cross_validation"`` the disturbance is tuned by the
+        cross-validated log predictive likelihood from the white
+        cross-validated fit (the data-space route, ``O(M^3)`` per
+        evaluation, ``"ar1"`` included), and ``"auto"`` (same gate) keeps
+        the better disturbance only when its cross-validated log predictive
+        likelihood exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
+        With ``optimizer=None``, where nothing is tuned, ``"auto"`` is
+        white.  See :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -810,7 +818,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         predictive likelihood), or None when nothing was tuned.
     cv_log_predictive_likelihood_ : float
         With ``tuning="cross_validation"``: the sum over the folds of the
-        log density of the held-out slow samples at the tuned values.
+        log density of the held-out slow samples at the tuned values, under
+        the chosen noise model (``noise_kernel_``).
     order_selection_ : dict
         With ``order="auto"`` or a list: ``"order"`` (the candidates),
         ``"score"`` (the criterion per used slow sample, higher is better),
