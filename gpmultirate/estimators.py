@@ -1242,7 +1242,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                     choices = [AR1_DISTURBANCE]
                 else:
                     choices = list(NAMED_DISTURBANCES)
-                if not (len(choices) == 1 and _is_ar1(choices[0], operator)):
+                # cross-validation works in data space whatever the noise's structure
+                if cv_value is not None or not (len(choices) == 1
+                                                and _is_ar1(choices[0], operator)):
                     check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
                 # the criterion of the tuning judges: the evidence, or the cross-validated
                 # log predictive likelihood (cv_value, the white fit's, is then set)
