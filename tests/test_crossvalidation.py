@@ -5,7 +5,12 @@ import warnings
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
-from sklearn.gaussian_process.kernels import ConstantKernel as C, ExpSineSquared, Matern, WhiteKernel
+from sklearn.gaussian_process.kernels import (
+    ConstantKernel as C,
+    ExpSineSquared,
+    Matern,
+    WhiteKernel,
+)
 
 import gpmultirate as gm
 from gpmultirate import simulation as sim
