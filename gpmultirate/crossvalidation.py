@@ -91,8 +91,15 @@ def _data_precision(operator, kernel, noise, y, eval_gradient):
     return A, A @ y, covariance
 
 
+def _noise_model(noise_level, noise_free: bool = True):
+    """A noise model as it is, or white noise of the level (free or fixed)."""
+    if hasattr(noise_level, "white"):
+        return noise_level
+    return WhiteNoise(noise_level, _FREE if noise_free else "fixed")
+
+
 def log_predictive_likelihood(
-    operator, kernel, noise_level: float, y: np.ndarray, folds, eval_gradient: bool = False,
+    operator, kernel, noise_level, y: np.ndarray, folds, eval_gradient: bool = False,
     noise_free: bool = True,
 ):
     """``sum_k log p(y_{B_k} | y_rest)`` and, optionally, its gradient in ``theta``.
@@ -102,19 +109,45 @@ def log_predictive_likelihood(
     operator : Observation
         The observation of all slow samples (not reduced).
     kernel : sklearn Kernel
-    noise_level : float
+    noise_level : float or noise model
+        The white noise variance, or a noise model (:mod:`gpmultirate.noise`:
+        a :class:`~gpmultirate.noise.KernelNoise` disturbance, whose
+        covariance ``N`` then replaces ``noise_level * I`` in ``Ky = S + N``
+        and links the folds: the held-out block is predicted from the rest
+        with the disturbance's correlation across the block's edges).
     y : ndarray of shape (M,)
     folds : list of ndarray of int
         The held-out indices of each fold (:func:`contiguous_folds`).
     eval_gradient : bool, default=False
     noise_free : bool, default=True
-        Whether the gradient ends with the derivative in ``log(noise_level)``.
+        For a white noise level: whether the gradient ends with the
+        derivative in ``log(noise_level)``.  A noise model's own free
+        ``theta`` ends the gradient instead (``noise_free`` is not used).
 
     Returns
     -------
     float, or (float, ndarray) with ``eval_gradient``
+        The gradient's entries are the kernel's ``theta``, then the noise
+        model's free ``theta``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C, Matern, WhiteKernel
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import DC
+    >>> from gpmultirate.noise import KernelNoise, noise_instants
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(90), factor=3, order=30)
+    >>> y = op.matvec(0.8 ** np.arange(30)) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> noise = KernelNoise(WhiteKernel(1e-4) + C(1e-4) * Matern(10.0, nu=1.5),
+    ...                     noise_instants(op))
+    >>> folds = contiguous_folds([op.n_outputs], 5)
+    >>> value, gradient = log_predictive_likelihood(op, C(1.0) * DC(), noise, y, folds, True)
+    >>> gradient.shape  # C, alpha, beta of the prior; white level, C, length scale of the noise
+    (6,)
     """
-    noise = WhiteNoise(noise_level, _FREE if noise_free else "fixed")
+    noise = _noise_model(noise_level, noise_free)
     A, alpha, covariance = _data_precision(operator, kernel, noise, y, eval_gradient)
     factors = _fold_factors(A, alpha, folds)
     value = 0.0
@@ -135,7 +168,7 @@ def log_predictive_likelihood(
     W = -0.5 * (A @ middle @ A)
     W += 0.5 * (np.outer(alpha, v) + np.outer(v, alpha))
     grad = covariance.contract(W)
-    if noise_free:
+    if noise.is_free:
         grad = np.append(grad, noise.contract(W))
     return value, grad
 
@@ -151,7 +184,7 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
         ``noise_level`` may be a noise model (:mod:`gpmultirate.noise`), whose
         disturbance then links the folds.
     """
-    noise = noise_level if hasattr(noise_level, "white") else WhiteNoise(noise_level)
+    noise = _noise_model(noise_level, noise_free=False)
     A, alpha, _ = _data_precision(operator, kernel, noise, y, False)
     mean = np.empty_like(y)
     variance = np.empty_like(y)
@@ -184,6 +217,11 @@ class CrossValidation(TuningObjective):
     noise_level : float
     noise_bounds : pair of floats or "fixed"
     n_folds : int, default=5
+    noise : noise model, optional
+        A disturbance model (:func:`~gpmultirate.noise.make_noise`) in place
+        of white noise of ``noise_level``: ``theta`` then ends with its free
+        ``theta`` (as for :class:`~gpmultirate.inference.LogEvidence` with
+        ``noise=``), and the held-out blocks are predicted under it.
 
     Attributes
     ----------
@@ -208,19 +246,20 @@ class CrossValidation(TuningObjective):
 
     has_fisher = False
 
-    def __init__(self, observation, y, kernel, noise_level, noise_bounds, n_folds: int = 5):
-        super().__init__(kernel, noise_level, noise_bounds)
+    def __init__(self, observation, y, kernel, noise_level, noise_bounds, n_folds: int = 5,
+                 noise=None):
+        super().__init__(kernel, noise_level, noise_bounds, noise)
         # the evidence-based start works on the reduced data; the folds need every sample
-        self.evidence = LogEvidence(observation, y, kernel, noise_level, noise_bounds)
+        self.evidence = LogEvidence(observation, y, kernel, noise_level, noise_bounds,
+                                    noise=noise)
         self.observation, self.y = observation, y
         self.folds = contiguous_folds([r.n_outputs for r in observation.records], n_folds)
 
     def __call__(self, theta, eval_gradient: bool = False):
         """The cross-validated log predictive likelihood at ``theta`` (and its gradient)."""
-        kernel, noise = self.split(theta, into=self._work)
+        kernel, noise = self.split_models(theta, into=self._work)
         return log_predictive_likelihood(
             self.observation, kernel, noise, self.y, self.folds, eval_gradient,
-            self.noise_is_free,
         )
 
     def moved_to(self, kernel, noise_level: float) -> "CrossValidation":
@@ -230,7 +269,7 @@ class CrossValidation(TuningObjective):
 
     def reusing_kernel(self) -> "CrossValidation":
         reusing = super().reusing_kernel()
-        reusing.evidence = self.evidence.moved_to(self.kernel, self.noise_level)
+        reusing.evidence = self.evidence.moved_to(self.kernel, self.noise)
         reusing.evidence._work = reusing._work  # one working kernel; evaluations never overlap
         return reusing
 

@@ -495,8 +495,9 @@ ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
 
 
-#: nats of log evidence a disturbance model must gain over white noise for
-#: ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
+#: nats of log evidence (of cross-validated log predictive likelihood with
+#: ``tuning="cross_validation"``) a disturbance model must gain over white noise
+#: for ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
 AUTO_NOISE_MARGIN = 10.0
 #: nats of log evidence a fixed disturbance must gain over the tuned white-noise
 #: fit for ``noise_kernel="auto"`` to tune disturbances at all
@@ -682,6 +683,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         is compared with that of shorter orders (same folds, same
         hyperparameters): with the default order a clearly better shorter
         order replaces ``N``, with an explicit order a warning names it.
+        A disturbance model (``noise_kernel``) is tuned by the same
+        criterion: under ``"cross_validation"`` each held-out block is
+        predicted with the disturbance's correlation across its edges.
     cv : int, default=5
         The number of folds of ``"cross_validation"`` (and of the held-out
         check after evidence tuning): contiguous blocks of slow samples of
@@ -730,11 +734,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         (1000) slow samples on one uniform grid, more than the
         coefficients: the AR(1) disturbance ``"ar1"`` instead) and keeps the
         better one only when its log evidence exceeds white's by
-        ``AUTO_NOISE_MARGIN`` (10) nats.
-        An explicit disturbance is not allowed with
-        ``tuning="cross_validation"`` (``"auto"`` is white there, and with
-        ``optimizer=None``, where nothing is tuned).  See
-        :doc:`/disturbances`.
+        ``AUTO_NOISE_MARGIN`` (10) nats.  With
+        ``tuning="cross_validation"`` the disturbance is tuned by the
+        cross-validated log predictive likelihood from the white
+        cross-validated fit (the data-space route, ``O(M^3)`` per
+        evaluation, ``"ar1"`` included), and ``"auto"`` (same gate) keeps
+        the better disturbance only when its cross-validated log predictive
+        likelihood exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
+        With ``optimizer=None``, where nothing is tuned, ``"auto"`` is
+        white.  See :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -810,7 +818,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         predictive likelihood), or None when nothing was tuned.
     cv_log_predictive_likelihood_ : float
         With ``tuning="cross_validation"``: the sum over the folds of the
-        log density of the held-out slow samples at the tuned values.
+        log density of the held-out slow samples at the tuned values, under
+        the chosen noise model (``noise_kernel_``).
     order_selection_ : dict
         With ``order="auto"`` or a list: ``"order"`` (the candidates),
         ``"score"`` (the criterion per used slow sample, higher is better),
@@ -1130,16 +1139,9 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                              f"got {self.kernel!r}")
         max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
         noise_kernel = _check_noise_kernel(self.noise_kernel)
-        if noise_kernel == "auto" and (criterion == "cross_validation" or self.optimizer is None):
-            # cross-validation tunes the white-noise model only; without an optimizer
-            # the hyperparameters are the user's and nothing is tuned
+        if noise_kernel == "auto" and self.optimizer is None:
+            # without an optimizer the hyperparameters are the user's and nothing is tuned
             noise_kernel = "white"
-        if noise_kernel != "white" and criterion == "cross_validation":
-            raise ValueError(
-                "tuning='cross_validation' does not take a disturbance model: use "
-                "noise_kernel='white' with it, or tuning='evidence' with "
-                f"noise_kernel={noise_kernel!r}"
-            )
         # normalized units are a start and bounds for tuning: without tuning
         # the kernel and the noise level are used exactly as given
         normalize = bool(self.normalize) and self.optimizer is not None
@@ -1240,19 +1242,24 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                     choices = [AR1_DISTURBANCE]
                 else:
                     choices = list(NAMED_DISTURBANCES)
-                if not (len(choices) == 1 and _is_ar1(choices[0], operator)):
+                # cross-validation works in data space whatever the noise's structure
+                if cv_value is not None or not (len(choices) == 1
+                                                and _is_ar1(choices[0], operator)):
                     check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
+                # the criterion of the tuning judges: the evidence, or the cross-validated
+                # log predictive likelihood (cv_value, the white fit's, is then set)
+                white_score = posterior.log_marginal_likelihood if cv_value is None else cv_value
                 best = None
                 for choice in choices:
                     tried = self._fit_disturbance(operator, y, kernel, noise, noise_bounds,
                                                   choice, settings)
-                    if best is None or tried[3].log_marginal_likelihood > \
-                            best[3].log_marginal_likelihood:
+                    if best is None or tried[-1] > best[-1]:
                         best = tried
-                if settings.noise_kernel != "auto" or best[3].log_marginal_likelihood > \
-                        posterior.log_marginal_likelihood + AUTO_NOISE_MARGIN:
-                    evidence, kernel, noise_model, posterior, result = best
+                if settings.noise_kernel != "auto" or best[-1] > white_score + AUTO_NOISE_MARGIN:
+                    evidence, kernel, noise_model, posterior, result, score = best
                     optimizer_result = result if result is not None else optimizer_result
+                    if cv_value is not None:
+                        cv_value = score
                     # a disturbance without white noise (AR(1)) keeps the white fit's level
                     noise = noise_model.level or noise
         moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
@@ -1345,16 +1352,31 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                          settings: _Settings):
         """Tune a disturbance model with everything else, from the white fit's point.
 
-        Returns ``(evidence, kernel, noise_model, posterior, optimizer_result)``.
+        By the criterion of ``settings``: the log evidence, or the
+        cross-validated log predictive likelihood
+        (:class:`~gpmultirate.crossvalidation.CrossValidation` with the noise
+        model, on the same folds as the white fit).  Returns ``(evidence,
+        kernel, noise_model, posterior, optimizer_result, score)``, ``score``
+        the criterion's value at the tuned point.
         """
         noise_model = make_noise(choice, noise_level, noise_bounds, noise_instants(operator))
         evidence = LogEvidence(operator, y, kernel, noise_level, noise_bounds, noise=noise_model)
+        objective = evidence
+        if settings.criterion == "cross_validation":
+            objective = CrossValidation(operator, y, kernel, noise_level, noise_bounds,
+                                        settings.n_folds, noise=noise_model)
         result = None
         if self.optimizer is not None:
-            result = tuning.maximize(evidence, settings.n_restarts, self.random_state)
+            result = tuning.maximize(objective, settings.n_restarts, self.random_state)
             if result is not None:
-                kernel, noise_model = evidence.split_models(result.x)
-        return evidence, kernel, noise_model, evidence.posterior(kernel, noise_model), result
+                kernel, noise_model = objective.split_models(result.x)
+        posterior = evidence.posterior(kernel, noise_model)
+        if objective is evidence:
+            score = posterior.log_marginal_likelihood
+        else:
+            moved = objective.moved_to(kernel, noise_model)
+            score = float(moved(moved.theta))
+        return evidence, kernel, noise_model, posterior, result, score
 
     def _check_shorter_orders(self, data, experiment, settings: _Settings):
         """Compare the held-out fit of the tuned model with that of shorter orders; act on it.

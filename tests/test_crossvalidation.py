@@ -5,7 +5,12 @@ import warnings
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
-from sklearn.gaussian_process.kernels import ConstantKernel as C
+from sklearn.gaussian_process.kernels import (
+    ConstantKernel as C,
+    ExpSineSquared,
+    Matern,
+    WhiteKernel,
+)
 
 import gpmultirate as gm
 from gpmultirate import simulation as sim
@@ -16,6 +21,7 @@ from gpmultirate.crossvalidation import (
     log_predictive_likelihood,
 )
 from gpmultirate.kernels import DC, PK
+from gpmultirate.noise import KernelNoise, noise_instants
 from gpmultirate.observations import build_experiment
 
 
@@ -78,6 +84,68 @@ def test_gradient_matches_finite_differences(small):
         for e in np.eye(theta.shape[0])
     ]
     np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6)
+
+
+def conditional_per_fold(Ky, y, folds):
+    """sum_k log N(y_B | the rest) from the joint covariance ``Ky`` of all samples."""
+    total = 0.0
+    for B in folds:
+        R = np.setdiff1d(np.arange(y.shape[0]), B)
+        gain = np.linalg.solve(Ky[np.ix_(R, R)], Ky[np.ix_(R, B)]).T
+        cov = Ky[np.ix_(B, B)] - gain @ Ky[np.ix_(R, B)]
+        total += multivariate_normal(gain @ y[R], 0.5 * (cov + cov.T)).logpdf(y[B])
+    return total
+
+
+DISTURBANCES = [
+    WhiteKernel(0.004) + C(0.02) * Matern(8.0, nu=1.5),
+    WhiteKernel(0.004) + C(0.02) * Matern(5.0, nu=0.5),
+    C(0.02) * Matern(5.0, nu=0.5),  # an AR(1) noise alone
+    WhiteKernel(0.004) + C(0.01) * ExpSineSquared(2.0, 24.0, periodicity_bounds="fixed"),
+]
+
+
+@pytest.mark.parametrize("noise_kernel", DISTURBANCES)
+def test_objective_under_a_disturbance_is_the_dense_conditional_density(small, noise_kernel):
+    u, y = small
+    op = gm.DownsampledConvolution(u, 3, 40)
+    kernel = C(0.7) * DC(alpha=0.8, beta=0.6) + PK(alpha=0.9, omega=0.7)
+    noise = KernelNoise(noise_kernel, noise_instants(op))
+    folds = contiguous_folds([op.n_outputs], 4)
+    K = kernel(op.lags)
+    Ky = op.matrix @ K @ op.matrix.T + noise_kernel(np.arange(0, 120, 3.0)[:, None])
+    expected = conditional_per_fold(Ky, y, folds)
+    assert log_predictive_likelihood(op, kernel, noise, y, folds) == pytest.approx(
+        expected, rel=1e-8)
+    objective = CrossValidation(op, y, kernel, 0.01, (1e-6, 1.0), n_folds=4, noise=noise)
+    assert objective.coloured
+    assert objective.theta.shape[0] == kernel.theta.shape[0] + noise_kernel.theta.shape[0]
+    assert objective(objective.theta) == pytest.approx(expected, rel=1e-8)
+    # white noise as a model is the white objective
+    white = WhiteKernel(0.01)
+    assert log_predictive_likelihood(op, kernel, KernelNoise(white, noise_instants(op)), y,
+                                     folds) == pytest.approx(
+        log_predictive_likelihood(op, kernel, 0.01, y, folds), rel=1e-10)
+
+
+@pytest.mark.parametrize("noise_kernel", DISTURBANCES)
+def test_gradient_under_a_disturbance_matches_finite_differences(small, noise_kernel):
+    u, y = small
+    op = gm.DownsampledConvolution(u, 3, 40)
+    noise = KernelNoise(noise_kernel, noise_instants(op))
+    objective = CrossValidation(op, y, C(0.7) * DC(alpha=0.8, beta=0.6), 0.01, (1e-6, 1.0),
+                                n_folds=4, noise=noise)
+    theta = objective.theta + 0.05
+    value, grad = objective(theta, eval_gradient=True)
+    assert value == pytest.approx(objective(theta), rel=1e-12)
+    step = 1e-5
+    numeric = np.array([
+        (objective(theta + step * e) - objective(theta - step * e)) / (2 * step)
+        for e in np.eye(theta.shape[0])
+    ])
+    np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+    # the noise model's entries move the objective: a gradient of zeros would pass nothing
+    assert np.all(np.abs(grad[-noise.theta.shape[0]:]) > 1e-6)
 
 
 def test_records_are_folded_each_in_time_order():
