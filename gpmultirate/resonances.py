@@ -103,8 +103,9 @@ from gpmultirate.validation import check_positive
 
 __all__ = [
     "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
-    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD", "Resonance", "ResonanceSearch", "damping_ratio",
-    "alias_twins", "excitation", "held_out_resonances", "persistent_aliases", "resonance_scan", "search_resonances",
+    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
+    "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
+    "held_out_resonances", "persistent_aliases", "resonance_scan", "search_resonances",
     "slowest_decay",
 ]
 
