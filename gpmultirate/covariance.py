@@ -649,6 +649,15 @@ def _cholesky_of_posterior_precision(C: np.ndarray) -> np.ndarray:
         raise NotPositiveDefinite(str(error)) from None
 
 
+def _kernel_root(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``K = F F^T`` on the kept eigenvalues, and ``F^{+T}``: ``(F, inv_root)``."""
+    values, vectors = linalg.eigh(0.5 * (K + K.T), check_finite=False)
+    keep = values > max(values.max(), 0.0) * 1e-14
+    if not np.any(keep):
+        raise ValueError("the kernel matrix is zero at lags 0..order-1")
+    return vectors[:, keep] * np.sqrt(values[keep]), vectors[:, keep] / np.sqrt(values[keep])
+
+
 class ParameterSpaceCovariance(DataCovariance):
     """``S + gamma I`` of reduced data seen from the parameter space, for ``M > P``.
 
@@ -674,13 +683,8 @@ class ParameterSpaceCovariance(DataCovariance):
         observation = self.observation
         Phi = observation.matrix
         K = observation.kernel_matrix(self.kernel)
-        values, vectors = linalg.eigh(0.5 * (K + K.T), check_finite=False)
-        keep = values > max(values.max(), 0.0) * 1e-14
-        if not np.any(keep):
-            raise ValueError("the kernel matrix is zero at lags 0..order-1")
         self.K = K
-        self.inv_root = vectors[:, keep] / np.sqrt(values[keep])  # F^{+T}
-        self.F = vectors[:, keep] * np.sqrt(values[keep])
+        self.F, self.inv_root = _kernel_root(K)
         root_noise = np.sqrt(noise.level)
         rank = self.F.shape[1]
         stacked = np.vstack([Phi @ self.F / root_noise, np.eye(rank)])
@@ -783,13 +787,8 @@ class AR1Covariance(DataCovariance):
         Phi = observation.matrix
         self.Phi = Phi
         K = term.kernel_matrix()
-        values, vectors = linalg.eigh(0.5 * (K + K.T), check_finite=False)
-        keep = values > max(values.max(), 0.0) * 1e-14
-        if not np.any(keep):
-            raise ValueError("the kernel matrix is zero at lags 0..order-1")
         self.K = K
-        self.inv_root = vectors[:, keep] / np.sqrt(values[keep])  # F^{+T}
-        self.F = vectors[:, keep] * np.sqrt(values[keep])
+        self.F, self.inv_root = _kernel_root(K)
         self.gram = _ar1_gram(observation, Phi, ar1)
         a, q = ar1.pole, ar1.innovation_variance
         plain, interior, off = self.gram
