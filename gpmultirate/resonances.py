@@ -542,18 +542,17 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             random_state,
         )
         found = _terms_of(kernel, [g.input for g in gains])
-        twins = sorted(set(alias_twins(found, [g.value for g in gains],
-                                       observation.slow_factor, y.shape[0]))
-                       | set(persistent_aliases(found, observation.slow_factor, y.shape[0])))
+        twins = set(alias_twins(found, [g.value for g in gains], observation.slow_factor,
+                                y.shape[0]))
+        twins |= set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
         if twins:
             _LOG.info("resonance search: %d term(s) dropped, slow-rate aliases of stronger ones",
                       len(twins))
             kept = [r for r in range(len(gains)) if r not in twins]
-            terms = _terms_of(kernel, [g.input for g in gains])
             gains = [gains[r] for r in kept]
             if gains:
                 kernel, noise, value = _refitted(
-                    evidence, _assembled(kernel, [terms[r] for r in kept]), noise)
+                    evidence, _assembled(kernel, [found[r] for r in kept]), noise)
         if gains:
             check = held_out_resonances(observation, y, kernel, noise, [g.input for g in gains],
                                         base, model_noise0, n_folds)

@@ -220,6 +220,21 @@ def _camera_files(tmp_path, n=300):
     return u, y, stamps, fast, slow
 
 
+def _assert_command_line_readings(model_file, model, u, fast, instants, folder):
+    """``gpmultirate predict --slow`` at ``instants``: the library's readings and bands."""
+    frames = folder / "frames.csv"
+    frames.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
+    target = folder / "readings.csv"
+    assert main(["predict", str(model_file), str(fast), "--input", "u", "--slow",
+                 str(frames), "--time", "t", "--out", str(target), "--quiet"]) == 0
+    table = np.genfromtxt(target, delimiter=",", names=True)
+    mean, std = model.predict(u, return_std=True, sample_times=instants)
+    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
+    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+    return table
+
+
 @pytest.mark.slow  # the figures of the fit take most of its 15 s
 def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
     from gpmultirate.io import read_slow_log
@@ -247,17 +262,8 @@ def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
     assert summary["model"]["noise"]["ljung_box_p_value"] == pytest.approx(whiteness.p_value,
                                                                   rel=1e-6)
     # readings at the instants of another log, with their bands, as the library gives them
-    other = tmp_path / "frames.csv"
     instants = np.array([10.25, 57.5, 123.875, 250.0])
-    other.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
-    table_file = tmp_path / "readings.csv"
-    assert main(["predict", str(out / "model.npz"), str(fast), "--input", "u", "--slow",
-                 str(other), "--time", "t", "--out", str(table_file), "--quiet"]) == 0
-    table = np.genfromtxt(table_file, delimiter=",", names=True)
-    mean, std = model.predict(u, return_std=True, sample_times=instants)
-    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
-    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
-    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+    table = _assert_command_line_readings(out / "model.npz", model, u, fast, instants, tmp_path)
     assert table.shape == (4,) and np.all(table["y_std"] > 0)
 
 
@@ -266,17 +272,8 @@ def test_predict_readings_of_a_saved_camera_model(tmp_path):
     model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, sample_time=T, exposure=0.5,
                                   latency=0.2, optimizer=None, noise_level=1e-4)
     gm.save_model(model.fit(u, y, sample_times=stamps), tmp_path / "model.npz")
-    frames = tmp_path / "frames.csv"
     instants = np.array([10.25, 57.5, 100.875])
-    frames.write_text("t\n" + "".join(f"{t * T:.17g}\n" for t in instants))
-    target = tmp_path / "readings.csv"
-    assert main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--slow",
-                 str(frames), "--time", "t", "--out", str(target), "--quiet"]) == 0
-    table = np.genfromtxt(target, delimiter=",", names=True)
-    mean, std = model.predict(u, return_std=True, sample_times=instants)
-    np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
-    np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
-    np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
+    _assert_command_line_readings(tmp_path / "model.npz", model, u, fast, instants, tmp_path)
 
 
 # ------------------------------------------------ tuning by cross-validation between the ticks
