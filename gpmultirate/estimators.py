@@ -29,7 +29,9 @@ from sklearn.utils.validation import check_is_fitted
 from gpmultirate import orders, tuning, units
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
 from gpmultirate.deprecation import warn_deprecated
-from gpmultirate.exceptions import HeldOutWarning, IdentifiabilityError, OrderWarning
+from gpmultirate.exceptions import (
+    HeldOutWarning, IdentifiabilityError, NumericalWarning, OrderWarning,
+)
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.inference import (
@@ -59,7 +61,9 @@ from gpmultirate.noise import (
 )
 from gpmultirate.observations import build_experiment, regressor_rows
 from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
-from gpmultirate.observations.interpolated import InterpolatedConvolution
+from gpmultirate.observations.interpolated import (
+    DEFAULT_POINTS, InterpolatedConvolution, interpolation_error,
+)
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER, auto_orders
 from gpmultirate.observations.timed import (
@@ -702,15 +706,20 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         readings as linear functionals of the response over continuous lag
         (:class:`~gpmultirate.observations.TimedConvolution`), whose data
         covariance is ``M x M``.  ``"interpolated"``: the response between
-        the integer lags interpolated (cubic, four integer lags), so the
+        the integer lags interpolated (from twelve integer lags), so the
         readings are a regressor on the integer lags and a long record
         takes the ``P x P`` parameter space
         (:class:`~gpmultirate.observations.InterpolatedConvolution`); the
-        interpolation error is absorbed by the tuned noise level (its size:
-        :doc:`/cameras`).  ``"auto"``: interpolated for a long record, with
-        more readings than coefficients and than 1,000 (where the exact
-        route's ``M x M`` covariance costs many seconds per evaluation),
-        exact otherwise.
+        interpolation error is absorbed by the tuned
+        noise level, and ``interpolation_error_`` estimates it (:doc:`/cameras`).
+        ``"auto"``: interpolated for a long record, with more readings than
+        coefficients and than 1,000 (where the exact route's ``M x M``
+        covariance costs many seconds per evaluation), exact otherwise; an
+        interpolated fit whose estimated error is above
+        ``INTERPOLATION_TOLERANCE`` (0.2) times the noise's standard
+        deviation (a response with content near the fast Nyquist frequency)
+        is fitted again exactly up to 3,000 readings (beyond, a
+        :class:`~gpmultirate.NumericalWarning` gives the estimate).
     noise_kernel : "auto", "white", "matern12", "matern32", "ar1" or sklearn Kernel, default="auto"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
@@ -793,6 +802,10 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         Log evidence of the slow data at ``kernel_`` and ``noise_level_``
         (scikit-learn's sign and constants: higher is better), a density of
         ``y_slow`` in its own units.
+    interpolation_error_ : float
+        Fits by the interpolated route only: the estimated rms error of the
+        interpolated readings of ``coef_``, in standard deviations of the
+        white noise (:func:`~gpmultirate.observations.interpolation_error`).
     input_scale_ : ndarray of shape (n_inputs,)
         The power of two each input was divided by for the fit.
     output_scale_ : float
@@ -957,13 +970,17 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         settings = self._check_params()
         sample_indices = _timed_samples(self, sample_indices, sample_times)
         timed = isinstance(sample_indices, _TimedSamples)
-        for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_"):
+        for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
+                     "interpolation_error_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
+        self._between_ticks_used = None  # the route of readings between ticks: the setting's
         # the fit works on the data divided by powers of two (exact), then rescales once
         given = (u, y_slow, sample_indices)
         u, y_slow, scale = units.normalize(u, y_slow)
         settings = replace(settings, scale=scale)
         self._fit_normalized((u, y_slow, sample_indices), settings, timed)
+        if timed:
+            self._check_interpolation((u, y_slow, sample_indices), settings)
         units.rescale_gaussian_process(
             self, scale, lambda: self._experiment(given, self.observation_.order))
         return self
@@ -1002,6 +1019,38 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                 self._check_shorter_orders(data, fitted.experiment, settings)
         self._check_long_enough()
         return self
+
+    def _check_interpolation(self, data, settings: _Settings) -> None:
+        """Estimate an interpolated fit's error; with ``between_ticks="auto"``, act on it.
+
+        The estimate (:func:`~gpmultirate.observations.interpolation_error`
+        of the posterior mean) in standard deviations of the white noise is
+        ``interpolation_error_``.  Above ``INTERPOLATION_TOLERANCE`` the
+        default route fits the readings again, exactly, up to ``EXACT_UP_TO``
+        readings; beyond, a ``NumericalWarning`` gives the estimate.
+        """
+        operator = self.observation_
+        if not isinstance(operator, InterpolatedConvolution):
+            return
+        error = interpolation_error(operator, self.posterior_.coef)
+        if error is None:
+            return
+        self.interpolation_error_ = error / np.sqrt(self.noise_level_)
+        _LOG.info("interpolated readings (%d lags): estimated error %.3g noise std",
+                  operator.points, self.interpolation_error_)
+        if _between_ticks(self) != "auto" or self.interpolation_error_ <= INTERPOLATION_TOLERANCE:
+            return
+        if operator.n_outputs > EXACT_UP_TO:
+            warnings.warn(
+                f"the readings between the ticks are interpolated with an estimated error of "
+                f"{self.interpolation_error_:.2g} noise standard deviations; "
+                "between_ticks='exact' models them exactly (an M x M covariance)",
+                NumericalWarning, stacklevel=3)
+            return
+        _LOG.info("fitting the readings again, exactly")
+        self._between_ticks_used = "exact"
+        del self.interpolation_error_
+        self._fit_normalized(data, settings, True)
 
     def _default_order(self, data, settings: _Settings):
         """The default order of a record longer than ``SHORT_RECORD``: :func:`~gpmultirate.orders.default_order`.
@@ -1792,6 +1841,10 @@ def _timed_samples(model, sample_indices, sample_times):
 BETWEEN_TICKS = ("auto", "exact", "interpolated")
 #: ``between_ticks="auto"`` interpolates above this many readings (and more than coefficients)
 INTERPOLATED_ABOVE = 1000
+#: ``between_ticks="auto"``: the largest estimated interpolation error, in noise std
+INTERPOLATION_TOLERANCE = 0.2
+#: ``between_ticks="auto"``: readings fitted exactly where the interpolation is not enough
+EXACT_UP_TO = 3000
 
 
 def _between_ticks(model) -> str:
@@ -1814,9 +1867,10 @@ def _experiment(model, u, y_slow, sample_indices, order):
             latency=model.latency, initial_conditions=model.initial_conditions,
         )
         timed = experiment.observation
-        route = _between_ticks(model)
+        route = getattr(model, "_between_ticks_used", None) or _between_ticks(model)
+        shortest = min(record.n_samples for record in timed.records)
         if route == "interpolated" or (route == "auto" and timed.n_outputs > max(
-                timed.n_coefficients, INTERPOLATED_ABOVE)):
+                timed.n_coefficients, INTERPOLATED_ABOVE) and shortest >= DEFAULT_POINTS):
             return Experiment(InterpolatedConvolution(timed), experiment.y, experiment.n_inputs)
         return experiment
     return build_experiment(

@@ -22,7 +22,7 @@ from gpmultirate.observations.sampled import (
     SampledConvolution,
     check_initial_conditions,
 )
-from gpmultirate.observations.interpolated import InterpolatedConvolution
+from gpmultirate.observations.interpolated import InterpolatedConvolution, interpolation_error
 from gpmultirate.observations.timed import TimedConvolution
 
 __all__ = [
@@ -41,5 +41,6 @@ __all__ = [
     "check_initial_conditions",
     "reduce_observation",
     "convolution_matrix",
+    "interpolation_error",
     "regressor_rows",
 ]
