@@ -1147,10 +1147,11 @@ def model_slow_samples(model) -> SlowSamples:
 
     Returns
     -------
-    SlowSamples
+    SlowSamples or SlowLog
         As :func:`gpmultirate.io.read_slow_samples` reads them from a column
         holding the model's ``y_slow_`` at its sample instants and ``NaN``
-        elsewhere.
+        elsewhere; for readings at their own instants (``sample_times``), a
+        :class:`SlowLog` of them.
 
     Examples
     --------
@@ -1164,6 +1165,12 @@ def model_slow_samples(model) -> SlowSamples:
     """
     check_is_fitted(model, "observation_")
     operator = model.observation_
+    if getattr(operator, "sample_times", None) is not None:  # readings at their own instants
+        period = getattr(model, "sample_time", None) or 1.0
+        times = np.asarray(operator.sample_times, dtype=float)
+        return SlowLog(times * period, times, np.asarray(model.y_slow_, dtype=float),
+                       int(operator.n_samples), period, operator.exposure * period,
+                       operator.latency * period)
     column = np.full(int(operator.n_samples), np.nan)
     column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
     return read_slow_samples(column)

@@ -116,7 +116,9 @@ class FitReport:
         data's units), ``cv_log_predictive`` after cross-validation, and for
         a model whose kernel stays in normalized units
         ``hyperparameter_units`` ``"normalized"`` and ``noise_std`` (in the
-        data's units, finite where the variance is beyond the float range).
+        data's units, finite where the variance is beyond the float range);
+        for readings interpolated between the ticks ``between_ticks``
+        (``route``, ``lags`` and ``estimated_error_noise_std``).
     notes, warnings : tuple of str
         Remarks on the fit, and the warnings it raised.
     resonances : list or None
@@ -306,6 +308,16 @@ def _noise_lines(noise) -> list[str]:
     return lines
 
 
+def _between_ticks_lines(between) -> list[str]:
+    if not isinstance(between, dict):
+        return []
+    line = f"- readings between the ticks: interpolated from {between.get('lags')} lags"
+    if "estimated_error_noise_std" in between:
+        line += (f", estimated error {between['estimated_error_noise_std']:.2g} noise standard "
+                 "deviations")
+    return [line]
+
+
 def _markdown(summary: dict) -> str:
     data, model = summary["data"], summary["model"]
     lines = ["# gpmultirate fit", "",
@@ -317,7 +329,8 @@ def _markdown(summary: dict) -> str:
              f"conditions {model['initial_conditions']}",
              f"- kernel: `{model['kernel']}`",
              f"- log evidence: {model['log_evidence']:.6g}",
-             _noise_line(model), *_noise_lines(model.get("noise")), "",
+             _noise_line(model), *_noise_lines(model.get("noise")),
+             *_between_ticks_lines(model.get("between_ticks")), "",
              "## Hyperparameters", "", "| name | value |", "|---|---|"]
     lines += [f"| `{k}` | {v} |" for k, v in model["hyperparameters"].items()]
     resonances = summary.get("resonances")
@@ -466,6 +479,12 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
                     "log_evidence": float(model.log_marginal_likelihood_value_)})
     summary.update(_noise_in_data_units(model))
     summary["noise"] = noise_summary(model, residuals)
+    points = getattr(model.observation_, "points", None)
+    if points is not None:  # readings between the ticks, interpolated on the integer lags
+        summary["between_ticks"] = {"route": "interpolated", "lags": int(points)}
+        if hasattr(model, "interpolation_error_"):
+            summary["between_ticks"]["estimated_error_noise_std"] = float(
+                model.interpolation_error_)
     if hasattr(model, "cv_log_predictive_likelihood_"):
         summary["cv_log_predictive"] = float(model.cv_log_predictive_likelihood_)
     selection = None
