@@ -1311,6 +1311,21 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
                         cv_value = score
                     # a disturbance without white noise (AR(1)) keeps the white fit's level
                     noise = noise_model.level or noise
+                    if resonances_found:  # the search judged its terms with white noise
+                        kept, reduced = resonances.resonances_under_disturbance(
+                            operator, y, evidence, kernel, noise_model,
+                            [r.input for r in resonances_found], settings.n_folds)
+                        if len(kept) < len(resonances_found):
+                            _LOG.info("resonance search: %d term(s) dropped, the disturbance "
+                                      "explains them", len(resonances_found) - len(kept))
+                            resonances_found = [resonances_found[r] for r in kept]
+                            evidence, kernel, noise_model, posterior, result, score = (
+                                self._fit_disturbance(operator, y, reduced, noise, noise_bounds,
+                                                      None, settings, start=noise_model))
+                            optimizer_result = result if result is not None else optimizer_result
+                            if cv_value is not None:
+                                cv_value = score
+                            noise = noise_model.level or noise
         moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
         if optimizer_result is not None:
             tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))
@@ -1398,8 +1413,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         return units.scaled_noise_kernel(choice, settings.scale.variance(1.0, to_data=False))
 
     def _fit_disturbance(self, operator, y, kernel, noise_level, noise_bounds, choice,
-                         settings: _Settings):
+                         settings: _Settings, start=None):
         """Tune a disturbance model with everything else, from the white fit's point.
+
+        ``choice``: a noise choice (``make_noise``); ``start``: a noise model to go
+        on from instead.
 
         By the criterion of ``settings``: the log evidence, or the
         cross-validated log predictive likelihood
@@ -1408,7 +1426,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         kernel, noise_model, posterior, optimizer_result, score)``, ``score``
         the criterion's value at the tuned point.
         """
-        noise_model = make_noise(choice, noise_level, noise_bounds, noise_instants(operator))
+        noise_model = start if start is not None else make_noise(
+            choice, noise_level, noise_bounds, noise_instants(operator))
         evidence = LogEvidence(operator, y, kernel, noise_level, noise_bounds, noise=noise_model)
         objective = evidence
         if settings.criterion == "cross_validation":

@@ -48,7 +48,12 @@ terms one at a time, greedily:
    wandering signal that follows such a disturbance within the record,
    even in held-out blocks (a spurious regression of one persistent
    signal on another), but not its changes from one sample to the next,
-   nor on a new record.
+   nor on a new record;
+6. **under the disturbance** (:func:`resonances_under_disturbance`): the
+   search works with white noise; where the fit then chooses a coloured
+   disturbance (``noise_kernel``), each term is judged again with it, by
+   its evidence gain and the held-out check, for a term may have done
+   what the disturbance now does.
 
 The threshold is an approximate Bayes factor: a PK term brings four
 hyperparameters and its frequency is chosen among a few hundred
@@ -105,8 +110,8 @@ __all__ = [
     "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
     "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
-    "held_out_resonances", "persistent_aliases", "resonance_scan", "search_resonances",
-    "slowest_decay",
+    "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
+    "search_resonances", "slowest_decay",
 ]
 
 #: the logger of a fit's progress (see :mod:`gpmultirate.progress`)
@@ -838,6 +843,79 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         "raw_kept": current[1],
         "dropped": len(terms) - len(kept),
     }
+
+
+def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs,
+                                 n_folds: int = 5) -> tuple[list[int], Kernel]:
+    """The PK terms of ``kernel`` a fit with a disturbance model still calls for.
+
+    The resonance search judges its terms with white noise; a coloured
+    disturbance chosen after it may explain what a term did (a slow drift,
+    a periodic disturbance).  Each term is judged again with the
+    disturbance, every hyperparameter held: it is kept when the log
+    evidence without it falls by more than :data:`EVIDENCE_THRESHOLD`
+    nats, and the terms kept must pass :func:`held_out_resonances` with the
+    disturbance (against the kernel without PK terms, hyperparameters
+    held).
+
+    Parameters
+    ----------
+    observation : Observation
+        The observation of every used slow sample (not reduced).
+    y : ndarray of shape (M,)
+    evidence : LogEvidence
+        The evidence of the fit, with its noise model.
+    kernel : sklearn Kernel
+        The tuned kernel with its PK terms.
+    noise : noise model
+        The tuned disturbance model (:mod:`gpmultirate.noise`).
+    inputs : list of int
+        The input of each PK term, in the order they were added.
+    n_folds : int, default=5
+
+    Returns
+    -------
+    kept : list of int
+        The indices of the terms kept, in order.
+    kernel : sklearn Kernel
+        ``kernel`` with only those terms (hyperparameters unchanged).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.inference import LogEvidence
+    >>> from gpmultirate.kernels import DC, PK
+    >>> from gpmultirate.noise import make_noise
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(600), factor=3, order=100)
+    >>> y = op.matvec(0.9 ** np.arange(100)) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> spurious = C(5.0) * DC(0.9, 0.9) + PK(alpha=0.98, omega=2.0, sigma1=0.3, sigma2=0.3)
+    >>> noise = make_noise("matern12", 1e-4, "fixed", np.arange(op.n_outputs) * 3.0)
+    >>> evidence = LogEvidence(op, y, spurious, 1e-4, "fixed", noise=noise)
+    >>> kept, kernel = resonances_under_disturbance(op, y, evidence, spurious, noise, [0])
+    >>> kept, kernel
+    ([], 2.24**2 * DC(alpha=0.9, beta=0.9))
+    """
+    terms = _terms_of(kernel, list(inputs))
+    if not terms:
+        return [], kernel
+
+    def value(candidate):
+        moved = evidence.moved_to(candidate, noise)
+        return float(moved(moved.theta))
+
+    full = value(kernel)
+    kept = [r for r in range(len(terms))
+            if full - value(_assembled(kernel, terms[:r] + terms[r + 1:])) > EVIDENCE_THRESHOLD]
+    if kept:
+        check = held_out_resonances(
+            observation, y, _assembled(kernel, [terms[r] for r in kept]), noise,
+            [inputs[r] for r in kept], _without_pk(kernel), noise, n_folds)
+        if check is not None:
+            kept = [kept[i] for i in check["kept_terms"]]
+    return kept, _assembled(kernel, [terms[r] for r in kept]) if kept else _without_pk(kernel)
 
 
 def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):

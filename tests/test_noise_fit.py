@@ -498,3 +498,46 @@ def test_auto_on_a_long_drifting_record_tunes_the_ar1_disturbance(monkeypatch):
     assert auto.log_marginal_likelihood_value_ == pytest.approx(
         ar1.log_marginal_likelihood_value_, rel=1e-12)
     assert auto.log_marginal_likelihood_value_ > white.log_marginal_likelihood_value_ + 10
+
+
+def test_resonances_found_under_white_noise_are_judged_again_with_the_disturbance(monkeypatch):
+    # the search (here made to return a spurious term) judged with white noise; the
+    # disturbance the fit then chooses takes it out, and the fit is tuned again without it
+    from gpmultirate import resonances
+    from gpmultirate.kernels import PK, resonance_summands
+
+    search = resonances.search_resonances
+
+    def with_a_spurious_term(observation, y, kernel, noise, noise_bounds, **settings):
+        found = search(observation, y, kernel, noise, noise_bounds, **settings)
+        spurious = PK(alpha=0.98, omega=2.0, sigma1=1e-3, sigma2=1e-3)
+        return resonances.ResonanceSearch(
+            kernel=found.kernel + spurious, noise_level=found.noise_level,
+            optimizer_result=found.optimizer_result,
+            resonances=[resonances.Resonance(frequency_hz=2.0 / (2 * np.pi), damping=0.01,
+                                             evidence_gain=30.0, input=0)],
+            log_marginal_likelihood=found.log_marginal_likelihood, history=found.history)
+
+    monkeypatch.setattr(resonances, "search_resonances", with_a_spurious_term)
+    u, y = _data(0)
+    model = FIRGaussianProcess(kernel="auto", factor=FACTOR, order=ORDER,
+                               noise_kernel="matern12").fit(u, y)
+    assert model.resonances_ == []
+    assert resonance_summands(model.kernel_) == []
+    # with white noise the (spurious) term stays: the search's word is final there
+    model = FIRGaussianProcess(kernel="auto", factor=FACTOR, order=ORDER,
+                               noise_kernel="white").fit(u, y)
+    assert len(model.resonances_) == 1
+
+
+@pytest.mark.slow
+def test_a_true_resonance_is_kept_with_the_disturbance():
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(900)
+    lags = np.arange(100)
+    g = 0.9 ** lags + 0.97 ** lags * np.sin(2.4 * lags)
+    y = np.convolve(u, g)[:900:3]
+    y = y + np.cumsum(0.05 * rng.standard_normal(300)) + 0.02 * rng.standard_normal(300)
+    model = FIRGaussianProcess(kernel="auto", factor=3, order=100,
+                               noise_kernel="matern12").fit(u, y)
+    assert [round(2 * np.pi * r.frequency_hz, 1) for r in model.resonances_] == [2.4]
