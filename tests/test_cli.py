@@ -60,6 +60,7 @@ def test_demo_progress_and_no_figures(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(TABLES)
 
 
+@pytest.mark.slow
 def test_example1_writes_the_figure(tmp_path):
     assert main(["example1", "--output", str(tmp_path), "--n-samples", "120", "--quiet"]) == 0
     assert (tmp_path / "example1.png").read_bytes()[:8] == PNG
@@ -191,6 +192,7 @@ def _dense_posterior(model, u, indices, y):
     return mean, cov, evidence
 
 
+@pytest.mark.slow
 def test_fit_on_irregular_samples_matches_the_dense_posterior(tmp_path, capsys):
     import json
 
@@ -250,6 +252,7 @@ def test_fit_on_irregular_samples_matches_the_dense_posterior(tmp_path, capsys):
                  "--out", str(csv_out), "--force", "--quiet"]) == 0
 
 
+@pytest.mark.slow
 def test_fit_on_a_grid_with_missing_samples_uses_the_slow_rate(tmp_path):
     """Every third sample with gaps: the same model as fit(..., sample_indices=...)."""
     import json
@@ -275,6 +278,7 @@ def test_fit_on_a_grid_with_missing_samples_uses_the_slow_rate(tmp_path):
     assert "3 missing" in summary["data"]["sampling"]  # rows 7, 40 and 43
 
 
+@pytest.mark.slow
 def test_fit_factor_offset_and_validation(tmp_path):
     import json
 
@@ -326,6 +330,7 @@ def test_fit_two_inputs_and_other_kernels(tmp_path):
     assert (tmp_path / "ss" / "bode.png").read_bytes()[:8] == PNG
 
 
+@pytest.mark.slow
 def test_fit_refuses_to_overwrite_and_force_replaces(tmp_path, capsys):
     u, y = _system(7)
     data = tmp_path / "data.csv"
@@ -441,6 +446,7 @@ def test_fit_example_robot_arm(tmp_path, capsys):
     assert summary["validation"]["gof_percent"] > 80
 
 
+@pytest.mark.slow
 def test_fit_writes_the_state_space_when_the_model_has_one(tmp_path, monkeypatch):
     """With ``to_state_space`` (a shift register of the FIR coefficients here) the file holds
     its matrices, and simulating them gives back the impulse response."""

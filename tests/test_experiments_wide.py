@@ -248,6 +248,7 @@ def test_a_missing_sample_is_as_if_left_out():
     assert with_nan.log_marginal_likelihood_value_ == left_out.log_marginal_likelihood_value_
 
 
+@pytest.mark.slow
 def test_two_inputs_are_identified_where_one_input_fails():
     # the slow output of a two-input system: a one-input model cannot explain it
     rng = np.random.default_rng(6)

@@ -104,6 +104,7 @@ def test_a_fit_over_the_limit_fails_up_front(problem, estimator, monkeypatch):
     estimator.fit(u, y)  # the same fit within the limit
 
 
+@pytest.mark.slow
 def test_the_refusal_comes_before_the_allocation():
     # a process limited to 300 MB of address space fits the paper's size, and is
     # refused (not killed) for an order whose matrices need terabytes

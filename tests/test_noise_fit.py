@@ -500,6 +500,7 @@ def test_auto_on_a_long_drifting_record_tunes_the_ar1_disturbance(monkeypatch):
     assert auto.log_marginal_likelihood_value_ > white.log_marginal_likelihood_value_ + 10
 
 
+@pytest.mark.slow
 def test_resonances_found_under_white_noise_are_judged_again_with_the_disturbance(monkeypatch):
     # the search (here made to return a spurious term) judged with white noise; the
     # disturbance the fit then chooses takes it out, and the fit is tuned again without it

@@ -221,6 +221,7 @@ def assert_close(actual, expected, relative, what):
 # ------------------------------------------------------- 1. equation (15)
 @examples(100)
 @given(problems(), kernel_specs(), log_uniform(-3, 1))
+@pytest.mark.slow
 def test_posterior_mean_is_the_regularized_estimate_of_eq_15(problem, spec, noise):
     model = fit_gp(problem, spec, noise)
     Phi, y, P = problem.Phi, problem.y, problem.order
@@ -233,6 +234,7 @@ def test_posterior_mean_is_the_regularized_estimate_of_eq_15(problem, spec, nois
 @examples(80)
 @given(problems(), kernel_specs(), log_uniform(-3, 1),
        st.lists(st.floats(0.0, 30.0), min_size=1, max_size=6))
+@pytest.mark.slow
 def test_posterior_at_real_lags_is_the_dense_gaussian_conditional(problem, spec, noise, lags):
     lags = np.array(lags)
     model = fit_gp(problem, spec, noise)

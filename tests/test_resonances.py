@@ -297,6 +297,7 @@ def test_search_does_not_modify_its_inputs():
 
 
 # ---------------------------------------------------------------- targets
+@pytest.mark.slow
 def test_paper_system_quick():
     scores, model = _gofs(sim.paper_system(T, perturbation=0.1, random_state=0), 300, 0)
     assert scores["auto"] > scores["DC"]

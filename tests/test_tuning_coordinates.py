@@ -134,6 +134,7 @@ def test_coupled_coordinates_reach_the_plain_optimum(monkeypatch):
                                atol=1e-4 * np.abs(plain.coef_).max())
 
 
+@pytest.mark.slow
 def test_an_amplitude_bound_that_binds_is_kept(monkeypatch):
     # the unbounded amplitude coordinate leaves the bound; the polish brings the
     # result back onto it, where the plain run also ends (the kernel is a prior
