@@ -104,7 +104,8 @@ def maximize(evidence, n_restarts: int = 0, random_state=None, max_evaluations=N
         warnings.simplefilter("ignore", NumericalWarning)
         # a disturbance model starts from its white fit: no prefit of gamma alone
         coloured = getattr(evidence, "coloured", False)
-        theta0 = evidence.theta.copy() if coloured else prefit_scale_and_noise(evidence)
+        theta0, scale_message = (evidence.theta.copy(), None) if coloured else _prefit(
+            evidence)
         if theta0.shape[0] == 0:
             return None
         bounds = evidence.bounds
@@ -139,9 +140,22 @@ def maximize(evidence, n_restarts: int = 0, random_state=None, max_evaluations=N
             "check the kernel, its bounds and noise_level_bounds"
         )
     best = min(finite, key=lambda r: r.fun)
+    if scale_message is not None and _amplitude_on_a_bound(evidence, best.x):
+        # at the start's shape the data called for a scale the bounds do not admit, and
+        # the tuned shape did not take it back: say why the amplitude sits on its bound
+        warnings.warn(scale_message, ConvergenceWarning, stacklevel=3)
     if max_evaluations is None or best.nfev < max_evaluations:
         warn_if_not_converged(best)
     return best
+
+
+def _amplitude_on_a_bound(evidence, theta) -> bool:
+    """Whether an amplitude that scales the whole kernel ends on one of its bounds."""
+    positions = evidence.scale_positions()
+    bounds = evidence.bounds
+    return positions is not None and any(
+        min(abs(theta[i] - bounds[i, 0]), abs(theta[i] - bounds[i, 1])) < 1e-6
+        for i, _ in positions)
 
 
 def _negative(evidence):
@@ -174,14 +188,25 @@ def prefit_scale_and_noise(evidence) -> np.ndarray:
 
     Returns the initial ``theta`` with the amplitudes that scale the whole
     kernel (``evidence.scale_positions()``) and the log noise level moved to
-    their optimum; values are clipped to their bounds.
+    their optimum; values are clipped to their bounds.  A
+    :class:`~sklearn.exceptions.ConvergenceWarning` says so when the bounds
+    of the amplitudes do not admit that scale.
     """
+    theta, message = _prefit(evidence)
+    if message is not None:
+        warnings.warn(message, ConvergenceWarning, stacklevel=2)
+    return theta
+
+
+def _prefit(evidence):
+    """:func:`prefit_scale_and_noise`'s ``theta``, and the message of bounds that do
+    not admit the data's scale (or None)."""
     theta = evidence.theta.copy()
     scale_positions = evidence.scale_positions()
     fit_scale = scale_positions is not None
     fit_noise = evidence.noise_is_free
     if not (fit_scale or fit_noise):
-        return theta
+        return theta, None
     y = evidence.z
     spectral = SpectralCovariance(evidence.covariance(), y)
     s = spectral.eigenvalues
@@ -236,16 +261,18 @@ def prefit_scale_and_noise(evidence) -> np.ndarray:
         if np.isfinite(result.fun) and (best is None or result.fun < best.fun):
             best = result
     if best is None:  # no start gave a finite evidence: the optimizer's runs report it
-        return theta
+        return theta, None
     theta_bounds = evidence.bounds
+    message = None
     if fit_scale:
         log_scale = float(best.x[0])
-        _warn_if_scale_out_of_bounds(evidence, theta, theta_bounds, scale_positions, log_scale)
+        message = _scale_out_of_bounds(evidence, theta, theta_bounds, scale_positions,
+                                       log_scale)
         for i, p in scale_positions:
             theta[i] = np.clip(theta[i] + p * log_scale, *theta_bounds[i])
     if fit_noise:
         theta[-1] = best.x[-1]
-    return _prefit_each_scale(evidence, theta, theta_bounds)
+    return _prefit_each_scale(evidence, theta, theta_bounds), message
 
 
 def _prefit_each_scale(evidence, theta, bounds, sweeps: int = 2) -> np.ndarray:
@@ -297,22 +324,18 @@ def _prefit_each_scale(evidence, theta, bounds, sweeps: int = 2) -> np.ndarray:
     return theta
 
 
-def _warn_if_scale_out_of_bounds(evidence, theta, bounds, positions, log_scale) -> None:
-    """Warn when the bounds of the amplitudes do not admit the data's scale."""
+def _scale_out_of_bounds(evidence, theta, bounds, positions, log_scale) -> str | None:
+    """The message when the bounds of the amplitudes do not admit the data's scale."""
     low = max((bounds[i, 0] - theta[i]) / p for i, p in positions)
     high = min((bounds[i, 1] - theta[i]) / p for i, p in positions)
     if low > high or low - np.log(10.0) <= log_scale <= high + np.log(10.0):
-        return
+        return None
     roles = evidence.roles()
     names = ", ".join(roles[i].name for i, _ in positions)
-    warnings.warn(
-        f"the data call for the kernel to be scaled by {np.exp(log_scale):.3g}, which the "
-        f"bounds of its amplitude hyperparameters ({names}) do not allow; the fit will be "
-        "poor. Widen those bounds to the units of u and y, or use kernel=None, whose "
-        "bounds follow the data.",
-        ConvergenceWarning,
-        stacklevel=5,
-    )
+    return (f"the data call for the kernel to be scaled by {np.exp(log_scale):.3g}, which the "
+            f"bounds of its amplitude hyperparameters ({names}) do not allow; the fit will be "
+            "poor. Widen those bounds to the units of u and y, or use kernel=None, whose "
+            "bounds follow the data.")
 
 
 def _clip(x, bounds):

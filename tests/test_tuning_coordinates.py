@@ -164,3 +164,27 @@ def test_cross_validation_keeps_plain_coordinates():
     assert evidence.amplitude_couplings() == [(2, 0, 1.0)]
     objective = CrossValidation(operator, y, kernel, 1e-2, (1e-6, 1.0), n_folds=5)
     assert objective.amplitude_couplings() == []
+
+
+def test_the_prefit_scale_warning_is_kept_for_an_amplitude_the_tuning_leaves_on_its_bound():
+    # at the start's shape (a fast decay) the slow response calls for a huge scale; the
+    # tuned shape takes it back inside wide bounds (no warning), not inside tight ones
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+
+    rng = np.random.default_rng(0)
+    op = gm.DownsampledConvolution(rng.standard_normal(600), factor=3, order=150)
+    y = op.matvec(0.98 ** np.arange(150)) + 0.01 * rng.standard_normal(op.n_outputs)
+    for bounds, binds in (((1e-3, 1e3), False), ((1e-4, 3e-3), True)):
+        evidence = inference.LogEvidence(op, y, C(1e-3, bounds) * DC(0.2, 0.9), 1e-4,
+                               (1e-8, 1.0))
+        with pytest.warns(ConvergenceWarning, match="the data call for the kernel"):
+            tuning.prefit_scale_and_noise(evidence)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = tuning.maximize(evidence)
+        said = [w for w in caught if "the data call for the kernel" in str(w.message)]
+        amplitude = np.exp(result.x[0])
+        assert (amplitude == pytest.approx(bounds[1])) == binds
+        assert len(said) == int(binds)
