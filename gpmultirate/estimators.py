@@ -1599,7 +1599,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         return mean, second, exponents
 
     def _predict_readings(self, x, sample_times, return_std):
-        """The sensor's readings at ``sample_times`` (exposure and latency applied)."""
+        """The sensor's readings at ``sample_times`` (exposure and latency applied).
+
+        A fit of interpolated readings predicts them by its interpolation;
+        any other by the posterior at real lags.
+        """
         posterior, scale = units.split(self.posterior_)
         kernel = self.kernel_
         if scale is not None:  # in the units of the normalized fit, scaled at the end
@@ -1607,8 +1611,14 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             kernel = self._evidence.kernel
         readings = TimedConvolution(
             x, sample_times, self._order, self.exposure, self.latency, self.initial_conditions)
-        with blas_threads_for(readings):
-            mean, var = predict_readings(posterior, self._evidence.data, kernel, readings)
+        fitted = self.observation_
+        if isinstance(fitted, InterpolatedConvolution) and readings.n_samples >= fitted.points:
+            # the readings as the fit modelled them: interpolated on the integer lags
+            mean, var = posterior.linear_map(
+                InterpolatedConvolution(readings, fitted.points).matrix)
+        else:
+            with blas_threads_for(readings):
+                mean, var = predict_readings(posterior, self._evidence.data, kernel, readings)
         out = (mean, np.sqrt(var)) if return_std else mean
         if scale is None:
             return out

@@ -16,6 +16,7 @@ import gpmultirate as gm
 from gpmultirate import simulation
 from gpmultirate.observations import InterpolatedConvolution, TimedConvolution
 from gpmultirate.observations.interpolated import lagrange_weights
+from gpmultirate.observations.timed import predict_readings
 
 
 def _reference_rows(u, times, order, exposure, latency, nodes):
@@ -285,3 +286,32 @@ def test_report_names_the_interpolation_and_its_estimated_error():
     exact = gm.FIRGaussianProcess(gm.kernels.DC(0.9, 0.8), optimizer=None, noise_level=1e-4,
                                   order=60).fit(u, y, sample_times=times)
     assert "between_ticks" not in fit_report(exact).model
+
+
+def test_an_interpolated_fit_predicts_readings_by_its_interpolation():
+    # the readings as the fit modelled them: the rows of the interpolation times the
+    # posterior (not the prior's bridge between the integer lags, which for DC is nearly
+    # linear and misses the response between the ticks)
+    rng = np.random.default_rng(8)
+    u = rng.standard_normal(1500)
+    times = np.arange(0, 1500, 3) + rng.uniform(0, 1, 500)
+    g = lambda x: np.sin(np.pi * x / 60) ** 2 * np.cos(0.9 * x)  # noqa: E731
+    timed = TimedConvolution(u, times, 60, exposure=0.3)
+    y = timed.lag_functionals(lambda x: g(x)[:, None])[:, 0] + 1e-3 * rng.standard_normal(500)
+    model = gm.FIRGaussianProcess(gm.kernels.DC(0.9, 0.8), optimizer=None, noise_level=1e-6,
+                                  order=60, exposure=0.3, between_ticks="interpolated").fit(
+        u, y, sample_times=times)
+    u_new = rng.standard_normal(600)
+    t_new = np.sort(rng.uniform(60, 599, 50))
+    mean, std = model.predict(u_new, sample_times=t_new, return_std=True)
+    rows = InterpolatedConvolution(TimedConvolution(u_new, t_new, 60, exposure=0.3)).matrix
+    reference, variance = model.posterior_.linear_map(rows)
+    assert np.allclose(mean, reference, rtol=1e-10, atol=1e-12)
+    assert np.allclose(std, np.sqrt(variance), rtol=1e-10)
+    truth = TimedConvolution(u_new, t_new, 60, exposure=0.3).lag_functionals(
+        lambda x: g(x)[:, None])[:, 0]
+    bridge = predict_readings(model.posterior_, model.observation_, model.kernel_,
+                              TimedConvolution(u_new, t_new, 60, exposure=0.3))[0]
+    error = np.sqrt(np.mean((mean - truth) ** 2))
+    assert error < 0.02 * np.std(truth)
+    assert error < np.sqrt(np.mean((bridge - truth) ** 2)) / 3
