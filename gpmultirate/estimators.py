@@ -1012,12 +1012,11 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self._adopt(fitted)
         if rule is not None:
             self.order_selection_ = rule.table
-        if timed:  # the checks below read the fast-sample index of every reading
-            return
         if settings.criterion == "evidence" and self.optimizer is not None:
             with blas_threads_for(fitted.experiment.observation):
                 self._check_shorter_orders(data, fitted.experiment, settings)
-        self._check_long_enough()
+        if not timed:  # the residuals at the fast-sample index of every reading
+            self._check_long_enough()
         return self
 
     def _check_interpolation(self, data, settings: _Settings) -> None:

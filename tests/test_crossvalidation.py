@@ -395,3 +395,28 @@ def test_held_out_check_of_a_small_problem_runs_on_one_blas_thread(paper, monkey
     data, _, _ = paper
     gm.FIRGaussianProcess(C(1.0) * DC(), factor=3, order=300).fit(data.u, data.y_slow)
     assert seen and all(threads == [1] * len(threads) and threads for threads in seen)
+
+
+def test_held_out_order_check_at_own_instants():
+    # the too-long prior read at instants inside the fast periods: the check runs on the
+    # timed readings (the same folds, the readings' covariance at each shorter order)
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(600)
+    times = np.arange(0, 600, 3) + rng.uniform(0, 1, 200)
+    timed = gm.TimedConvolution(u, times, 600)
+    y = timed.lag_functionals(lambda x: (0.6 ** x)[:, None])[:, 0]
+    y = y + 0.5 * rng.standard_normal(200)
+    _, _, kernel = _too_long_prior()
+    with pytest.warns(gm.HeldOutWarning, match=r"order=75 fits 33.8 % of them, order=600 15.4 %"):
+        model = gm.FIRGaussianProcess(kernel, order=600).fit(u, y, sample_times=times)
+    # the warning's numbers: the held-out predictions of the readings at the two orders
+    folds = contiguous_folds([200], 5)
+    for order, expected in ((600, 15.4), (75, 33.8)):
+        readings = gm.TimedConvolution(u, times, order)
+        mean, _ = held_out_predictions(readings, model.kernel_, model.noise_level_, y, folds)
+        assert gm.fit_percent(y, mean) == pytest.approx(expected, abs=0.05)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gm.HeldOutWarning)  # acted on, not warned about
+        default = gm.FIRGaussianProcess(kernel).fit(u, y, sample_times=times)
+    assert default.order_selection_["criterion"] == "held_out_fit"
+    assert default.coef_.shape[0] == default.order_selection_["best_order"] < 600
