@@ -24,6 +24,8 @@ the kernel's terms below:
   with the pieces being first-order recursions;
 * PK and constants, of rank two and one at any lag, by their bases;
 * sums and constant multiples through the walker's own terms;
+* independent inputs (:class:`~gpmultirate.kernels.PerInputKernel`) as the
+  sum of each input's term on that input's readings (:meth:`TimedConvolution.input_block`);
 * any other kernel densely, from the kernel at the real lags, grouped by
   the distinct offsets: ``O(G^2 P^2)`` kernel entries for ``G`` distinct
   offsets (as cheap as on the ticks for ``G = 1``, meant for small problems
@@ -53,10 +55,13 @@ the covariance with 16 nodes).
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 from scipy import linalg, sparse
 from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
+from gpmultirate.kernels.inputs import PerInputKernel
 from gpmultirate.kernels.lag import PK
 from gpmultirate.kernels.offsets import (
     _exp_integral, offset_structure, ordered_exponential_integral, supports_offsets,
@@ -704,6 +709,32 @@ class TimedConvolution(Observation):
             np.add.at(out.T, self._reading[mine], (values * self._weights[mine]).T)
         return out
 
+    def input_block(self, k: int) -> "TimedConvolution":
+        """The readings of input ``k`` alone: the same points, that input's column.
+
+        Independent inputs (:class:`~gpmultirate.kernels.PerInputKernel`) give
+        readings whose covariance is the sum of each input's; each input's
+        term then takes its own structure (a semiseparable DC, say) instead
+        of the dense route.
+        """
+        k = check_int(k, "k", low=0, high=self.n_inputs - 1)
+        if self.n_inputs == 1:
+            return self
+        blocks = self.__dict__.setdefault("_blocks", {})
+        if k not in blocks:
+            block = copy.copy(self)
+            block.__dict__.pop("_blocks", None)
+            if self._parts == [self]:
+                block._parts = [block]
+            else:
+                block._parts = [part.input_block(k) for part in self._parts]
+            block._inputs = self._inputs[:, k:k + 1]
+            block.u = block._inputs[:, 0]
+            block.n_inputs = 1
+            block._rows = block._gather = None
+            blocks[k] = block
+        return blocks[k]
+
     def __eq__(self, other) -> bool:
         if not isinstance(other, TimedConvolution):
             return NotImplemented
@@ -723,6 +754,7 @@ class TimedConvolution(Observation):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_rows"] = None
+        state.pop("_blocks", None)
         return state
 
     def __repr__(self) -> str:
@@ -1001,8 +1033,10 @@ def timed_term(kernel, observation: TimedConvolution, path: str = "") -> Observe
     """The walker for timed readings: sums and constant multiples kept, leaves by their structure.
 
     TC, DC (``beta != 0``) and SS of one input take their semiseparable term,
-    PK of one input and constants their low-rank term, every other kernel
-    (products, several inputs, any scikit-learn kernel) the dense term.
+    PK of one input and constants their low-rank term; independent inputs
+    (:class:`~gpmultirate.kernels.PerInputKernel`) the sum of each input's
+    term on its own readings; every other kernel (products, inputs coupled,
+    any scikit-learn kernel) the dense term.
     """
     if isinstance(kernel, Sum):
         return SumTerm(
@@ -1018,6 +1052,10 @@ def timed_term(kernel, observation: TimedConvolution, path: str = "") -> Observe
         return DenseTimedTerm(kernel, observation, path)
     if isinstance(kernel, ConstantKernel):
         return LowRankTimedTerm(kernel, observation, path)
+    if isinstance(kernel, PerInputKernel) and kernel.n_inputs == observation.n_inputs:
+        # independent inputs: the sum of each input's readings (input_block), each input's
+        # kernel walked again on its own
+        return kernel.observed(observation, path)
     if observation.n_inputs == 1:
         if supports_offsets(kernel) and float(getattr(kernel, "beta", 1.0)) != 0.0:
             return ShiftScaledTimedTerm(kernel, observation, path)
