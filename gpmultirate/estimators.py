@@ -1015,8 +1015,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if settings.criterion == "evidence" and self.optimizer is not None:
             with blas_threads_for(fitted.experiment.observation):
                 self._check_shorter_orders(data, fitted.experiment, settings)
-        if not timed:  # the residuals at the fast-sample index of every reading
-            self._check_long_enough()
+        self._check_long_enough()
         return self
 
     def _check_interpolation(self, data, settings: _Settings) -> None:
@@ -1131,16 +1130,12 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         powers = _input_powers_of(experiment_inputs)
         if orders.prior_tail_lag(self.kernel_, powers, self.noise_level_, 2 * order) < order:
             return
-        coef = self.posterior_.coef.reshape(self.n_inputs_, -1)
         products = squares = 0.0
         start = 0
-        for record, x in zip(operator.records, experiment_inputs):
-            x = x[:, None] if x.ndim == 1 else x
-            n = x.shape[0]
-            fitted = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+        for record, fitted in zip(operator.records, self._fitted_readings()):
             y = self.y_slow_[start : start + record.n_outputs]
             start += record.n_outputs
-            residual = y - fitted[record.sample_indices]
+            residual = y - fitted
             products += float(residual[1:] @ residual[:-1])
             squares += float(residual @ residual)
         if squares == 0.0:
@@ -1158,6 +1153,33 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             OrderWarning,
             stacklevel=3,
         )
+
+    def _fitted_readings(self) -> list:
+        """The posterior mean of the used slow samples, one array per record.
+
+        On the ticks, the fast output at their indices; readings at their own
+        instants, by the interpolation of an interpolated fit or, fitted
+        exactly (white noise, data space), as ``y - gamma S_y^{-1} y``.
+        """
+        operator = self.observation_
+        coef = self.posterior_.coef
+        if isinstance(operator, TimedConvolution):
+            # white noise, in data space: the noise-free part of y is y - gamma S_y^{-1} y
+            mean = self.y_slow_ - self.noise_level_ * self.posterior_.alpha
+        elif isinstance(operator, InterpolatedConvolution):
+            mean = operator.matvec(coef)
+        else:
+            coef = coef.reshape(self.n_inputs_, -1)
+            out = []
+            for record in operator.records:
+                x = np.asarray(record.u, dtype=float)
+                x = x[:, None] if x.ndim == 1 else x
+                n = x.shape[0]
+                fitted = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+                out.append(fitted[record.sample_indices])
+            return out
+        bounds = np.cumsum([0] + [record.n_outputs for record in operator.records])
+        return [mean[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
     def _check_params(self) -> _Settings:
         """Check every parameter, before the data are built (as scikit-learn does)."""

@@ -584,3 +584,30 @@ def test_independent_inputs_sum_each_inputs_structured_readings():
     S = DenseTimedTerm(kernel, TimedConvolution(u, t, 12)).covariance() + 0.1 * np.eye(20)
     reference = multivariate_normal(np.zeros(20), S).logpdf(y)
     assert model.log_marginal_likelihood_value_ == pytest.approx(reference, rel=1e-9)
+
+
+def test_order_too_short_is_named_at_own_instants():
+    # more readings than coefficients, a response far longer than the order: the residuals
+    # of the readings (the interpolated fit's rows, or y - gamma S^{-1} y of the exact one)
+    # are correlated and the OrderWarning names a longer order
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(900)
+    t = np.arange(0, 900, 3) + rng.uniform(0, 1, 300)
+    y = TimedConvolution(u, t, 400).lag_functionals(
+        lambda x: (0.99 ** x * np.cos(0.3 * x))[:, None])[:, 0]
+    y = y + 0.01 * rng.standard_normal(300)
+    for route in ("exact", "interpolated"):
+        with pytest.warns(gm.OrderWarning, match="order=40 looks too short"):
+            model = gm.FIRGaussianProcess(order=40, between_ticks=route).fit(
+                u, y, sample_times=t)
+    # the identity the exact route's check reads: y - gamma S_y^{-1} y is the posterior
+    # mean of the readings (predict at their instants), S_y formed densely here
+    from gpmultirate.observations.timed import DenseTimedTerm
+
+    u, y, t = u[:300], y[:100], t[:100]
+    model = gm.FIRGaussianProcess(DC(0.9, 0.8), optimizer=None, noise_level=0.01,
+                                  order=40, between_ticks="exact").fit(u, y, sample_times=t)
+    S = DenseTimedTerm(model.kernel_, TimedConvolution(u, t, 40)).covariance()
+    fitted = y - 0.01 * np.linalg.solve(S + 0.01 * np.eye(100), y)
+    mean = model.predict(u, sample_times=t)
+    assert np.allclose(fitted, mean, rtol=1e-7, atol=1e-9 * np.abs(mean).max())
