@@ -973,11 +973,12 @@ def _ar1_structure(observation, noise):
 
     So it is for a noise model whose ``structure()`` is an
     :class:`~gpmultirate.noise.AR1Noise` (a pure ``C * Matern(nu=0.5)``
-    disturbance on one uniform grid), on data that are not a reduction and
-    have more samples than coefficients: there :class:`AR1Covariance` keeps
-    the long-record cost.
+    disturbance on one uniform grid), on data that are a regressor on the
+    integer lags, not a reduction, with more samples than coefficients: there
+    :class:`AR1Covariance` keeps the long-record cost.
     """
-    if noise.white or getattr(observation, "n_discarded", 0) > 0:
+    if (noise.white or getattr(observation, "n_discarded", 0) > 0
+            or not getattr(observation, "has_regressor", True)):
         return None
     if observation.n_outputs <= observation.n_coefficients:
         return None

@@ -546,7 +546,7 @@ def _is_ar1(choice, operator) -> bool:
     except ValueError:
         return False
     structure = getattr(noise, "structure", None)
-    return (structure is not None and structure() is not None
+    return (structure is not None and structure() is not None and operator.has_regressor
             and operator.n_outputs > operator.n_coefficients)
 
 
@@ -1411,7 +1411,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             return False
         term = observe(kernel, operator)
         gain = None
-        if n_samples > operator.n_coefficients:
+        if n_samples > operator.n_coefficients and operator.has_regressor:
             # the AR(1) form, O(M P^2) once, then P x P per grid point: the long-record
             # route has no M x M matrix, and the check must not bring one
             gain = ar1_evidence_gain(operator.matrix, term.kernel_matrix(), y, noise_level,

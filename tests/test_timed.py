@@ -611,3 +611,19 @@ def test_order_too_short_is_named_at_own_instants():
     fitted = y - 0.01 * np.linalg.solve(S + 0.01 * np.eye(100), y)
     mean = model.predict(u, sample_times=t)
     assert np.allclose(fitted, mean, rtol=1e-7, atol=1e-9 * np.abs(mean).max())
+
+
+@pytest.mark.parametrize("noise_kernel", ["auto", "ar1", "matern12"])
+def test_disturbances_with_more_readings_than_coefficients_off_the_ticks(noise_kernel):
+    # readings on a uniform grid between the ticks, more of them than coefficients: the
+    # AR(1) routes need a regressor on the integer lags, so the readings take the dense one
+    rng = np.random.default_rng(9)
+    u = rng.standard_normal(300)
+    t = np.arange(100) * 3.0 + 0.5
+    y = TimedConvolution(u, t, 20).lag_functionals(lambda x: (0.8 ** x)[:, None])[:, 0]
+    y = y + np.cumsum(0.05 * rng.standard_normal(100)) + 0.01 * rng.standard_normal(100)
+    model = gm.FIRGaussianProcess(order=20, noise_kernel=noise_kernel).fit(u, y, sample_times=t)
+    assert model.observation_.n_outputs > model.observation_.n_coefficients
+    assert np.isfinite(model.log_marginal_likelihood_value_)
+    if noise_kernel != "auto":
+        assert model.noise_kernel_ != "white"

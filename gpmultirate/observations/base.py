@@ -65,6 +65,9 @@ class Observation:
     residual: float = 0.0
     #: the uniform sampling the diagonal recursion needs, if any
     uniform_sampling: UniformSampling | None = None
+    #: whether the data are a regressor on the integer lags (:attr:`matrix`); readings
+    #: between the ticks are not, and the routes that need ``Phi`` pass them by
+    has_regressor: bool = True
 
     @property
     def shape(self) -> tuple[int, int]:

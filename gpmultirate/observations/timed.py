@@ -272,6 +272,8 @@ class TimedConvolution(Observation):
     #: the covariance of the readings comes from the kernel at real lags: no reduction
     reducible = False
 
+    has_regressor = False
+
     def __init__(self, u, sample_times, order: int, exposure: float = 0.0,
                  latency: float = 0.0, initial_conditions: str = "zero",
                  nodes: int = QUADRATURE_NODES):
