@@ -627,3 +627,21 @@ def test_disturbances_with_more_readings_than_coefficients_off_the_ticks(noise_k
     assert np.isfinite(model.log_marginal_likelihood_value_)
     if noise_kernel != "auto":
         assert model.noise_kernel_ != "white"
+
+
+def test_independent_inputs_over_several_records():
+    from gpmultirate.kernels import PerInputKernel
+    from gpmultirate.observations.timed import DenseTimedTerm
+
+    rng = np.random.default_rng(6)
+    kernel = PerInputKernel([C(1.3) * DC(0.9, 0.7), C(0.7) * TC(0.8)])
+    records = [TimedConvolution(rng.standard_normal((n, 2)),
+                                np.arange(1, n, 3) + rng.uniform(0, 1, len(range(1, n, 3))), 10)
+               for n in (40, 31)]
+    op = TimedConvolution.stack(records)
+    S, items = observe(kernel, op).covariance_with_derivatives()
+    dense, dense_items = DenseTimedTerm(kernel, op).covariance_with_derivatives()
+    assert np.allclose(S, dense, rtol=1e-10)
+    for d, e in zip(items, dense_items):
+        assert np.allclose(d, e, rtol=1e-9, atol=1e-12 * np.abs(e).max())
+    assert op.input_block(1).input_block(0) is op.input_block(1)  # one input: itself

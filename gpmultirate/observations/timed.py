@@ -726,7 +726,7 @@ class TimedConvolution(Observation):
         if k not in blocks:
             block = copy.copy(self)
             block.__dict__.pop("_blocks", None)
-            if self._parts == [self]:
+            if len(self._parts) == 1 and self._parts[0] is self:
                 block._parts = [block]
             else:
                 block._parts = [part.input_block(k) for part in self._parts]
