@@ -100,7 +100,8 @@ class InterpolatedConvolution(Observation):
     points : int, default=DEFAULT_POINTS
         The number of integer lags each value between them is interpolated
         from (even: as many on each side; 2 is the linear, 4 the cubic
-        interpolation).  Near a record's ends the nodes move inside it.
+        interpolation).  The nodes are the same at every tick of a record: the input
+        before it is zero (or periodic), and none after the reading's tick is read.
 
     Examples
     --------
