@@ -86,6 +86,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import secrets
 import stat
 import types
@@ -130,6 +131,7 @@ __all__ = [
     "FORMAT_NAME",
     "FORMAT_VERSION",
     "KERNEL_CLASSES",
+    "MAX_MODEL_BYTES",
     "ModelFileError",
     "describe_kernel",
     "kernel_classes",
@@ -142,6 +144,14 @@ PathOrFile = Union[str, os.PathLike, BinaryIO]
 
 FORMAT_NAME = "gpmultirate-model"
 FORMAT_VERSION = 4
+
+MAX_MODEL_BYTES = 2**31
+"""The largest total size of the arrays a model file may declare (2 GiB).
+
+A model holds its coefficients, its data and a few vectors: a record of ten
+million fast samples takes some 160 MB.  Files declaring more are refused
+before any array is read (``load_model(..., max_bytes=)`` raises the bound).
+"""
 
 #: The kernel classes a model file may name, by class name; :func:`load_model`
 #: takes further classes of your own as ``kernels=[...]``.
@@ -648,7 +658,7 @@ def _check_path(path):
 
 
 def load_model(
-    path: PathOrFile, kernels=None
+    path: PathOrFile, kernels=None, max_bytes: int = MAX_MODEL_BYTES
 ) -> FIRGaussianProcess | LeastSquaresFIR | MultiOutputFIR:
     """Load a model written by :func:`save_model`.
 
@@ -671,6 +681,11 @@ def load_model(
         :data:`KERNEL_CLASSES` (see :func:`kernel_classes`).  Only these
         classes are instantiated: nothing is imported by the names the
         file holds.
+    max_bytes : int, default 2**31
+        The largest total size of the arrays the file may declare
+        (:data:`MAX_MODEL_BYTES`).  Member names, array headers and sizes
+        are checked from the archive's directory before any array is read,
+        so a forged or oversized file is refused in bounded memory.
 
     Returns
     -------
@@ -684,9 +699,10 @@ def load_model(
         written by a different major version of gpmultirate or a newer file
         format, or names a kernel class that is neither one of
         :data:`KERNEL_CLASSES` nor passed in ``kernels`` (the message names
-        the class and the ``kernels=`` argument).
+        the class and the ``kernels=`` argument), or declares more than
+        ``max_bytes`` of arrays.
     ValueError
-        If ``kernels`` is not a list of kernel classes with names of their own.
+        If ``max_bytes`` is not a positive integer, or ``kernels`` is not a list of kernel classes with names of their own.
     FileNotFoundError
         If ``path`` does not exist.
 
@@ -706,11 +722,13 @@ def load_model(
     array([1.  , 0.5 , 0.25])
     """
     classes = kernel_classes(kernels)
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, (int, np.integer)) or max_bytes < 1:
+        raise ValueError(f"max_bytes must be a positive integer; got {max_bytes!r}")
     if hasattr(path, "read"):
-        members = _read_archive(path)
+        members = _read_archive(path, int(max_bytes))
     else:
         with open(_check_path(path), "rb") as file:
-            members = _read_archive(file)
+            members = _read_archive(file, int(max_bytes))
     header = _parse_header(members.pop("header", None))
     _check_versions(header)
     if header.get("sha256") != _checksum(header, members):
@@ -809,23 +827,80 @@ def _load_multi_output(header: dict, members: dict[str, np.ndarray], classes) ->
     return model
 
 
-def _read_archive(file: BinaryIO) -> dict[str, np.ndarray]:
-    unreadable = (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError)
+_MEMBER_NAME = re.compile(r"[A-Za-z0-9_]{1,200}\.npy")
+
+
+def _read_archive(file: BinaryIO, max_bytes: int = MAX_MODEL_BYTES) -> dict[str, np.ndarray]:
+    """Read the archive's arrays, checking names and declared sizes first.
+
+    Every member's name, its array header (dtype and shape) and its size in
+    the archive's directory are checked before any member is read in full,
+    so a forged shape or a compressed bomb is refused in bounded memory.
+    """
     try:
-        archive = np.load(file, allow_pickle=False)
-    except unreadable as exc:
+        archive = zipfile.ZipFile(file)
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
         raise ModelFileError(
             f"not a gpmultirate model file: not an .npz archive, or a truncated one ({exc})"
         ) from exc
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise ModelFileError("not a gpmultirate model file: an .npy array, not an .npz archive")
     with archive:
-        try:
-            return {key: archive[key] for key in archive.files}
-        except unreadable as exc:
+        infos = archive.infolist()
+        declared = {}
+        for info in infos:
+            if not _MEMBER_NAME.fullmatch(info.filename):
+                raise ModelFileError(
+                    f"not a gpmultirate model file: unexpected archive member {info.filename!r}"
+                )
+            declared[info.filename] = _member_header(archive, info)
+        total = sum(nbytes for _, _, nbytes in declared.values())
+        if total > max_bytes:
             raise ModelFileError(
-                f"the model file is corrupted or truncated, or holds pickled objects: {exc}"
-            ) from exc
+                f"the model file declares {total} bytes of arrays, more than max_bytes="
+                f"{max_bytes}; pass a larger max_bytes to load_model if the file is trusted"
+            )
+        arrays = {}
+        for info in infos:
+            dtype, shape, _ = declared[info.filename]
+            arrays[info.filename[:-4]] = _read_member(archive, info, dtype, shape)
+        return arrays
+
+
+def _member_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo):
+    name = info.filename
+    try:
+        with archive.open(info) as stream:
+            version = np.lib.format.read_magic(stream)
+            if version == (1, 0):
+                shape, fortran, dtype = np.lib.format.read_array_header_1_0(stream)
+            elif version == (2, 0):
+                shape, fortran, dtype = np.lib.format.read_array_header_2_0(stream)
+            else:
+                raise ValueError(f"unsupported .npy format version {version}")
+            offset = stream.tell()
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, RuntimeError) as exc:
+        raise ModelFileError(f"the model file's member {name!r} is not a readable array: {exc}") from exc
+    if dtype.hasobject:
+        raise ModelFileError(f"the model file's member {name!r} holds objects, not numbers")
+    nbytes = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    if offset + nbytes != info.file_size:
+        raise ModelFileError(
+            f"the model file is corrupted: member {name!r} declares shape {shape} of "
+            f"{dtype} ({nbytes} bytes) but holds {info.file_size - offset} bytes"
+        )
+    return dtype, shape, nbytes
+
+
+def _read_member(archive, info, dtype, shape) -> np.ndarray:
+    try:
+        with archive.open(info) as stream:
+            array = np.lib.format.read_array(stream, allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, RuntimeError) as exc:
+        raise ModelFileError(
+            f"the model file is corrupted or truncated (member {info.filename!r}): {exc}"
+        ) from exc
+    if array.dtype != dtype or array.shape != tuple(shape):
+        raise ModelFileError(f"the model file's member {info.filename!r} changed while read")
+    return array
 
 
 def _parse_header(raw) -> dict:
@@ -858,6 +933,11 @@ def _check_versions(header: dict) -> None:
             f"{FORMAT_VERSION} this gpmultirate {__version__} reads; upgrade gpmultirate"
         )
     written_by = header.get("library_version")
+    if _major(written_by) is None:
+        raise ModelFileError(
+            f"invalid library_version {written_by!r} in the model file header: expected a "
+            f"version such as {__version__!r}"
+        )
     if _major(written_by) != _major(__version__):
         raise ModelFileError(
             f"the model file was written by gpmultirate {written_by}, whose major version "

@@ -673,3 +673,72 @@ def test_an_unwritable_folder_keeps_the_old_file(saved, tmp_path):
     assert str(saved) in found["message"] and "unchanged" in found["message"]
     assert saved.read_bytes() == before
     _only_the_model_file(tmp_path)
+
+
+# ------------------------------------------------- files read defensively
+def _forged_member(path, name, header_shape, payload=b""):
+    """Add a member whose .npy header declares ``header_shape`` of float64."""
+    import io as _io
+    import zipfile
+
+    header = _io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "<f8", "fortran_order": False, "shape": header_shape})
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr(name, header.getvalue() + payload)
+
+
+def test_forged_shape_refused_before_reading(saved):
+    _forged_member(saved, "big.npy", (10**12,))
+    with pytest.raises(ModelFileError, match=r"big\.npy.*declares shape"):
+        load_model(saved)
+
+
+def test_oversized_archive_refused_in_bounded_memory(saved):
+    """A compressed bomb: 400 MB of zeros in a few hundred kB, refused from the
+    archive's directory (``max_bytes``) before any member is inflated."""
+    import tracemalloc
+    import zipfile
+
+    header = np.lib.format.header_data_from_array_1_0(np.zeros(1))
+    header["shape"] = (50_000_000,)
+    buffer = __import__("io").BytesIO()
+    np.lib.format.write_array_header_1_0(buffer, header)
+    with zipfile.ZipFile(saved, "a", compression=zipfile.ZIP_DEFLATED) as archive:
+        with archive.open("bomb.npy", "w", force_zip64=True) as member:
+            member.write(buffer.getvalue())
+            chunk = bytes(2**22)
+            for _ in range(95):  # 95 x 4 MiB + the rest = 400,000,000 bytes
+                member.write(chunk)
+            member.write(bytes(400_000_000 - 95 * 2**22))
+    tracemalloc.start()
+    try:
+        with pytest.raises(ModelFileError, match="max_bytes"):
+            load_model(saved, max_bytes=100_000_000)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20e6
+
+
+def test_unexpected_member_name_refused(saved):
+    import zipfile
+
+    with zipfile.ZipFile(saved, "a") as archive:
+        archive.writestr("../escape.npy", b"")
+    with pytest.raises(ModelFileError, match="unexpected archive member"):
+        load_model(saved)
+
+
+@pytest.mark.parametrize("max_bytes", [0, -1, 1.5, "big", True])
+def test_max_bytes_checked(saved, max_bytes):
+    with pytest.raises(ValueError, match="max_bytes"):
+        load_model(saved, max_bytes=max_bytes)
+
+
+@pytest.mark.parametrize("version", [None, "x.y", 3, "none"])
+def test_library_version_that_is_not_a_version_refused(saved, version):
+    rewrite(saved, lambda h, m: h.update(library_version=version))
+    with pytest.raises(ModelFileError, match="invalid library_version") as info:
+        load_model(saved)
+    assert "None.x" not in str(info.value)
