@@ -1,11 +1,21 @@
-"""``python -m gpmultirate``: the ``gpmultirate`` command, see :mod:`gpmultirate.cli`."""
+"""``python -m gpmultirate`` and the ``gpmultirate`` command, see :mod:`gpmultirate.cli`.
+
+This module imports nothing heavy, so a Ctrl-C while numpy, SciPy and
+scikit-learn load is one line on stderr and exit status 130 too.
+"""
 
 import sys
 
-if __name__ == "__main__":
-    try:  # a Ctrl-C while the libraries load is one line too
-        from gpmultirate.cli import main
+
+def main(argv=None) -> int:
+    """Run the command line; a Ctrl-C while it loads exits with status 130."""
+    try:
+        from gpmultirate.cli import main as run
     except KeyboardInterrupt:
         print("gpmultirate: interrupted", file=sys.stderr, flush=True)
-        sys.exit(130)
+        return 130
+    return run(argv)
+
+
+if __name__ == "__main__":
     sys.exit(main())

@@ -454,3 +454,52 @@ def test_ctrl_c_during_the_swap_is_acted_on_after_it(existing, tmp_path, monkeyp
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == {"a": b"new"}
     assert _leftovers(tmp_path) == []
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_while_the_command_loads_is_one_line_and_130(monkeypatch, capsys):
+    """The entry point catches an interrupt raised while gpmultirate.cli is imported."""
+    import builtins
+
+    import gpmultirate.__main__ as entry
+
+    real_import = builtins.__import__
+
+    def interrupted(name, *args, **kwargs):
+        if name == "gpmultirate.cli":
+            raise KeyboardInterrupt
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", interrupted)
+    assert entry.main(["fit", "--help"]) == 130
+    assert capsys.readouterr().err == "gpmultirate: interrupted\n"
+
+
+def test_the_package_loads_nothing_heavy():
+    code = ("import sys, gpmultirate, gpmultirate.__main__; "
+            "print(sorted(m for m in ('numpy', 'scipy', 'sklearn', 'matplotlib') "
+            "if m in sys.modules))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=60)
+    assert result.stdout.strip() == "[]", result.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_in_the_first_second_is_one_line_and_130(tmp_path):
+    """SIGINT while the libraries load, through the console script's entry point."""
+    data = _data(tmp_path)
+    launcher = ("import sys; from gpmultirate.__main__ import main; "
+                "sys.exit(main(sys.argv[1:]))")
+    for k, delay in enumerate((0.15, 0.3, 0.5, 0.8)):
+        process = subprocess.Popen([sys.executable, "-c", launcher,
+                                    *_fit_argv(data, tmp_path / f"out{k}")],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                   preexec_fn=_default_sigint)
+        time.sleep(delay)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=600)
+        # status 1 and "init_import_site": the interpreter itself was still starting
+        if process.returncode == 1 and "init_import_site" in err:
+            continue
+        assert process.returncode in (0, 130), (delay, process.returncode, err)
+        if process.returncode == 130:
+            assert _one_line(err).endswith("interrupted")
