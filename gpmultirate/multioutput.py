@@ -186,7 +186,8 @@ class MultiOutputFIR(BaseEstimator):
             return 0
         return check_int(output, "output", low=0, high=self.n_outputs_ - 1)
 
-    def predict(self, u, return_std: bool = False, sample_times=None):
+    def predict(self, u, return_std: bool = False, sample_times=None,
+                include_noise: bool = False):
         """Fast-rate output of every output's model for input ``u``.
 
         Parameters
@@ -200,6 +201,10 @@ class MultiOutputFIR(BaseEstimator):
             Predict each output's readings at these instants (fast sample
             periods) instead of the fast samples, as the estimator's
             ``predict`` does; ``n`` is then their number.
+        include_noise : bool, default=False
+            With ``return_std``, the standard deviation of a new measurement
+            of each output (its fitted noise included), as the estimator's
+            ``predict`` gives it.
 
         Returns
         -------
@@ -209,11 +214,14 @@ class MultiOutputFIR(BaseEstimator):
         check_is_fitted(self, "estimators_")
         if is_record_list(u):
             if sample_times is None:
-                return [self.predict(u_r, return_std) for u_r in u]
+                return [self.predict(u_r, return_std, None, include_noise) for u_r in u]
             if not is_record_list(sample_times) or len(sample_times) != len(u):
                 raise ValueError("sample_times must be a list with one entry per record of u")
-            return [self.predict(u_r, return_std, t) for u_r, t in zip(u, sample_times)]
+            return [self.predict(u_r, return_std, t, include_noise)
+                    for u_r, t in zip(u, sample_times)]
         extra = {} if sample_times is None else {"sample_times": sample_times}
+        if include_noise:
+            extra["include_noise"] = True
         answers = [e.predict(u, return_std=return_std, **extra) for e in self.estimators_]
         if return_std:
             return (np.column_stack([a[0] for a in answers]),
@@ -294,9 +302,22 @@ def _output_columns(y_slow, several_records: bool) -> list:
                     f"y_slow[{r}] has {y_r.shape[1]} outputs; y_slow[0] has {n_outputs}: "
                     "every record needs the same outputs"
                 )
+        _check_measured(np.vstack(records), "y_slow")
         return [[np.ascontiguousarray(y_r[:, j]) for y_r in records] for j in range(n_outputs)]
     y = _output_matrix(y_slow, "y_slow")
+    _check_measured(y, "y_slow")
     return [np.ascontiguousarray(y[:, j]) for j in range(y.shape[1])]
+
+
+def _check_measured(y: np.ndarray, name: str) -> None:
+    """Refuse an output column with no finite sample, naming it."""
+    empty = np.flatnonzero(~np.isfinite(y).any(axis=0))
+    if empty.size:
+        which = ", ".join(str(j) for j in empty[:10]) + (", ..." if empty.size > 10 else "")
+        raise ValueError(
+            f"{name} has no finite sample in column {which} (output {which}): nothing was "
+            "measured at that output; drop the column or give its samples"
+        )
 
 
 def _output_matrix(y, name: str) -> np.ndarray:

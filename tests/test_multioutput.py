@@ -248,7 +248,10 @@ def test_an_output_that_fails_is_named(data, n_jobs):
     u, y_slow, _ = data
     y = y_slow.copy()
     y[:, 2] = np.nan
-    with pytest.raises(ValueError, match="no finite sample") as info:
+    with pytest.raises(ValueError, match=r"no finite sample in column 2 \(output 2\)"):
+        MultiOutputFIR(ESTIMATORS["ls"](), n_jobs=n_jobs).fit(u, y)
+    y[:3, 2] = y_slow[:3, 2]  # three samples: too few for least squares at this order
+    with pytest.raises(ValueError) as info:
         MultiOutputFIR(ESTIMATORS["ls"](), n_jobs=n_jobs).fit(u, y)
     if sys.version_info >= (3, 11):  # exceptions carry notes
         assert "while fitting output 2 (column 2 of y_slow)" in info.value.__notes__
@@ -471,3 +474,28 @@ def test_outputs_whose_default_order_is_cut_differently_share_one_lag_axis(tmp_p
     loaded = gm.load_model(tmp_path / "m.npz")
     np.testing.assert_array_equal(loaded.coef_, model.coef_)
     np.testing.assert_array_equal(loaded.predict(u_new), prediction)
+
+
+def test_predict_include_noise_is_each_outputs_measurement_band():
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal(240)
+    g = 0.7 ** np.arange(20)
+    y_fast = np.convolve(u, g)[:240]
+    Y = np.column_stack([y_fast[::3], -2 * y_fast[::3]]) + 0.05 * rng.standard_normal((80, 2))
+    model = MultiOutputFIR(FIRGaussianProcess(factor=3, order=20)).fit(u, Y)
+    mean, std = model.predict(u, return_std=True, include_noise=True)
+    for j, estimator in enumerate(model.estimators_):
+        m_j, s_j = estimator.predict(u, return_std=True, include_noise=True)
+        np.testing.assert_allclose(mean[:, j], m_j)
+        np.testing.assert_allclose(std[:, j], s_j)
+        assert np.all(s_j > estimator.predict(u, return_std=True)[1])
+    with pytest.raises(ValueError, match="return_std"):
+        model.predict(u, include_noise=True)
+
+
+def test_an_all_nan_output_column_is_named():
+    rng = np.random.default_rng(6)
+    u = rng.standard_normal(120)
+    Y = np.column_stack([rng.standard_normal(40), np.full(40, np.nan), rng.standard_normal(40)])
+    with pytest.raises(ValueError, match=r"column 1 \(output 1\)"):
+        MultiOutputFIR(FIRGaussianProcess(factor=3, order=10)).fit(u, Y)
