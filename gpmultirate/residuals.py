@@ -198,6 +198,11 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
     measured = np.isfinite(e)
     N = int(measured.sum())
     max_lag = check_int(max_lag, "max_lag", low=1)
+    if N < 3:
+        raise ValueError(
+            f"the residuals have {N} measured (finite) samples; their correlation needs at "
+            "least 3 (is y_slow all NaN?)"
+        )
     if N < max_lag + 2:
         raise ValueError(
             f"max_lag must be below the number of measured residuals minus one ({N - 1}); "

@@ -123,7 +123,7 @@ def test_split_shapes_follow_the_input():
     ({"y": np.r_[np.ones(8), np.nan]}, "y must be finite"),
     ({"u": np.r_[np.ones(8), np.inf]}, "u must be finite"),
     ({"u": np.ones((9, 2, 1))}, "u must be 1-D"),
-    ({"factor": 0}, "factor must be in >= 1"),
+    ({"factor": 0}, "factor must be >= 1"),
     ({"factor": 2.5}, "factor must be an integer"),
     ({"estimation_fraction": 0.0}, "estimation_fraction must be a number in"),
     ({"estimation_fraction": 1.0}, "estimation_fraction must be a number in"),

@@ -273,3 +273,15 @@ def test_plot_residuals_draws_the_analysis():
     with pytest.raises(ValueError, match="analysis"):
         plot_residuals(e)
     plt.close("all")
+
+
+def test_all_nan_record_is_named_not_max_lag():
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, 0.5 ** np.arange(10))[:300:3]
+    model = gm.LeastSquaresFIR(factor=3, order=10).fit(u, y)
+    with pytest.raises(ValueError, match="0 measured") as info:
+        analyze_residuals(model, u, np.full(100, np.nan))
+    assert "max_lag" not in str(info.value)
+    with pytest.raises(ValueError, match="max_lag must be >= 1; got 0"):
+        analyze_residuals(model, u, y, max_lag=0)
