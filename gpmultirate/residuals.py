@@ -213,7 +213,12 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
         raise ValueError("input_lags must be a non-empty 1-D array of integers")
     input_lags = lags_in.astype(np.int64)
     z = _normal_quantile(confidence)
+    # the correlations are scale-free: read them on residuals and inputs scaled to a
+    # largest magnitude of one, so that data near the float range do not overflow
     filled = np.where(measured, e, 0.0)
+    filled = filled / max(float(np.max(np.abs(filled))), np.finfo(float).tiny)
+    peak_u = np.max(np.abs(x), axis=0)
+    x = x / np.where(peak_u > 0, peak_u, 1.0)
     mask = measured.astype(float)
     energy = float(filled @ filled)
     if energy == 0.0:

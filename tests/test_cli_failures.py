@@ -503,3 +503,19 @@ def test_ctrl_c_in_the_first_second_is_one_line_and_130(tmp_path):
         assert process.returncode in (0, 130), (delay, process.returncode, err)
         if process.returncode == 130:
             assert _one_line(err).endswith("interrupted")
+
+
+def test_an_output_near_the_float_range_fits(tmp_path):
+    """An output of magnitude 1e211: the residual analysis and the summary are finite."""
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(N)
+    y = np.convolve(u, 0.8 ** np.arange(10))[:N] * 1e211
+    path = tmp_path / "data.csv"
+    with open(path, "w", encoding="utf-8") as stream:
+        stream.write("u,y\n")
+        for k in range(N):
+            stream.write(f"{float(u[k])!r},{float(y[k])!r}\n" if k % 3 == 0
+                         else f"{float(u[k])!r},\n")
+    assert main(_fit_argv(path, tmp_path / "out")) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert 0.0 <= summary["model"]["noise"]["ljung_box_p_value"] <= 1.0

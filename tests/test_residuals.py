@@ -285,3 +285,19 @@ def test_all_nan_record_is_named_not_max_lag():
     assert "max_lag" not in str(info.value)
     with pytest.raises(ValueError, match="max_lag must be >= 1; got 0"):
         analyze_residuals(model, u, y, max_lag=0)
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e211, 1e300])
+def test_correlations_are_scale_free_near_the_float_range(scale):
+    rng = np.random.default_rng(8)
+    e = rng.standard_normal(200)
+    u = rng.standard_normal(600)
+    index = np.arange(0, 600, 3)
+    reference = residual_correlations(e, index, u, max_lag=10, input_lags=np.arange(-5, 6),
+                                      confidence=0.95)
+    scaled = residual_correlations(e * scale, index, u / scale, max_lag=10,
+                                   input_lags=np.arange(-5, 6), confidence=0.95)
+    np.testing.assert_allclose(scaled.autocorrelation, reference.autocorrelation, rtol=1e-12)
+    np.testing.assert_allclose(scaled.cross_correlation, reference.cross_correlation,
+                               rtol=1e-10, atol=1e-14)
+    assert scaled.p_value == pytest.approx(reference.p_value, rel=1e-10)
