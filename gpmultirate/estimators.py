@@ -45,7 +45,7 @@ from gpmultirate.fitting.order import (  # noqa: F401 (importable from here too)
 )
 from gpmultirate.fitting.prior import prior_in_data_units, record_inputs  # noqa: F401
 from gpmultirate.fitting.settings import check_settings
-from gpmultirate.inference import GaussianCoefficients, blas_threads_for
+from gpmultirate.inference import GaussianCoefficients
 from gpmultirate.kernels import check_lags
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.observations import build_experiment
@@ -428,50 +428,25 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         given = (u, y_slow, sample_indices)
         u, y_slow, scale = units.normalize(u, y_slow)
         data, settings = (u, y_slow, sample_indices), replace(settings, scale=scale)
-        self._fit_steps(data, settings)
+        self._adopt(*order_steps.fit_checked_order(data, settings, fit_at_order))
         check = between_ticks.check_interpolation(
             self.observation_, self.posterior_.coef, self.noise_level_, settings.between_ticks)
         if check is not None and check.refit:  # the readings again, exactly
             settings = replace(settings, between_ticks="exact")
-            self._fit_steps(data, settings)
+            self._adopt(*order_steps.fit_checked_order(data, settings, fit_at_order))
         elif check is not None:
             self.interpolation_error_ = check.error
         units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
             given, self.observation_.order, settings))
         return self
 
-    def _fit_steps(self, data, settings) -> None:
-        """The fit on the normalized data: at the chosen order, then the order's checks."""
-        fitted, table = order_steps.fit_order(data, settings, fit_at_order)
-        self._adopt(fitted, table)
-        if settings.candidates is not None:
-            return
-        if settings.criterion == "evidence" and settings.tuned:
-            with blas_threads_for(fitted.experiment.observation):
-                refit, table = order_steps.check_shorter_orders(
-                    data, fitted, settings, fit_at_order)
-                if refit is not None:
-                    self._adopt(refit)
-            if table is not None:
-                self.order_selection_ = table
-        order_steps.check_long_enough(self.observation_, self.y_slow_, self.posterior_,
-                                      self.kernel_, self.noise_level_, self._noise_model,
-                                      settings)
-
     def _adopt(self, fitted: Fit, order_selection=None) -> None:
-        """Take the learned state of a fit at one order as the estimator's."""
-        for name in ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
-                     "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
-                     "log_marginal_likelihood_value_", "noise_kernel_"):
-            setattr(self, name, getattr(fitted, name))
-        self._noise_model = fitted.noise_model
-        # kept for log_marginal_likelihood(theta) and the posterior at real lags
-        self._evidence = fitted.evidence
-        for name in ("resonances_", "cv_log_predictive_likelihood_"):
-            if getattr(fitted, name) is not None:
-                setattr(self, name, getattr(fitted, name))
+        """Take the learned state of a fit (and the table of its order's choice) as the estimator's."""
+        for name, value in fitted.attributes().items():
+            if value is None and name in ("resonances_", "cv_log_predictive_likelihood_"):
+                self.__dict__.pop(name, None)  # made by some fits only
             else:
-                self.__dict__.pop(name, None)
+                setattr(self, name, value)
         if order_selection is not None:
             self.order_selection_ = order_selection
 
@@ -556,26 +531,18 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         return mean, second, exponents
 
     def _predict_readings(self, x, sample_times, return_std):
-        """The sensor's readings at ``sample_times`` (exposure and latency applied).
+        """The sensor's readings at ``sample_times`` (exposure and latency applied), as the
+        fitted observation modelled its own (:meth:`~gpmultirate.observations.Observation.predict_readings`)."""
 
-        Predicted as the fitted observation modelled its own readings
-        (:meth:`~gpmultirate.observations.Observation.predict_readings`).
-        """
-        posterior, scale = units.split(self.posterior_)
-        kernel = self.kernel_
-        if scale is not None:  # in the units of the normalized fit, scaled at the end
-            x = np.ldexp(x, -scale.input_exponents[None, :])
-            kernel = self._evidence.kernel
-        readings = TimedConvolution(
-            x, sample_times, self._order, self.exposure, self.latency, self.initial_conditions)
-        mean, var = self.observation_.predict_readings(
-            readings, posterior, self._evidence.data, kernel)
-        out = (mean, np.sqrt(var)) if return_std else mean
-        if scale is None:
-            return out
-        if return_std:
-            return tuple(np.ldexp(v, scale.output_exponent) for v in out)
-        return np.ldexp(out, scale.output_exponent)
+        def readings_at(x, posterior, scale):
+            readings = TimedConvolution(x, sample_times, self._order, self.exposure,
+                                        self.latency, self.initial_conditions)
+            kernel = self.kernel_ if scale is None else self._evidence.kernel
+            mean, var = self.observation_.predict_readings(
+                readings, posterior, self._evidence.data, kernel)
+            return (mean, np.sqrt(var)) if return_std else mean
+
+        return self._in_data_units(x, readings_at, return_std)
 
     def _points(self, lags) -> np.ndarray:
         """The kernel inputs of the lags: a column, or ``(input, lag)`` pairs input-major."""

@@ -146,14 +146,24 @@ class FIRModelMixin:
         x = self._check_prediction_input(u)
         if sample_times is not None:
             return self._predict_readings(x, sample_times, return_std)
+        return self._in_data_units(
+            x, lambda x, posterior, scale: self._predict_normalized(x, posterior, return_std),
+            return_std)
+
+    def _in_data_units(self, x, predict, return_std: bool):
+        """``predict(x, posterior, scale)`` in the units of the normalized fit, scaled at the end.
+
+        ``x``: the input(s) in the data's units; ``predict`` gets them in the
+        fit's units with the posterior there and the ``DataScale`` (None
+        where the posterior is in the data's units already).
+        """
         posterior, scale = units.split(self.posterior_)
-        if scale is not None:  # in the units of the normalized fit, scaled at the end
-            x = np.ldexp(x, -scale.input_exponents[None, :])
-            out = self._predict_normalized(x, posterior, return_std)
-            if return_std:
-                return tuple(np.ldexp(v, scale.output_exponent) for v in out)
-            return np.ldexp(out, scale.output_exponent)
-        return self._predict_normalized(x, posterior, return_std)
+        if scale is None:
+            return predict(x, posterior, None)
+        out = predict(np.ldexp(x, -scale.input_exponents[None, :]), posterior, scale)
+        if return_std:
+            return tuple(np.ldexp(v, scale.output_exponent) for v in out)
+        return np.ldexp(out, scale.output_exponent)
 
     def _predict_normalized(self, x, posterior, return_std):
         n = x.shape[0]

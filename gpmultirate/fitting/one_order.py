@@ -47,6 +47,18 @@ class Fit:
     noise_kernel_: object = "white"
     noise_model: object = None
 
+    def attributes(self) -> dict:
+        """The estimator's attributes of this fit (``_noise_model`` and ``_evidence`` private:
+        the evidence is kept for ``log_marginal_likelihood(theta)`` and the posterior at
+        real lags)."""
+        names = ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
+                 "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
+                 "log_marginal_likelihood_value_", "noise_kernel_", "resonances_",
+                 "cv_log_predictive_likelihood_")
+        out = {name: getattr(self, name) for name in names}
+        out["_noise_model"], out["_evidence"] = self.noise_model, self.evidence
+        return out
+
 
 def fit_at_order(data, order, settings, start=None) -> Fit:
     """Fit at one order; returns the learned state.

@@ -31,6 +31,7 @@ from gpmultirate.exceptions import HeldOutWarning, OrderWarning
 from gpmultirate.fitting.between_ticks import experiment_of
 from gpmultirate.fitting.disturbance import calls_for_disturbance
 from gpmultirate.fitting.prior import input_powers, input_powers_of
+from gpmultirate.inference import blas_threads_for
 from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER
 
 __all__ = [
@@ -40,6 +41,7 @@ __all__ = [
     "check_long_enough",
     "check_shorter_orders",
     "default_order_rule",
+    "fit_checked_order",
     "fit_order",
 ]
 
@@ -54,6 +56,26 @@ RESIDUAL_CORRELATION = 0.3
 # warning for an explicit order
 ORDER_MARGIN = 1.0
 HELD_OUT_MARGIN = 5.0
+
+
+def fit_checked_order(data, settings, fit_at):
+    """The fit at the chosen order after the order's checks: ``(fit, order_selection table)``.
+
+    :func:`fit_order`; then, unless the order was chosen among candidates,
+    :func:`check_shorter_orders` after evidence tuning (which may fit the
+    default order again, shorter) and :func:`check_long_enough`.
+    """
+    fitted, table = fit_order(data, settings, fit_at)
+    if settings.candidates is not None:
+        return fitted, table
+    if settings.criterion == "evidence" and settings.tuned:
+        with blas_threads_for(fitted.experiment.observation):
+            refit, checked = check_shorter_orders(data, fitted, settings, fit_at)
+        fitted = fitted if refit is None else refit
+        table = table if checked is None else checked
+    check_long_enough(fitted.observation_, fitted.y_slow_, fitted.posterior_, fitted.kernel_,
+                      fitted.noise_level_, fitted.noise_model, settings)
+    return fitted, table
 
 
 def fit_order(data, settings, fit_at):
