@@ -45,7 +45,7 @@ from gpmultirate.fitting.order import (  # noqa: F401 (importable from here too)
 )
 from gpmultirate.fitting.prior import prior_in_data_units, record_inputs  # noqa: F401
 from gpmultirate.fitting.settings import check_settings
-from gpmultirate.inference import GaussianCoefficients
+from gpmultirate.inference import GaussianCoefficients, blas_threads_for
 from gpmultirate.kernels import check_lags
 from gpmultirate.memory import check_fit_memory
 from gpmultirate.observations import build_experiment
@@ -532,14 +532,15 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
 
     def _predict_readings(self, x, sample_times, return_std):
         """The sensor's readings at ``sample_times`` (exposure and latency applied), as the
-        fitted observation modelled its own (:meth:`~gpmultirate.observations.Observation.predict_readings`)."""
+        fitted observation models them (:meth:`~gpmultirate.observations.Observation.readings_model`)."""
 
         def readings_at(x, posterior, scale):
             readings = TimedConvolution(x, sample_times, self._order, self.exposure,
                                         self.latency, self.initial_conditions)
             kernel = self.kernel_ if scale is None else self._evidence.kernel
-            mean, var = self.observation_.predict_readings(
-                readings, posterior, self._evidence.data, kernel)
+            readings = self.observation_.readings_model(readings)
+            with blas_threads_for(readings):
+                mean, var = readings.posterior_readings(posterior, self._evidence.data, kernel)
             return (mean, np.sqrt(var)) if return_std else mean
 
         return self._in_data_units(x, readings_at, return_std)

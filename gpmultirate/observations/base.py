@@ -267,21 +267,22 @@ class Observation:
         bounds = np.cumsum([0] + [record.n_outputs for record in self.records])
         return [values[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
-    def predict_readings(self, readings, posterior, data, kernel):
-        """Mean and variance of new noise-free ``readings`` after a fit of these data.
+    def readings_model(self, readings):
+        """How a fit of these data models new ``readings`` (a timed observation).
 
-        ``readings``: a :class:`~gpmultirate.observations.TimedConvolution`;
-        ``posterior``, ``data``, ``kernel``: the fit's posterior, the
-        observation it conditioned on and its kernel.  Here the readings as
-        they are, linear functionals of the response at real lags
-        (:func:`~gpmultirate.observations.timed.predict_readings`).
+        Here as they are: linear functionals of the response at real lags.
         """
-        # imported here: the timed readings are observations themselves
-        from gpmultirate.inference import blas_threads_for
-        from gpmultirate.observations.timed import predict_readings
+        return readings
 
-        with blas_threads_for(readings):
-            return predict_readings(posterior, data, kernel, readings)
+    def posterior_readings(self, posterior, data, kernel):
+        """Mean and variance of these noise-free data under the posterior of a fit.
+
+        ``posterior``: the fit's :class:`~gpmultirate.inference.GaussianCoefficients`
+        of the coefficients; ``data``, ``kernel``: the observation it
+        conditioned on and its kernel.  Here ``Phi g`` for the regressor
+        ``Phi`` (:attr:`matrix`).
+        """
+        return posterior.linear_map(self.matrix)
 
     def interpolation_check(self, coef) -> float | None:
         """The estimated rms error of the data's interpolation between the ticks, or None.

@@ -282,14 +282,14 @@ class InterpolatedConvolution(Observation):
         """The posterior mean of the readings by the interpolation, one array per record."""
         return self.split_by_record(self.matvec(posterior.coef))
 
-    def predict_readings(self, readings, posterior, data, kernel):
+    def readings_model(self, readings):
         """New ``readings`` as this fit modelled its own: interpolated on the integer lags.
 
-        Readings too few for the interpolation's nodes are predicted exactly.
+        Readings too few for the interpolation's nodes are modelled exactly.
         """
         if readings.n_samples < self.points:
-            return super().predict_readings(readings, posterior, data, kernel)
-        return posterior.linear_map(InterpolatedConvolution(readings, self.points).matrix)
+            return readings
+        return InterpolatedConvolution(readings, self.points)
 
     def interpolation_check(self, coef) -> float | None:
         """:func:`interpolation_error` of the response ``coef`` (None when it cannot say)."""

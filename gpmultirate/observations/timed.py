@@ -775,6 +775,11 @@ class TimedConvolution(Observation):
         """
         return self.split_by_record(y - noise_level * posterior.alpha)
 
+    def posterior_readings(self, posterior, data, kernel):
+        """Mean and variance of these noise-free readings under a fit's posterior
+        (:func:`predict_readings`)."""
+        return predict_readings(posterior, data, kernel, self)
+
 
 def _dense(item) -> np.ndarray:
     if isinstance(item, tuple):
