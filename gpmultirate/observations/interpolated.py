@@ -285,7 +285,7 @@ class InterpolatedConvolution(Observation):
     def readings_model(self, readings):
         """New ``readings`` as this fit modelled its own: interpolated on the integer lags.
 
-        Readings too few for the interpolation's nodes are modelled exactly.
+        Readings of a record shorter than the interpolation's nodes are modelled exactly.
         """
         if readings.n_samples < self.points:
             return readings
