@@ -441,7 +441,7 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         return self
 
     def _adopt(self, fitted: Fit, order_selection=None) -> None:
-        """Take the learned state of a fit (and the table of its order's choice) as the estimator's."""
+        """Take the learned state of a fit, and the table of its order's choice, as ours."""
         for name, value in fitted.attributes().items():
             if value is None and name in ("resonances_", "cv_log_predictive_likelihood_"):
                 self.__dict__.pop(name, None)  # made by some fits only
@@ -531,8 +531,9 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         return mean, second, exponents
 
     def _predict_readings(self, x, sample_times, return_std):
-        """The sensor's readings at ``sample_times`` (exposure and latency applied), as the
-        fitted observation models them (:meth:`~gpmultirate.observations.Observation.readings_model`)."""
+        """The sensor's readings at ``sample_times`` (exposure and latency applied).
+
+        As the fitted observation models them (its ``readings_model``)."""
 
         def readings_at(x, posterior, scale):
             readings = TimedConvolution(x, sample_times, self._order, self.exposure,

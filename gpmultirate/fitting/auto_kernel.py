@@ -1,4 +1,4 @@
-"""``kernel="auto"``: the resonance search of a fit, and its terms judged again under a disturbance.
+"""``kernel="auto"``: the resonance search of a fit, and its terms judged again.
 
 :func:`search` runs :func:`~gpmultirate.resonances.search_resonances` from
 the fit's starting prior (white noise); when the fit then chooses a

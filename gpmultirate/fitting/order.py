@@ -112,7 +112,9 @@ def fit_order(data, settings, fit_at):
 
 
 def default_order_rule(data, settings, fit_at):
-    """The default order of a record longer than ``SHORT_RECORD``: :func:`~gpmultirate.orders.default_order`.
+    """The default order of a record longer than ``SHORT_RECORD``.
+
+    :func:`~gpmultirate.orders.default_order`, from pilot fits.
 
     None for a shorter record (its default order is ``N``).  The pilot
     fits tune the plain prior (the user's kernel, or the default without

@@ -127,6 +127,7 @@ def check_settings(model, prior_in_normalized_units: bool = False) -> Settings:
         order=model.order, noise_level_bounds=model.noise_level_bounds,
         random_state=model.random_state, sample_time=model.sample_time, factor=model.factor,
         offset=model.offset, initial_conditions=model.initial_conditions,
-        exposure=exposure, latency=latency, between_ticks=check_between_ticks(getattr(model, "between_ticks", "auto")),
+        exposure=exposure, latency=latency,
+        between_ticks=check_between_ticks(getattr(model, "between_ticks", "auto")),
         prior_in_normalized_units=prior_in_normalized_units,
     )
