@@ -10,6 +10,12 @@ Both take one input or several (``u`` of shape ``(N, n_inputs)``), one record
 or several (lists), slow samples at ``offset + m * factor`` or at any
 ``sample_indices``, missing samples as ``NaN``, and the initial conditions
 ``"zero"`` (at rest, the paper's case), ``"discard"`` or ``"periodic"``.
+
+``FIRGaussianProcess.fit`` is the list of its steps; each step is a module of
+:mod:`gpmultirate.fitting` (settings, readings between the ticks, the order,
+the fit at one order with its prior, resonance search and disturbance
+choice) that returns what it chose for the estimator to adopt.  Prediction,
+scoring and the frequency response are :mod:`gpmultirate.prediction`'s.
 """
 
 from __future__ import annotations
@@ -56,7 +62,7 @@ from gpmultirate.validation import check_sample_time, check_signal
 
 __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 
-#: the former name of :class:`~gpmultirate.prediction.FIRModelMixin`
+#: the name of :class:`~gpmultirate.prediction.FIRModelMixin` before it had a module
 _FIRModelMixin = FIRModelMixin
 
 
