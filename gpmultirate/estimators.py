@@ -10,606 +10,63 @@ Both take one input or several (``u`` of shape ``(N, n_inputs)``), one record
 or several (lists), slow samples at ``offset + m * factor`` or at any
 ``sample_indices``, missing samples as ``NaN``, and the initial conditions
 ``"zero"`` (at rest, the paper's case), ``"discard"`` or ``"periodic"``.
+
+``FIRGaussianProcess.fit`` is the list of its steps; each step is a module of
+:mod:`gpmultirate.fitting` (settings, readings between the ticks, the order,
+the fit at one order with its prior, resonance search and disturbance
+choice) that returns what it chose for the estimator to adopt.  Prediction,
+scoring and the frequency response are :mod:`gpmultirate.prediction`'s.
 """
 
 from __future__ import annotations
 
-
-import logging
-import time
-import warnings
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy import linalg
-from sklearn.base import BaseEstimator, clone
-from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
+from sklearn.base import BaseEstimator
+from sklearn.gaussian_process.kernels import Kernel
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate import orders, tuning, units
-from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
-from gpmultirate.deprecation import warn_deprecated
-from gpmultirate.exceptions import (
-    HeldOutWarning, IdentifiabilityError, NumericalWarning, OrderWarning,
-)
-from gpmultirate.memory import check_fit_memory
+from gpmultirate import units
+from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.export import StateSpaceMixin
-from gpmultirate.inference import (
-    GaussianCoefficients,
-    LogEvidence,
-    blas_threads_for,
-    gaussian_samples,
+from gpmultirate.fitting import between_ticks, order as order_steps
+from gpmultirate.fitting.between_ticks import (  # noqa: F401 (importable from here too)
+    BETWEEN_TICKS,
+    EXACT_UP_TO,
+    INTERPOLATED_ABOVE,
+    INTERPOLATION_TOLERANCE,
 )
-from gpmultirate.kernels import (
-    DC,
-    PerInputKernel,
-    check_lags,
-    input_kernels,
-    kernel_for_inputs,
-    like_inputs,
-    observe,
-    rescaled,
+from gpmultirate.fitting.disturbance import (  # noqa: F401 (importable from here too)
+    AUTO_NOISE_DENSE_GATE,
+    AUTO_NOISE_GATE,
+    AUTO_NOISE_MARGIN,
 )
-from gpmultirate.metrics import goodness_of_fit
-from gpmultirate.noise import (
-    AR1_DISTURBANCE,
-    NAMED_DISTURBANCES,
-    ar1_evidence_gain,
-    disturbance_evidence_gain,
-    make_noise,
-    noise_instants,
+from gpmultirate.fitting.one_order import Fit, fit_at_order
+from gpmultirate.fitting.order import (  # noqa: F401 (importable from here too)
+    HELD_OUT_MARGIN,
+    ORDER_MARGIN,
+    RESIDUAL_CORRELATION,
 )
-from gpmultirate.observations import build_experiment, regressor_rows
-from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
-from gpmultirate.observations.interpolated import (
-    DEFAULT_POINTS, InterpolatedConvolution, interpolation_error,
-)
-from gpmultirate.observations.sampled import check_initial_conditions
-from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER, auto_orders
-from gpmultirate.observations.timed import (
-    TimedConvolution,
-    check_duration,
-    build_timed_experiment,
-    on_the_ticks,
-    predict_readings,
-)
-from gpmultirate.resonances import slowest_decay
-from gpmultirate.responses import (
-    FrequencyResponse,
-    check_frequencies,
-    default_frequencies,
-    dft_matrix,
-)
-from gpmultirate.validation import (
-    check_bounds,
-    check_int,
-    check_level,
-    check_positive,
-    check_rng,
-    check_sample_indices,
-    check_sample_time,
-    check_signal,
-)
+from gpmultirate.fitting.prior import prior_in_data_units, record_inputs  # noqa: F401
+from gpmultirate.fitting.settings import check_settings
+from gpmultirate.inference import GaussianCoefficients, blas_threads_for
+from gpmultirate.kernels import check_lags
+from gpmultirate.memory import check_fit_memory
+from gpmultirate.observations import build_experiment
+from gpmultirate.observations.timed import TimedConvolution, on_the_ticks
+from gpmultirate.orders import auto_orders  # noqa: F401 (importable from here too)
+from gpmultirate.prediction import FIRModelMixin
+from gpmultirate.validation import check_sample_time, check_signal
 
 __all__ = ["FIRGaussianProcess", "LeastSquaresFIR"]
 
+#: the name of :class:`~gpmultirate.prediction.FIRModelMixin` before it had a module
+_FIRModelMixin = FIRModelMixin
 
-class _FIRModelMixin:
-    """Prediction, scoring and frequency response shared by the FIR estimators.
 
-    Subclasses set ``coef_``, ``observation_``, ``n_inputs_`` and ``posterior_``
-    (a :class:`~gpmultirate.inference.GaussianCoefficients` of the
-    input-major coefficient vector) in ``fit``, and implement
-    ``impulse_response``.
-    """
-
-    #: whether the impulse response is defined between the integer lags
-    continuous_lags = False
-
-    @property
-    def _order(self) -> int:
-        return self.observation_.order
-
-    @property
-    def operator_(self):
-        """Deprecated name of ``observation_``, removed in gpmultirate 0.2.0."""
-        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
-        if "observation_" not in vars(self) and "operator_" in vars(self):
-            return vars(self)["operator_"]  # an estimator pickled before the rename
-        return self.observation_
-
-    @operator_.setter
-    def operator_(self, value) -> None:
-        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
-        self.observation_ = value
-
-    def _shaped(self, flat: np.ndarray) -> np.ndarray:
-        """Coefficient-like values ``(n_inputs * n,)`` as ``(n_inputs, n)`` for several inputs."""
-        if self.n_inputs_ > 1:
-            return flat.reshape(self.n_inputs_, -1)
-        return flat
-
-    def _check_prediction_input(self, u, name: str = "u") -> np.ndarray:
-        inputs, several_records = check_records(u, name)
-        if several_records:
-            raise ValueError(f"{name} must be one record here; got a list")
-        x = inputs[0]
-        if x.shape[1] != self.n_inputs_:
-            raise ValueError(
-                f"{name} must have {self.n_inputs_} input column(s), as in fit; got {x.shape[1]}"
-            )
-        return x
-
-    def _fast_rows(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Rows of the fast-rate regressor of input(s) ``x`` (all inputs side by side)."""
-        periodic = self.initial_conditions == "periodic"
-        return np.hstack([
-            regressor_rows(x[:, k], self._order, rows, periodic=periodic)
-            for k in range(x.shape[1])
-        ])
-
-    def predict(self, u, return_std: bool = False, sample_times=None,
-                include_noise: bool = False):
-        """Fast-rate output of the model for input ``u``.
-
-        ``y(n) = sum_k sum_i g_k(i) u_k(n - i)`` for ``n = 0..len(u)-1``,
-        starting at rest (for ``initial_conditions="periodic"``, in periodic
-        steady state: ``u`` is one period).  For the training input this is
-        the intersample (fast-rate) response.
-
-        Parameters
-        ----------
-        u : array-like of shape (n,) or (n, n_inputs), or a list of them
-            Fast-rate input, shaped as in ``fit``; a list gives a list.
-        return_std : bool, default=False
-            Also return the posterior standard deviation of the noise-free
-            output (``sqrt(diag(T Sigma T^T))`` with ``T`` the convolution
-            matrix of ``u`` and ``Sigma`` the coefficient covariance).
-        sample_times : array-like of float, or a list of them, optional
-            Instead of the output at the fast ticks, the sensor's readings
-            stamped at these instants (in fast sample periods, strictly
-            increasing in ``[0, len(u))``), with the model's exposure and
-            latency (:doc:`/cameras`); the standard deviation is that of the
-            noise-free reading.
-        include_noise : bool, default=False
-            With ``return_std``: the standard deviation of a measured sample
-            instead, the band a new measurement should fall in: the
-            posterior variance of the output plus the variance of one
-            sample of the fitted noise (the disturbance's and the white
-            noise's, see :doc:`/disturbances`).
-
-        Returns
-        -------
-        y : ndarray of shape (n,)
-        std : ndarray of shape (n,), only if ``return_std``
-        """
-        check_is_fitted(self, "coef_")
-        if include_noise and not return_std:
-            raise ValueError("include_noise=True needs return_std=True")
-        if include_noise:
-            predicted = self.predict(u, True, sample_times)
-            extra = self._measurement_noise_variance()
-            if is_record_list(u):
-                return [(m, np.sqrt(s**2 + extra)) for m, s in predicted]
-            mean, std = predicted
-            return mean, np.sqrt(std**2 + extra)
-        if is_record_list(u):
-            if sample_times is None:
-                return [self.predict(u_r, return_std) for u_r in u]
-            if not is_record_list(sample_times) or len(sample_times) != len(u):
-                raise ValueError("sample_times must be a list with one entry per record of u")
-            return [self.predict(u_r, return_std, t) for u_r, t in zip(u, sample_times)]
-        x = self._check_prediction_input(u)
-        if sample_times is not None:
-            return self._predict_readings(x, sample_times, return_std)
-        posterior, scale = units.split(self.posterior_)
-        if scale is not None:  # in the units of the normalized fit, scaled at the end
-            x = np.ldexp(x, -scale.input_exponents[None, :])
-            out = self._predict_normalized(x, posterior, return_std)
-            if return_std:
-                return tuple(np.ldexp(v, scale.output_exponent) for v in out)
-            return np.ldexp(out, scale.output_exponent)
-        return self._predict_normalized(x, posterior, return_std)
-
-    def _predict_normalized(self, x, posterior, return_std):
-        n = x.shape[0]
-        periodic = self.initial_conditions == "periodic"
-        coef = posterior.coef.reshape(self.n_inputs_, -1)
-        if not return_std and not periodic:
-            return sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
-        # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
-        block = max(1, _PREDICT_BLOCK_ENTRIES // coef.size)
-        mean, var = np.empty(n), np.empty(n)
-        for start in range(0, n, block):
-            rows = np.arange(start, min(start + block, n))
-            A = self._fast_rows(x, rows)
-            if return_std:
-                mean[rows], var[rows] = posterior.linear_map(A)
-            else:
-                mean[rows] = A @ posterior.coef
-        return (mean, np.sqrt(var)) if return_std else mean
-
-    def _measurement_noise_variance(self) -> float:
-        """The variance of one measured sample's noise (disturbance and white noise)."""
-        model = getattr(self, "_noise_model", None)
-        exponent = int(np.frexp(getattr(self, "output_scale_", 1.0))[1] - 1)
-        with np.errstate(over="ignore"):
-            if model is not None and not model.white:  # tuned on the normalized data
-                return float(np.ldexp(model.sample_variance(), 2 * exponent))
-            if hasattr(self, "noise_level_"):
-                if getattr(self, "hyperparameter_units_", "data") == "normalized":
-                    return float(np.ldexp(self.noise_level_, 2 * exponent))
-                return float(self.noise_level_)
-        return float(self.noise_variance_)
-
-    def _predict_readings(self, x, sample_times, return_std):
-        """Readings at ``sample_times``: here only on the fast ticks (no model between them)."""
-        ticks = on_the_ticks(sample_times, 0.0, 0.0)
-        if ticks is None:
-            raise ValueError(
-                f"{type(self).__name__} has no model between the integer lags: sample_times "
-                "must be on the fast ticks (integers); use FIRGaussianProcess for instants "
-                "between them"
-            )
-        ticks = check_sample_indices(ticks, x.shape[0], "sample_times")
-        A = self._fast_rows(x, ticks)
-        if not return_std:
-            return A @ self.posterior_.coef
-        mean, var = self.posterior_.linear_map(A)
-        return mean, np.sqrt(var)
-
-    def score(self, u, y_fast) -> float:
-        """Goodness of fit in percent (eq. 20) of ``predict(u)`` against ``y_fast``.
-
-        Parameters
-        ----------
-        u : array-like of shape (n,) or (n, n_inputs)
-            Fast-rate validation input.
-        y_fast : array-like of shape (n,)
-            Fast-rate validation output.
-
-        Returns
-        -------
-        float
-        """
-        check_is_fitted(self, "coef_")
-        y_fast = check_signal(y_fast, "y_fast")
-        x = self._check_prediction_input(u)
-        if x.shape[0] != y_fast.shape[0]:
-            raise ValueError(
-                f"y_fast must have the length of u ({x.shape[0]}); got {y_fast.shape[0]}"
-            )
-        if np.ptp(y_fast) == 0:
-            raise ValueError("y_fast must not be constant: the goodness of fit is undefined")
-        return goodness_of_fit(y_fast, self.predict(u))
-
-    def _input(self, input) -> int:
-        if input is None:
-            if self.n_inputs_ > 1:
-                raise ValueError(
-                    f"input must be given for a model of {self.n_inputs_} inputs "
-                    f"(0..{self.n_inputs_ - 1})"
-                )
-            return 0
-        return check_int(input, "input", low=0, high=self.n_inputs_ - 1)
-
-    def frequency_response(
-        self, freqs=None, sample_time: float | None = None, level: float = 0.95, input=None
-    ) -> FrequencyResponse:
-        """FRF of the identified model with a pointwise credible band.
-
-        Valid at every frequency up to the fast Nyquist frequency, also
-        beyond the slow Nyquist frequency ``1 / (2 F T)``.
-
-        Parameters
-        ----------
-        freqs : array-like of shape (n,), optional
-            Frequencies in Hz; by default the DFT bins of the training record.
-        sample_time : float, optional
-            Fast sample time ``T`` in seconds; by default the model's
-            ``sample_time``.
-        level : float, default=0.95
-            Credible level of the band, in (0, 1).
-        input : int, optional
-            The input whose FRF is returned; needed for several inputs.
-
-        Returns
-        -------
-        FrequencyResponse
-        """
-        check_is_fitted(self, "coef_")
-        level = check_level(level)
-        k = self._input(input)
-        if sample_time is None:
-            sample_time = self.sample_time
-        if freqs is None:
-            sample_time = check_sample_time(sample_time)
-            freqs = default_frequencies(self.observation_.n_samples, sample_time)
-        freqs, sample_time = check_frequencies(freqs, sample_time)
-        P = self._order
-        E = dft_matrix(freqs, sample_time, P)
-        # the DFT of input k's block of the input-major coefficients
-        A = np.zeros((E.shape[0], self.n_inputs_ * P), dtype=complex)
-        A[:, k * P : (k + 1) * P] = E
-        re, im = np.ascontiguousarray(A.real), np.ascontiguousarray(A.imag)
-        posterior, scale = units.split(self.posterior_)
-        var_re, var_im, cov = posterior.pair_variances(re, im)
-        frf = FrequencyResponse.from_gaussian(
-            freqs,
-            A @ posterior.coef,
-            var_re,
-            var_im,
-            cov,
-            level=level,
-            sample_time=sample_time,
-            factor=self.observation_.slow_factor,
-        )
-        if scale is None:
-            return frf
-        return units.scale_frequency_response(frf, int(scale.gain_exponents[k]))
-
-    def _scaled_impulse_response(self, lags, return_std, return_cov):
-        """:meth:`impulse_response` from the normalized posterior, in the data's units."""
-        kind = "cov" if return_cov else ("std" if return_std else None)
-        mean, second, exponents = self._impulse_response_normalized(lags, kind)
-        if exponents is not None:
-            if kind is None:
-                mean = np.ldexp(mean, exponents)
-            else:
-                mean, second = units.scaled_moments(mean, second, exponents, kind)
-        elif kind == "std":
-            second = np.sqrt(second)
-        if kind is None:
-            return self._shaped(mean)
-        if kind == "cov":
-            return self._shaped(mean), second
-        return self._shaped(mean), self._shaped(second)
-
-    def sample_impulse_responses(self, lags=None, n_samples: int = 1, random_state=None):
-        """Draw impulse responses from the posterior (for least squares, the estimate's distribution).
-
-        Parameters
-        ----------
-        lags : array-like of shape (n,), optional
-            Lags in fast samples; default ``0..P-1``.
-        n_samples : int, default=1
-        random_state : int, RandomState or None
-
-        Returns
-        -------
-        ndarray of shape (n, n_samples), or (n_inputs, n, n_samples) for several inputs
-        """
-        n_samples = check_int(n_samples, "n_samples", low=1)
-        mean, cov, exponents = self._impulse_response_normalized(lags, "cov")
-        draws = gaussian_samples(mean, cov, n_samples, check_rng(random_state))
-        if exponents is not None:  # drawn in normalized units, each row scaled
-            draws = np.ldexp(draws, exponents[:, None])
-        if self.n_inputs_ > 1:
-            return draws.reshape(self.n_inputs_, -1, n_samples)
-        return draws
-
-
-# entries of the convolution matrix formed at once by predict(..., return_std=True)
-_PREDICT_BLOCK_ENTRIES = 2**22
-
-
-def _unit_scales(experiment) -> list[float]:
-    """Output power per unit input power, one per input: the data's units for the prior."""
-    power_y = float(np.mean(experiment.y**2)) or 1.0
-    return [power_y / power for power in _input_powers(experiment)]
-
-
-def _initial_kernel(kernel, experiment, normalize: bool = True):
-    """The prior of the fit in the data's units: the user's kernel(s), or the default.
-
-    With ``normalize`` the user's kernel is a prior in normalized units
-    (input and output divided by their RMS): each input's amplitudes and
-    their bounds are multiplied by that input's unit scale
-    (:func:`~gpmultirate.kernels.rescaled`).  The default kernel is
-    ``ConstantKernel(c) * DC()`` with ``c`` that scale, bounds ``c * 1e-8 ..
-    c * 1e8``, and ``alpha`` at most
-    :func:`~gpmultirate.resonances.slowest_decay` of the order: its envelope
-    falls at least by ``e^-2`` by lag ``P``.
-    """
-    n = experiment.n_inputs
-    scales = _unit_scales(experiment)
-    if kernel is not None:
-        kernel = kernel_for_inputs(kernel, n)
-        if not normalize:
-            return kernel
-        kernels = [rescaled(k, c) for k, c in zip(input_kernels(kernel), scales)]
-        return like_inputs(kernels, kernel)
-    # the FIR model says the response has died out by lag P: the default prior agrees
-    slowest = slowest_decay(experiment.observation.order)
-    kernels = [
-        ConstantKernel(c, (c * 1e-8, c * 1e8))
-        * DC(alpha=min(0.9, slowest), alpha_bounds=(1e-4, slowest))
-        for c in scales
-    ]
-    return kernels[0] if n == 1 else PerInputKernel(kernels)
-
-
-def _noise_bounds(noise_level_bounds, y: np.ndarray, normalize: bool):
-    """The bounds of the noise variance in the data's units (``"auto"`` resolved)."""
-    power = float(np.mean(y**2)) or 1.0
-    if isinstance(noise_level_bounds, str) and noise_level_bounds == "auto":
-        return (1e-12 * power, 10.0 * power)
-    bounds = check_bounds(noise_level_bounds, "noise_level_bounds")
-    if normalize and not isinstance(bounds, str):
-        return (bounds[0] * power, bounds[1] * power)  # given in normalized units
-    return bounds
-
-
-def prior_in_data_units(kernel, experiment, noise_level: float, noise_level_bounds,
-                        normalize: bool, tuned: bool):
-    """The fit's starting prior and noise: the default prior and the unit normalization.
-
-    Parameters
-    ----------
-    kernel : sklearn Kernel, list of them, or None
-        The user's prior (None: the default ``ConstantKernel(c) * DC()`` per
-        input, see :func:`_initial_kernel`).
-    experiment : Experiment
-        The data (observation and used slow samples).
-    noise_level : float
-        The noise variance as given.
-    noise_level_bounds : pair of floats, "fixed" or "auto"
-    normalize : bool
-        Read the kernel's amplitudes, ``noise_level`` and explicit bounds in
-        normalized units (input(s) and output divided by their RMS).
-    tuned : bool
-        Whether the noise level will be tuned (then clipped into its bounds).
-
-    Returns
-    -------
-    kernel, noise_level, noise_level_bounds
-        In the data's units.
-    """
-    y = experiment.y
-    kernel = _initial_kernel(kernel, experiment, normalize)
-    bounds = _noise_bounds(noise_level_bounds, y, normalize)
-    if normalize:
-        noise_level *= float(np.mean(y**2)) or 1.0  # given in normalized units
-    if tuned and not isinstance(bounds, str):
-        noise_level = float(np.clip(noise_level, *bounds))
-    return kernel, noise_level, bounds
-
-
-#: the logger of a fit's progress (the default order's pilot fits, the resonance search)
-_LOG = logging.getLogger("gpmultirate.fit")
-
-#: residual lag-one autocorrelation above which a too-short order is reported
-RESIDUAL_CORRELATION = 0.3
-
-
-def _input_powers_of(inputs) -> list[float]:
-    """``mean(u_k**2)`` of each input over all records (1 for an all-zero input)."""
-    stacked = np.vstack([x[:, None] if x.ndim == 1 else x for x in inputs])
-    return [float(np.mean(stacked[:, k] ** 2)) or 1.0 for k in range(stacked.shape[1])]
-
-
-def _input_powers(experiment) -> list[float]:
-    return _input_powers_of(_record_inputs(experiment))
-
-
-# the margins in percentage points of held-out fit by which a shorter order
-# must predict better to replace the default order N, and to be named in a
-# warning for an explicit order
-ORDER_MARGIN = 1.0
-HELD_OUT_MARGIN = 5.0
-
-
-#: nats of log evidence (of cross-validated log predictive likelihood with
-#: ``tuning="cross_validation"``) a disturbance model must gain over white noise
-#: for ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
-AUTO_NOISE_MARGIN = 10.0
-#: nats of log evidence a fixed disturbance must gain over the tuned white-noise
-#: fit for ``noise_kernel="auto"`` to tune disturbances at all
-AUTO_NOISE_GATE = 3.0
-#: beyond this many slow samples ``noise_kernel="auto"`` tunes the AR(1) disturbance
-#: of a long record (more samples than coefficients), and its check of samples off a
-#: uniform grid keeps white noise instead of ``M x M`` factorizations
-AUTO_NOISE_DENSE_GATE = 1000
-
-
-def _check_noise_kernel(noise_kernel):
-    """``noise_kernel`` checked: ``"white"``, a named disturbance or a scikit-learn kernel."""
-    if isinstance(noise_kernel, Kernel):
-        return noise_kernel
-    if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white", AR1_DISTURBANCE)
-                                          or noise_kernel in NAMED_DISTURBANCES):
-        return noise_kernel
-    names = ", ".join(repr(name) for name in ("auto", "white", *NAMED_DISTURBANCES,
-                                              AR1_DISTURBANCE))
-    raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
-                     f"got {noise_kernel!r}")
-
-
-def _takes_ar1_route(operator) -> bool:
-    """Whether ``noise_kernel="auto"`` tunes an AR(1) disturbance instead of dense Matérn ones.
-
-    So it does for more than ``AUTO_NOISE_DENSE_GATE`` slow samples, more
-    than the coefficients, on one uniform grid: there the AR(1) noise is
-    tuned through its tridiagonal precision
-    (:class:`~gpmultirate.covariance.AR1Covariance`) and the dense route's
-    ``M x M`` factorizations would dominate the fit.
-    """
-    if operator.n_outputs <= max(AUTO_NOISE_DENSE_GATE, operator.n_coefficients):
-        return False
-    return _is_ar1(AR1_DISTURBANCE, operator)
-
-
-def _is_ar1(choice, operator) -> bool:
-    """Whether the noise ``choice`` takes the AR(1) route on ``operator``."""
-    try:
-        noise = make_noise(choice, 1.0, (1e-5, 1e5), noise_instants(operator))
-    except ValueError:
-        return False
-    structure = getattr(noise, "structure", None)
-    return (structure is not None and structure() is not None and operator.has_regressor
-            and operator.n_outputs > operator.n_coefficients)
-
-
-def _check_tuning(tuning_criterion) -> str:
-    if not isinstance(tuning_criterion, str) or tuning_criterion not in (
-        "evidence", "cross_validation"
-    ):
-        raise ValueError(
-            f"tuning must be 'evidence' or 'cross_validation'; got {tuning_criterion!r}"
-        )
-    return tuning_criterion
-
-
-def _record_inputs(experiment):
-    """The inputs of every record, as ``(N, n_inputs)`` arrays."""
-    out = []
-    for record in experiment.observation.records:
-        u = np.asarray(record.u, dtype=float)
-        out.append(u[:, None] if u.ndim == 1 else u)
-    return out
-
-
-@dataclass(frozen=True)
-class _Settings:
-    """The estimator's parameters, checked before the data are touched."""
-
-    criterion: str
-    n_folds: int
-    candidates: object  # None, "auto" or a sorted list of orders
-    n_restarts: int
-    noise_level: float
-    auto: bool
-    max_resonances: int
-    normalize: bool
-    tuned: bool
-    scale: object = None  # the DataScale of the data (units.normalize), set by fit
-    noise_kernel: object = "white"
-    order_from_data: bool = False  # the order is the default order's: it covers the memory
-
-
-@dataclass
-class _Fit:
-    """The learned state of a fit at one order (the estimator's attributes of that name)."""
-
-    experiment: object
-    observation_: object
-    y_slow_: np.ndarray
-    noise_level_bounds_: object
-    n_inputs_: int
-    optimizer_result_: object
-    kernel_: object
-    noise_level_: float
-    posterior_: object
-    evidence: object
-    coef_: np.ndarray
-    log_marginal_likelihood_value_: float
-    resonances_: object = None
-    cv_log_predictive_likelihood_: float | None = None
-    noise_kernel_: object = "white"
-    noise_model: object = None
-
-
-class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
+class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
     """Fast-rate FIR model as a Gaussian process over lag, from slow-rate data.
 
     The impulse response ``g(t)``, ``t >= 0`` real, has a zero-mean Gaussian
@@ -967,577 +424,37 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         magnitude is subnormal (below ``2.2e-308``), or an input that is zero
         at every sample, are refused with a ``ValueError`` naming them.
         """
-        settings = self._check_params()
-        sample_indices = _timed_samples(self, sample_indices, sample_times)
-        timed = isinstance(sample_indices, _TimedSamples)
+        settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
+        sample_indices = between_ticks.readings_of(sample_indices, sample_times,
+                                                   settings.exposure, settings.latency)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
                      "interpolation_error_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
-        self._between_ticks_used = None  # the route of readings between ticks: the setting's
         # the fit works on the data divided by powers of two (exact), then rescales once
         given = (u, y_slow, sample_indices)
         u, y_slow, scale = units.normalize(u, y_slow)
-        settings = replace(settings, scale=scale)
-        self._fit_normalized((u, y_slow, sample_indices), settings, timed)
-        if timed:
-            self._check_interpolation((u, y_slow, sample_indices), settings)
-        units.rescale_gaussian_process(
-            self, scale, lambda: self._experiment(given, self.observation_.order))
+        data, settings = (u, y_slow, sample_indices), replace(settings, scale=scale)
+        self._adopt(*order_steps.fit_checked_order(data, settings, fit_at_order))
+        check = between_ticks.check_interpolation(
+            self.observation_, self.posterior_.coef, self.noise_level_, settings.between_ticks)
+        if check is not None and check.refit:  # the readings again, exactly
+            settings = replace(settings, between_ticks="exact")
+            self._adopt(*order_steps.fit_checked_order(data, settings, fit_at_order))
+        elif check is not None:
+            self.interpolation_error_ = check.error
+        units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
+            given, self.observation_.order, settings))
         return self
 
-    def _fit_normalized(self, data, settings: _Settings, timed: bool) -> None:
-        """The fit on the normalized data, with the order checks."""
-        if settings.candidates is not None:
-            candidates = settings.candidates
-            if candidates == "auto":
-                candidates = orders.auto_orders(self._experiment(data, None).observation.order)
-            selection = orders.select_order(
-                lambda order: self._fit_at(data, order, settings), candidates, settings.criterion
-            )
-            self._adopt(selection.fit)
-            self.order_selection_ = selection.table
-            return
-        order, fitted, rule, pilot = self.order, None, None, None
-        if order is None:
-            rule, pilot = self._default_order(data, settings)
-            if rule is not None:
-                order, fitted = rule.order, rule.fit
-        if fitted is None:
-            start = time.perf_counter()
-            fitted = self._fit_at(data, order, settings if rule is None else replace(
-                settings, order_from_data=True), start=pilot)
-            if rule is not None:
-                _LOG.info("fitted order %d in %.1f s", fitted.observation_.order,
-                          time.perf_counter() - start)
-        self._adopt(fitted)
-        if rule is not None:
-            self.order_selection_ = rule.table
-        if settings.criterion == "evidence" and self.optimizer is not None:
-            with blas_threads_for(fitted.experiment.observation):
-                self._check_shorter_orders(data, fitted.experiment, settings)
-        self._check_long_enough()
-        return self
-
-    def _check_interpolation(self, data, settings: _Settings) -> None:
-        """Estimate an interpolated fit's error; with ``between_ticks="auto"``, act on it.
-
-        The estimate (:func:`~gpmultirate.observations.interpolation_error`
-        of the posterior mean) in standard deviations of the white noise is
-        ``interpolation_error_``.  Above ``INTERPOLATION_TOLERANCE`` the
-        default route fits the readings again, exactly, up to ``EXACT_UP_TO``
-        readings; beyond, a ``NumericalWarning`` gives the estimate.
-        """
-        operator = self.observation_
-        if not isinstance(operator, InterpolatedConvolution):
-            return
-        error = interpolation_error(operator, self.posterior_.coef)
-        if error is None:
-            return
-        self.interpolation_error_ = error / np.sqrt(self.noise_level_)
-        _LOG.info("interpolated readings (%d lags): estimated error %.3g noise std",
-                  operator.points, self.interpolation_error_)
-        if _between_ticks(self) != "auto" or self.interpolation_error_ <= INTERPOLATION_TOLERANCE:
-            return
-        if operator.n_outputs > EXACT_UP_TO:
-            warnings.warn(
-                f"the readings between the ticks are interpolated with an estimated error of "
-                f"{self.interpolation_error_:.2g} noise standard deviations; "
-                "between_ticks='exact' models them exactly (an M x M covariance)",
-                NumericalWarning, stacklevel=3)
-            return
-        _LOG.info("fitting the readings again, exactly")
-        self._between_ticks_used = "exact"
-        del self.interpolation_error_
-        self._fit_normalized(data, settings, True)
-
-    def _default_order(self, data, settings: _Settings):
-        """The default order of a record longer than ``SHORT_RECORD``: :func:`~gpmultirate.orders.default_order`.
-
-        None for a shorter record (its default order is ``N``).  The pilot
-        fits tune the plain prior (the user's kernel, or the default without
-        the resonance search) by the evidence; the last one is kept as the
-        fit when the rule keeps its order and the fit asks for nothing more.
-        Their warnings are those of the kept fit only.  Returns the rule
-        and, for the resonance search, the last pilot's tuned ``(kernel,
-        noise level)``: the search starts from them instead of from the
-        untuned prior (at the pilot's order they are already tuned).
-        """
-        whole = self._experiment(data, None)
-        longest = whole.observation.order
-        if longest <= orders.SHORT_RECORD:
-            return None, None
-        powers = _input_powers(whole)
-        pilot = replace(settings, auto=False, criterion="evidence", noise_kernel="white")
-        caught = {}
-
-        last = []
-
-        def fit_at(order):
-            with warnings.catch_warnings(record=True) as record:
-                warnings.simplefilter("always")
-                fitted = self._fit_at(data, order, pilot)
-            caught[order] = record
-            last[:] = [fitted]
-            return fitted
-
-        def tail_lag(fitted):
-            # over twice the order: a prior cut by the order has not decayed
-            return orders.prior_tail_lag(fitted.kernel_, powers, fitted.noise_level_,
-                                         2 * fitted.observation_.order)
-
-        rule = orders.default_order(fit_at, tail_lag, longest, whole.y.shape[0],
-                                    whole.n_inputs, log=_LOG.info)
-        start = None
-        if settings.auto and last[0].noise_model is None:
-            start = (last[0].kernel_, last[0].noise_level_)
-        if rule.fit is not None and (settings.auto or settings.criterion != "evidence"
-                                     or settings.noise_kernel not in ("white", "auto")
-                                     or (settings.noise_kernel == "auto"
-                                         and self._calls_for_disturbance(
-                                             rule.fit.experiment, rule.fit.kernel_,
-                                             rule.fit.noise_level_, check_tail=False))):
-            rule = replace(rule, fit=None)  # the fit at that order goes on from here
-            _LOG.info("default order: %d, fitting it with the full settings", rule.order)
-        if rule.fit is not None:
-            for w in caught[rule.order]:
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-            _LOG.info("default order: %d (the pilot fit at that order is kept)", rule.order)
-        return rule, start
-
-    def _check_long_enough(self) -> None:
-        """Warn when the fitted order is too short for the data's memory.
-
-        Where the fit has more slow samples than coefficients (the held-out
-        check does not run there), two signs together: the tuned prior,
-        continued beyond the order, is not negligible against the noise from
-        the last lag on
-        (:func:`~gpmultirate.orders.prior_tail_lag` reaches the order), and
-        the residuals of the slow samples are correlated from one slow
-        sample to the next (lag-one autocorrelation above
-        ``RESIDUAL_CORRELATION`` and four standard errors).  The
-        :class:`~gpmultirate.OrderWarning` names a longer order.
-        """
-        operator = self.observation_
-        order = operator.order
-        # under a disturbance model correlated residuals are the model's, not a short order's
-        if (operator.n_outputs <= operator.n_coefficients
-                or self.initial_conditions == "periodic" or self._noise_model is not None):
-            return
-        experiment_inputs = [np.asarray(r.u, dtype=float) for r in operator.records]
-        longest = max(x.shape[0] for x in experiment_inputs)
-        if order >= longest:
-            return
-        powers = _input_powers_of(experiment_inputs)
-        if orders.prior_tail_lag(self.kernel_, powers, self.noise_level_, 2 * order) < order:
-            return
-        products = squares = 0.0
-        start = 0
-        for record, fitted in zip(operator.records, self._fitted_readings()):
-            y = self.y_slow_[start : start + record.n_outputs]
-            start += record.n_outputs
-            residual = y - fitted
-            products += float(residual[1:] @ residual[:-1])
-            squares += float(residual @ residual)
-        if squares == 0.0:
-            return
-        correlation = products / squares
-        if correlation <= max(RESIDUAL_CORRELATION, 4.0 / np.sqrt(operator.n_outputs)):
-            return
-        longer = min(2 * order, longest)
-        default = "" if self.order is None else " (or the default order=None, which reads it from the data)"
-        warnings.warn(
-            f"order={order} looks too short for the data's memory: the tuned prior has not "
-            f"decayed against the noise by lag {order} and the residuals of the slow samples "
-            f"are correlated from one to the next ({correlation:.2f} at lag one); the noise "
-            f"level and the bands are then too large. Try order={longer}{default}.",
-            OrderWarning,
-            stacklevel=3,
-        )
-
-    def _fitted_readings(self) -> list:
-        """The posterior mean of the used slow samples, one array per record.
-
-        On the ticks, the fast output at their indices; readings at their own
-        instants, by the interpolation of an interpolated fit or, fitted
-        exactly (white noise, data space), as ``y - gamma S_y^{-1} y``.
-        """
-        operator = self.observation_
-        coef = self.posterior_.coef
-        if isinstance(operator, TimedConvolution):
-            # white noise, in data space: the noise-free part of y is y - gamma S_y^{-1} y
-            mean = self.y_slow_ - self.noise_level_ * self.posterior_.alpha
-        elif isinstance(operator, InterpolatedConvolution):
-            mean = operator.matvec(coef)
-        else:
-            coef = coef.reshape(self.n_inputs_, -1)
-            out = []
-            for record in operator.records:
-                x = np.asarray(record.u, dtype=float)
-                x = x[:, None] if x.ndim == 1 else x
-                n = x.shape[0]
-                fitted = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
-                out.append(fitted[record.sample_indices])
-            return out
-        bounds = np.cumsum([0] + [record.n_outputs for record in operator.records])
-        return [mean[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-
-    def _check_params(self) -> _Settings:
-        """Check every parameter, before the data are built (as scikit-learn does)."""
-        criterion = _check_tuning(self.tuning)
-        n_folds = check_int(self.cv, "cv", low=2)
-        candidates = orders.order_candidates(self.order)
-        if self.order is not None and candidates is None:
-            check_int(self.order, "order", low=1)
-        check_initial_conditions(self.initial_conditions)
-        factor = check_int(self.factor, "factor", low=1)
-        check_int(self.offset, "offset", low=0, high=factor - 1)
-        if not (self.optimizer is None or (
-            isinstance(self.optimizer, str) and self.optimizer == "marginal_likelihood"
-        )):
-            raise ValueError(
-                f"optimizer must be 'marginal_likelihood' or None; got {self.optimizer!r}"
-            )
-        n_restarts = check_int(self.n_restarts_optimizer, "n_restarts_optimizer", low=0)
-        check_rng(self.random_state)
-        check_sample_time(self.sample_time)
-        noise = check_positive(self.noise_level, "noise_level")
-        if not (isinstance(self.noise_level_bounds, str) and self.noise_level_bounds == "auto"):
-            check_bounds(self.noise_level_bounds, "noise_level_bounds")
-        auto = isinstance(self.kernel, str) and self.kernel == "auto"
-        if isinstance(self.kernel, str) and not auto:
-            raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
-                             f"got {self.kernel!r}")
-        max_resonances = check_int(self.max_resonances, "max_resonances", low=0)
-        noise_kernel = _check_noise_kernel(self.noise_kernel)
-        if noise_kernel == "auto" and self.optimizer is None:
-            # without an optimizer the hyperparameters are the user's and nothing is tuned
-            noise_kernel = "white"
-        # normalized units are a start and bounds for tuning: without tuning
-        # the kernel and the noise level are used exactly as given
-        normalize = bool(self.normalize) and self.optimizer is not None
-        return _Settings(criterion, n_folds, candidates, n_restarts, noise, auto,
-                         max_resonances, normalize, self.optimizer is not None,
-                         noise_kernel=noise_kernel)
-
-    def _experiment(self, data, order):
-        return _experiment(self, *data, order)
-
-    def _adopt(self, fitted: _Fit) -> None:
-        """Take the learned state of a fit at one order as the estimator's."""
-        for name in ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
-                     "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
-                     "log_marginal_likelihood_value_", "noise_kernel_"):
-            setattr(self, name, getattr(fitted, name))
-        self._noise_model = fitted.noise_model
-        # kept for log_marginal_likelihood(theta) and the posterior at real lags
-        self._evidence = fitted.evidence
-        for name in ("resonances_", "cv_log_predictive_likelihood_"):
-            if getattr(fitted, name) is not None:
-                setattr(self, name, getattr(fitted, name))
+    def _adopt(self, fitted: Fit, order_selection=None) -> None:
+        """Take the learned state of a fit, and the table of its order's choice, as ours."""
+        for name, value in fitted.attributes().items():
+            if value is None and name in ("resonances_", "cv_log_predictive_likelihood_"):
+                self.__dict__.pop(name, None)  # made by some fits only
             else:
-                self.__dict__.pop(name, None)
-
-    def _fit_at(self, data, order, settings: _Settings, start=None) -> _Fit:
-        """Fit at one order; returns the learned state, leaves the estimator alone.
-
-        ``start``: the ``(kernel, noise level)`` of a plain fit at that order
-        (the default order's pilot), where ``kernel="auto"`` starts its search.
-        """
-        experiment = self._experiment(data, order)
-        operator, y = experiment.observation, experiment.y
-        kernel, noise, noise_bounds = prior_in_data_units(
-            # "auto" starts from the default prior (also in the default order's pilots)
-            None if isinstance(self.kernel, str) else self.kernel, experiment,
-            settings.noise_level,
-            self.noise_level_bounds, settings.normalize, settings.tuned,
-        )
-        if not settings.normalize and not getattr(self, "_prior_in_normalized_units", False):
-            # given in the data's units: the fit works in the units of units.normalize
-            # (a model file of hyperparameter_units_="normalized" gives them in those units)
-            given = not isinstance(self.kernel, str) and self.kernel is not None
-            explicit = not isinstance(self.noise_level_bounds, str) or (
-                self.noise_level_bounds == "fixed")
-            converted, noise, bounds = units.to_normalized(
-                kernel if given else None, noise, noise_bounds if explicit else "fixed",
-                settings.scale)
-            kernel = converted if given else kernel
-            noise_bounds = bounds if explicit else noise_bounds
-        if start is not None and settings.auto:
-            kernel, noise = clone(start[0]), float(start[1])
-        # refuse now what would be killed for lack of memory halfway
-        n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
-        check_fit_memory(operator.n_outputs, operator.n_coefficients, n_free + 1,
-                         n_inputs=experiment.n_inputs)
-        optimizer_result = resonances_found = cv_value = None
-        with blas_threads_for(operator):
-            if settings.auto:
-                from gpmultirate import resonances
-
-                search = resonances.search_resonances(
-                    operator, y, kernel, noise, noise_bounds,
-                    max_resonances=settings.max_resonances,
-                    sample_time=self.sample_time, random_state=self.random_state,
-                    n_folds=settings.n_folds,
-                )
-                kernel, noise = search.kernel, search.noise_level
-                optimizer_result = search.optimizer_result
-                resonances_found = search.resonances
-            evidence = LogEvidence(operator, y, kernel, noise, noise_bounds)
-            objective = evidence
-            if settings.criterion == "cross_validation":
-                check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 1)
-                objective = CrossValidation(
-                    operator, y, kernel, noise, noise_bounds, settings.n_folds
-                )
-            if self.optimizer is not None and (not settings.auto or objective is not evidence):
-                # with "auto", the search tuned by the evidence: cross-validation goes on from there
-                result = tuning.maximize(objective, settings.n_restarts, self.random_state)
-                if result is not None:
-                    optimizer_result = result
-                    kernel, noise = evidence.split(result.x)
-            posterior = evidence.posterior(kernel, noise)
-            if objective is not evidence:
-                moved = objective.moved_to(kernel, noise)
-                cv_value = float(moved(moved.theta))
-            noise_model = None
-            if settings.noise_kernel != "white" and (
-                    settings.noise_kernel != "auto" or self._calls_for_disturbance(
-                        experiment, kernel, noise, check_tail=not settings.order_from_data)):
-                # the disturbance is tuned with everything else, from the white fit
-                if settings.noise_kernel != "auto":
-                    choices = [self._noise_kernel_in_fit_units(settings)]
-                elif _takes_ar1_route(operator):
-                    # a long record on one uniform grid: the AR(1) disturbance keeps the
-                    # long-record cost where the dense Matérn ones need M x M matrices
-                    choices = [AR1_DISTURBANCE]
-                else:
-                    choices = list(NAMED_DISTURBANCES)
-                # cross-validation works in data space whatever the noise's structure
-                if cv_value is not None or not (len(choices) == 1
-                                                and _is_ar1(choices[0], operator)):
-                    check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
-                # the criterion of the tuning judges: the evidence, or the cross-validated
-                # log predictive likelihood (cv_value, the white fit's, is then set)
-                white_score = posterior.log_marginal_likelihood if cv_value is None else cv_value
-                best = None
-                for choice in choices:
-                    tried = self._fit_disturbance(operator, y, kernel, noise, noise_bounds,
-                                                  choice, settings)
-                    if best is None or tried[-1] > best[-1]:
-                        best = tried
-                if settings.noise_kernel != "auto" or best[-1] > white_score + AUTO_NOISE_MARGIN:
-                    evidence, kernel, noise_model, posterior, result, score = best
-                    optimizer_result = result if result is not None else optimizer_result
-                    if cv_value is not None:
-                        cv_value = score
-                    # a disturbance without white noise (AR(1)) keeps the white fit's level
-                    noise = noise_model.level or noise
-                    if resonances_found:  # the search judged its terms with white noise
-                        kept, reduced = resonances.resonances_under_disturbance(
-                            operator, y, evidence, kernel, noise_model,
-                            [r.input for r in resonances_found], settings.n_folds)
-                        if len(kept) < len(resonances_found):
-                            _LOG.info("resonance search: %d term(s) dropped, the disturbance "
-                                      "explains them", len(resonances_found) - len(kept))
-                            resonances_found = [resonances_found[r] for r in kept]
-                            evidence, kernel, noise_model, posterior, result, score = (
-                                self._fit_disturbance(operator, y, reduced, noise, noise_bounds,
-                                                      None, settings, start=noise_model))
-                            optimizer_result = result if result is not None else optimizer_result
-                            if cv_value is not None:
-                                cv_value = score
-                            noise = noise_model.level or noise
-        moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
-        if optimizer_result is not None:
-            tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))
-        coef = posterior.coef
-        return _Fit(
-            experiment=experiment,
-            observation_=operator,
-            y_slow_=y,
-            noise_level_bounds_=noise_bounds,
-            n_inputs_=experiment.n_inputs,
-            optimizer_result_=optimizer_result,
-            kernel_=kernel,
-            noise_level_=noise,
-            posterior_=posterior,
-            evidence=moved_evidence,
-            coef_=coef.reshape(experiment.n_inputs, -1) if experiment.n_inputs > 1 else coef,
-            log_marginal_likelihood_value_=posterior.log_marginal_likelihood,
-            resonances_=resonances_found,
-            cv_log_predictive_likelihood_=cv_value,
-            noise_kernel_="white" if noise_model is None else noise_model.kernel,
-            noise_model=noise_model,
-        )
-
-    def _calls_for_disturbance(self, experiment, kernel, noise_level: float,
-                               check_tail: bool = True) -> bool:
-        """Whether ``noise_kernel="auto"`` goes on to tune disturbances after the white fit.
-
-        Three cheap checks on the tuned white-noise fit, in order:
-
-        * the order covers the data's memory: it is the default order read
-          from the data (``check_tail=False``), it reaches the longest record,
-          or the output variance the tuned prior gives the lags from the
-          order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
-          times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
-          the measure of the order check).
-          Otherwise the colour of the residuals may be the response's tail
-          cut by the order, which a longer order explains, not a disturbance
-          (the paper's study at orders below ``N``);
-        * at most ``MAX_CHECKED_SAMPLES`` slow samples (a disturbance is tuned
-          with the ``M x M`` data covariance);
-        * a fixed Matérn disturbance, with the tuned prior held, gains at
-          least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
-          (:func:`~gpmultirate.noise.disturbance_evidence_gain`; with more
-          slow samples than coefficients, where the fit has no ``M x M``
-          matrix, an AR(1) one on a uniform grid,
-          :func:`~gpmultirate.noise.ar1_evidence_gain`; off a uniform grid
-          the dense one up to ``AUTO_NOISE_DENSE_GATE`` slow samples, and
-          white noise beyond).
-        """
-        operator, y = experiment.observation, experiment.y
-        order, n_samples = operator.order, y.shape[0]
-        longest = max(np.asarray(r.u).shape[0] for r in operator.records)
-        if check_tail and order < longest:
-            powers = _input_powers(experiment)
-            if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
-                _LOG.info("noise: white (the prior has not decayed against the noise by order "
-                          "%d: the residuals' colour may be the cut tail)", order)
-                return False
-        if n_samples > MAX_CHECKED_SAMPLES:
-            _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
-                      n_samples, MAX_CHECKED_SAMPLES)
-            return False
-        term = observe(kernel, operator)
-        gain = None
-        if n_samples > operator.n_coefficients and operator.has_regressor:
-            # the AR(1) form, O(M P^2) once, then P x P per grid point: the long-record
-            # route has no M x M matrix, and the check must not bring one
-            gain = ar1_evidence_gain(operator.matrix, term.kernel_matrix(), y, noise_level,
-                                     noise_instants(operator))
-        if gain is None and n_samples <= AUTO_NOISE_DENSE_GATE:
-            gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
-                                             noise_instants(operator))
-        if gain is None:
-            _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
-            return False
-        _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
-        return gain >= AUTO_NOISE_GATE
-
-    def _noise_kernel_in_fit_units(self, settings: _Settings):
-        """The noise choice in the units of the normalized data (a kernel is given in the data's)."""
-        choice = settings.noise_kernel
-        if (isinstance(choice, str) or settings.scale is None
-                or getattr(self, "_prior_in_normalized_units", False)):
-            return choice
-        return units.scaled_noise_kernel(choice, settings.scale.variance(1.0, to_data=False))
-
-    def _fit_disturbance(self, operator, y, kernel, noise_level, noise_bounds, choice,
-                         settings: _Settings, start=None):
-        """Tune a disturbance model with everything else, from the white fit's point.
-
-        ``choice``: a noise choice (``make_noise``); ``start``: a noise model to go
-        on from instead.
-
-        By the criterion of ``settings``: the log evidence, or the
-        cross-validated log predictive likelihood
-        (:class:`~gpmultirate.crossvalidation.CrossValidation` with the noise
-        model, on the same folds as the white fit).  Returns ``(evidence,
-        kernel, noise_model, posterior, optimizer_result, score)``, ``score``
-        the criterion's value at the tuned point.
-        """
-        noise_model = start if start is not None else make_noise(
-            choice, noise_level, noise_bounds, noise_instants(operator))
-        evidence = LogEvidence(operator, y, kernel, noise_level, noise_bounds, noise=noise_model)
-        objective = evidence
-        if settings.criterion == "cross_validation":
-            objective = CrossValidation(operator, y, kernel, noise_level, noise_bounds,
-                                        settings.n_folds, noise=noise_model)
-        result = None
-        if self.optimizer is not None:
-            result = tuning.maximize(objective, settings.n_restarts, self.random_state)
-            if result is not None:
-                kernel, noise_model = objective.split_models(result.x)
-        posterior = evidence.posterior(kernel, noise_model)
-        if objective is evidence:
-            score = posterior.log_marginal_likelihood
-        else:
-            moved = objective.moved_to(kernel, noise_model)
-            score = float(moved(moved.theta))
-        return evidence, kernel, noise_model, posterior, result, score
-
-    def _check_shorter_orders(self, data, experiment, settings: _Settings):
-        """Compare the held-out fit of the tuned model with that of shorter orders; act on it.
-
-        The same hyperparameters, the same folds (as ``tuning="cross_validation"``);
-        only the order is cut (:func:`~gpmultirate.orders.held_out_fits`).
-        With the default order (``order=None``) the candidates are
-        :func:`~gpmultirate.orders.auto_orders` of ``N``, and when one
-        predicts the held-out slow samples more than ``ORDER_MARGIN`` points
-        of fit better than ``N``, the model is fitted again at that order;
-        ``order_selection_`` reports every candidate's held-out fit.  With an
-        explicit order ``P`` the candidates are ``P/2, P/4, P/8`` and a
-        :class:`~gpmultirate.HeldOutWarning` names one that predicts more than
-        ``HELD_OUT_MARGIN`` points better.  Skipped where it would cost more
-        than the fit (at least as many slow samples as coefficients, where
-        the fit works on the ``P x P`` problem and the check would need
-        ``M x M`` matrices; as many is checked for the default order, the
-        single-rate case), beyond ``MAX_CHECKED_SAMPLES`` slow samples, or
-        where it is not comparable (``"discard"`` uses other samples at other
-        orders).
-        """
-        operator, y = experiment.observation, experiment.y
-        order, n_samples = operator.order, y.shape[0]
-        default_order = self.order is None
-        n_folds = settings.n_folds
-        # the fit works in data space for M < P; at M = P (single rate) only the
-        # default order is checked, and never with M x M matrices beyond the limit
-        data_space = n_samples < operator.n_coefficients or (
-            default_order and n_samples == operator.n_coefficients)
-        if (self.initial_conditions == "discard" or not data_space
-                or n_samples > MAX_CHECKED_SAMPLES or order < 2 * MIN_CHECKED_ORDER
-                or np.ptp(y) == 0):  # the fit in percent of a constant output is undefined
-            return
-        try:
-            folds = contiguous_folds([r.n_outputs for r in operator.records], n_folds)
-        except ValueError:
-            return  # fewer samples than folds: nothing to hold out
-        if default_order:
-            candidates = orders.auto_orders(order)
-        else:
-            candidates = [order // d for d in (8, 4, 2) if order // d >= MIN_CHECKED_ORDER]
-            candidates.append(order)
-        fits = orders.held_out_fits(
-            lambda p: operator if p == order else self._experiment(data, p).observation,
-            candidates, self.kernel_,
-            self.noise_level_ if self._noise_model is None else self._noise_model, y, folds,
-        )
-        if fits is None:
-            return
-        best = max(fits, key=fits.get)  # the shortest of equal fits
-        if default_order:
-            chosen = best if fits[best] > fits[order] + ORDER_MARGIN else order
-            if chosen != order:
-                self._adopt(self._fit_at(data, chosen, settings))
-            self.order_selection_ = {
-                "order": np.array(candidates),
-                "score": np.array([fits[o] for o in candidates]),
-                "criterion": "held_out_fit",
-                "best_order": int(chosen),
-            }
-        elif fits[best] > fits[order] + HELD_OUT_MARGIN:
-            warnings.warn(
-                f"held-out slow samples are predicted clearly better at a shorter order: "
-                f"order={best} fits {fits[best]:.1f} % of them, order={order} "
-                f"{fits[order]:.1f} % ({n_folds}-fold cross-validation over time at the tuned "
-                "hyperparameters). The marginal likelihood trusts the model, and measured data "
-                "with drift, disturbances or a little nonlinearity can make it prefer a worse "
-                f"predictor: try order={best}, or order='auto' with "
-                "tuning='cross_validation'.",
-                HeldOutWarning,
-                stacklevel=3,
-            )
+                setattr(self, name, value)
+        if order_selection is not None:
+            self.order_selection_ = order_selection
 
     # ------------------------------------------------------------ evidence
     def log_marginal_likelihood(self, theta=None, eval_gradient: bool = False):
@@ -1622,30 +539,18 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
     def _predict_readings(self, x, sample_times, return_std):
         """The sensor's readings at ``sample_times`` (exposure and latency applied).
 
-        A fit of interpolated readings predicts them by its interpolation;
-        any other by the posterior at real lags.
-        """
-        posterior, scale = units.split(self.posterior_)
-        kernel = self.kernel_
-        if scale is not None:  # in the units of the normalized fit, scaled at the end
-            x = np.ldexp(x, -scale.input_exponents[None, :])
-            kernel = self._evidence.kernel
-        readings = TimedConvolution(
-            x, sample_times, self._order, self.exposure, self.latency, self.initial_conditions)
-        fitted = self.observation_
-        if isinstance(fitted, InterpolatedConvolution) and readings.n_samples >= fitted.points:
-            # the readings as the fit modelled them: interpolated on the integer lags
-            mean, var = posterior.linear_map(
-                InterpolatedConvolution(readings, fitted.points).matrix)
-        else:
+        As the fitted observation models them (its ``readings_model``)."""
+
+        def readings_at(x, posterior, scale):
+            readings = TimedConvolution(x, sample_times, self._order, self.exposure,
+                                        self.latency, self.initial_conditions)
+            kernel = self.kernel_ if scale is None else self._evidence.kernel
+            readings = self.observation_.readings_model(readings)
             with blas_threads_for(readings):
-                mean, var = predict_readings(posterior, self._evidence.data, kernel, readings)
-        out = (mean, np.sqrt(var)) if return_std else mean
-        if scale is None:
-            return out
-        if return_std:
-            return tuple(np.ldexp(v, scale.output_exponent) for v in out)
-        return np.ldexp(out, scale.output_exponent)
+                mean, var = readings.posterior_readings(posterior, self._evidence.data, kernel)
+            return (mean, np.sqrt(var)) if return_std else mean
+
+        return self._in_data_units(x, readings_at, return_std)
 
     def _points(self, lags) -> np.ndarray:
         """The kernel inputs of the lags: a column, or ``(input, lag)`` pairs input-major."""
@@ -1656,7 +561,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         return np.column_stack([inputs, np.tile(lags, self.n_inputs_)])
 
 
-class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
+class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
     """Least-squares FIR model from slow-rate data (paper eq. 11).
 
     The estimate is unique only when the order is below the number of slow
@@ -1780,7 +685,7 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if rank < P:
             hold = any(
                 _is_zero_order_hold(x[:, k], operator.slow_factor)
-                for x in _record_inputs(experiment) for k in range(x.shape[1])
+                for x in record_inputs(experiment) for k in range(x.shape[1])
             )
             hint = (
                 "The input is constant between slow samples (zero-order hold, Lemma 2): "
@@ -1856,77 +761,6 @@ class LeastSquaresFIR(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         if kind == "cov":
             return mean, cov, exponents
         return mean, np.maximum(np.diag(cov), 0.0), exponents
-
-
-# ----------------------------------------------------- readings at their own instants
-class _TimedSamples(list):
-    """``[sample_times]`` of a fit whose readings are not all fast samples."""
-
-
-def _timed_samples(model, sample_indices, sample_times):
-    """What ``fit`` passes on as ``sample_indices``: the indices, or the timed samples.
-
-    Readings on the fast ticks (no exposure, ``t - latency`` integers) are
-    the fast samples of those indices, with every fast path of the ticks.
-    """
-    exposure = check_duration(model.exposure, "exposure")
-    latency = check_duration(model.latency, "latency")
-    _between_ticks(model)
-    if sample_times is None:
-        if exposure or latency:
-            raise ValueError(
-                "exposure and latency apply to readings at their own instants: give "
-                "sample_times (in fast sample periods)"
-            )
-        return sample_indices
-    if sample_indices is not None:
-        raise ValueError("give sample_indices or sample_times, not both")
-    ticks = on_the_ticks(sample_times, exposure, latency)
-    if ticks is not None:
-        return ticks
-    return _TimedSamples([sample_times])
-
-
-#: the routes of readings between the fast ticks (``between_ticks``)
-BETWEEN_TICKS = ("auto", "exact", "interpolated")
-#: ``between_ticks="auto"`` interpolates above this many readings (and more than coefficients)
-INTERPOLATED_ABOVE = 1000
-#: ``between_ticks="auto"``: the largest estimated interpolation error, in noise std
-INTERPOLATION_TOLERANCE = 0.2
-#: ``between_ticks="auto"``: readings fitted exactly where the interpolation is not enough
-EXACT_UP_TO = 3000
-
-
-def _between_ticks(model) -> str:
-    route = getattr(model, "between_ticks", "auto")
-    if not (isinstance(route, str) and route in BETWEEN_TICKS):
-        raise ValueError(f"between_ticks must be one of {BETWEEN_TICKS}; got {route!r}")
-    return route
-
-
-def _experiment(model, u, y_slow, sample_indices, order):
-    """The experiment of a fit: on the fast ticks, or the readings at their own instants.
-
-    Readings at their own instants are the exact timed observation, or its
-    interpolation on the integer lags (``between_ticks``; by default for a
-    long record: more readings than coefficients and than ``INTERPOLATED_ABOVE``).
-    """
-    if isinstance(sample_indices, _TimedSamples):
-        experiment = build_timed_experiment(
-            u, y_slow, sample_indices[0], order=order, exposure=model.exposure,
-            latency=model.latency, initial_conditions=model.initial_conditions,
-        )
-        timed = experiment.observation
-        route = getattr(model, "_between_ticks_used", None) or _between_ticks(model)
-        shortest = min(record.n_samples for record in timed.records)
-        if route == "interpolated" or (route == "auto" and timed.n_outputs > max(
-                timed.n_coefficients, INTERPOLATED_ABOVE) and shortest >= DEFAULT_POINTS):
-            return Experiment(InterpolatedConvolution(timed), experiment.y, experiment.n_inputs)
-        return experiment
-    return build_experiment(
-        u, y_slow, sample_indices, factor=model.factor, offset=model.offset,
-        order=order, initial_conditions=model.initial_conditions,
-    )
 
 
 def _is_zero_order_hold(u: np.ndarray, factor: int) -> bool:

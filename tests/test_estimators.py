@@ -110,7 +110,9 @@ def test_log_marginal_likelihood_gradient_matches_finite_differences(problem):
 
 @pytest.mark.parametrize("block_entries", [2**22, 7 * ORDER])  # one block; blocks of 7 rows
 def test_predict_mean_and_std_are_dense_convolution(problem, block_entries, monkeypatch):
-    monkeypatch.setattr(gm.estimators, "_PREDICT_BLOCK_ENTRIES", block_entries)
+    from gpmultirate import prediction
+
+    monkeypatch.setattr(prediction, "_PREDICT_BLOCK_ENTRIES", block_entries)
     model, Phi = problem["model"], problem["Phi"]
     rng = np.random.default_rng(7)
     u_new = rng.standard_normal(70)

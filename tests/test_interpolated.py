@@ -147,6 +147,8 @@ def test_estimated_error_of_the_interpolated_readings():
 
 
 def test_default_route_refits_where_the_interpolation_is_not_below_the_noise(monkeypatch):
+    from gpmultirate.fitting import between_ticks
+
     # a response at 0.4 cycles per fast period, read at 0.1 % noise: the interpolation's
     # error is far above the noise, so the default route fits the readings exactly
     rng = np.random.default_rng(5)
@@ -172,7 +174,7 @@ def test_default_route_refits_where_the_interpolation_is_not_below_the_noise(mon
     assert isinstance(model.observation_, TimedConvolution)
     assert not hasattr(model, "interpolation_error_")
     # beyond the readings the exact route takes: interpolated, with a warning
-    monkeypatch.setattr(gm.estimators, "EXACT_UP_TO", 100)
+    monkeypatch.setattr(between_ticks, "EXACT_UP_TO", 100)
     with pytest.warns(gm.NumericalWarning, match="interpolated with an estimated error"):
         model = fit()
     assert model.observation_.points == 12

@@ -390,19 +390,19 @@ def test_default_band_of_the_impulse_response_holds_under_an_ar1_disturbance():
 
 
 def test_auto_on_a_long_white_record_takes_the_ar1_check_and_keeps_white(monkeypatch):
-    import gpmultirate.estimators as estimators
+    from gpmultirate.fitting import disturbance
 
     rng = np.random.default_rng(11)
     n = 3 * 1100  # M = 1100 slow samples: beyond the dense check
     u = rng.standard_normal(n)
     y = np.convolve(u, 0.6 ** np.arange(20))[:n][::FACTOR] + 0.05 * rng.standard_normal(1100)
     seen = []
-    original = estimators.ar1_evidence_gain
-    monkeypatch.setattr(estimators, "ar1_evidence_gain",
+    original = disturbance.ar1_evidence_gain
+    monkeypatch.setattr(disturbance, "ar1_evidence_gain",
                         lambda *args: seen.append(original(*args)) or seen[-1])
     auto = FIRGaussianProcess(factor=FACTOR, order=40).fit(u, y)
     white = FIRGaussianProcess(factor=FACTOR, order=40, noise_kernel="white").fit(u, y)
-    assert len(seen) == 1 and seen[0] < estimators.AUTO_NOISE_GATE
+    assert len(seen) == 1 and seen[0] < disturbance.AUTO_NOISE_GATE
     assert auto.noise_kernel_ == "white"
     np.testing.assert_array_equal(auto.coef_, white.coef_)
 

@@ -243,6 +243,54 @@ class Observation:
 
         return cross_kernel(kernel, lags, self.lags) @ self.matrix.T
 
+    # ------------------------------------------------- what a fit of these data reads
+    def fitted_readings(self, posterior, y: np.ndarray, noise_level: float) -> list:
+        """The posterior mean of the noise-free data, one array per record.
+
+        Here the fast output at each record's sample indices, the convolution
+        of the record's input(s) with the posterior mean of the coefficients
+        (input-major).  ``y`` and the white ``noise_level`` are those of the
+        fit (readings off the ticks need them).
+        """
+        coef = posterior.coef.reshape(self.n_inputs, -1)
+        out = []
+        for record in self.records:
+            x = np.asarray(record.u, dtype=float)
+            x = x[:, None] if x.ndim == 1 else x
+            n = x.shape[0]
+            fitted = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+            out.append(fitted[record.sample_indices])
+        return out
+
+    def split_by_record(self, values: np.ndarray) -> list:
+        """``values`` of the stacked data as one array per record."""
+        bounds = np.cumsum([0] + [record.n_outputs for record in self.records])
+        return [values[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+    def readings_model(self, readings):
+        """How a fit of these data models new ``readings`` (a timed observation).
+
+        Here as they are: linear functionals of the response at real lags.
+        """
+        return readings
+
+    def posterior_readings(self, posterior, data, kernel):
+        """Mean and variance of these noise-free data under the posterior of a fit.
+
+        ``posterior``: the fit's :class:`~gpmultirate.inference.GaussianCoefficients`
+        of the coefficients; ``data``, ``kernel``: the observation it
+        conditioned on and its kernel.  Here ``Phi g`` for the regressor
+        ``Phi`` (:attr:`matrix`).
+        """
+        return posterior.linear_map(self.matrix)
+
+    def interpolation_check(self, coef) -> float | None:
+        """The estimated rms error of the data's interpolation between the ticks, or None.
+
+        None here: these data are read without interpolation.
+        """
+        return None
+
 
 class ColumnBlock(Observation):
     """The columns of one input of a several-input observation, as an observation.

@@ -278,6 +278,23 @@ class InterpolatedConvolution(Observation):
     def __repr__(self) -> str:
         return f"InterpolatedConvolution({self.timed!r}, points={self.points})"
 
+    def fitted_readings(self, posterior, y: np.ndarray, noise_level: float) -> list:
+        """The posterior mean of the readings by the interpolation, one array per record."""
+        return self.split_by_record(self.matvec(posterior.coef))
+
+    def readings_model(self, readings):
+        """New ``readings`` as this fit modelled its own: interpolated on the integer lags.
+
+        Readings of a record shorter than the interpolation's nodes are modelled exactly.
+        """
+        if readings.n_samples < self.points:
+            return readings
+        return InterpolatedConvolution(readings, self.points)
+
+    def interpolation_check(self, coef) -> float | None:
+        """:func:`interpolation_error` of the response ``coef`` (None when it cannot say)."""
+        return interpolation_error(self, coef)
+
 
 def interpolation_error(observation: InterpolatedConvolution, coef,
                         max_readings: int = 256) -> float | None:

@@ -766,6 +766,20 @@ class TimedConvolution(Observation):
             f"latency={self.latency:g}, initial_conditions={self.initial_conditions!r})"
         )
 
+    def fitted_readings(self, posterior, y: np.ndarray, noise_level: float) -> list:
+        """The posterior mean of the noise-free readings, one array per record.
+
+        The fit of readings at their own instants works in data space with
+        white noise: the noise-free part of ``y`` is ``y - gamma S_y^{-1} y``
+        (``posterior.alpha`` is ``S_y^{-1} y``).
+        """
+        return self.split_by_record(y - noise_level * posterior.alpha)
+
+    def posterior_readings(self, posterior, data, kernel):
+        """Mean and variance of these noise-free readings under a fit's posterior
+        (:func:`predict_readings`)."""
+        return predict_readings(posterior, data, kernel, self)
+
 
 def _dense(item) -> np.ndarray:
     if isinstance(item, tuple):

@@ -1,0 +1,266 @@
+"""The disturbance choice of a fit: white noise, or a disturbance model tuned with the rest.
+
+After the white-noise fit at one order, :func:`choose_disturbance` tunes the
+disturbance ``noise_kernel`` asks for (a named one or a kernel), or, for
+``"auto"``, decides from cheap checks whether the data call for one
+(:func:`calls_for_disturbance`), tunes the candidates and keeps the best only
+when it beats white noise by ``AUTO_NOISE_MARGIN``.  The noise models, their
+evidence and their routes are :mod:`gpmultirate.noise`'s; this module only
+chooses among them, and returns what it chose.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.gaussian_process.kernels import Kernel
+
+from gpmultirate import orders, tuning, units
+from gpmultirate.crossvalidation import CrossValidation
+from gpmultirate.fitting.prior import input_powers
+from gpmultirate.inference import LogEvidence
+from gpmultirate.kernels import observe
+from gpmultirate.memory import check_fit_memory
+from gpmultirate.noise import (
+    AR1_DISTURBANCE,
+    NAMED_DISTURBANCES,
+    ar1_evidence_gain,
+    disturbance_evidence_gain,
+    make_noise,
+    noise_instants,
+)
+from gpmultirate.orders import MAX_CHECKED_SAMPLES
+
+__all__ = [
+    "AUTO_NOISE_DENSE_GATE",
+    "AUTO_NOISE_GATE",
+    "AUTO_NOISE_MARGIN",
+    "DisturbanceFit",
+    "calls_for_disturbance",
+    "check_noise_kernel",
+    "choose_disturbance",
+    "fit_disturbance",
+    "is_ar1",
+    "takes_ar1_route",
+]
+
+_LOG = logging.getLogger("gpmultirate.fit")
+
+#: nats of log evidence (of cross-validated log predictive likelihood with
+#: ``tuning="cross_validation"``) a disturbance model must gain over white noise
+#: for ``noise_kernel="auto"`` to choose it (it has two more hyperparameters)
+AUTO_NOISE_MARGIN = 10.0
+#: nats of log evidence a fixed disturbance must gain over the tuned white-noise
+#: fit for ``noise_kernel="auto"`` to tune disturbances at all
+AUTO_NOISE_GATE = 3.0
+#: beyond this many slow samples ``noise_kernel="auto"`` tunes the AR(1) disturbance
+#: of a long record (more samples than coefficients), and its check of samples off a
+#: uniform grid keeps white noise instead of ``M x M`` factorizations
+AUTO_NOISE_DENSE_GATE = 1000
+
+
+def check_noise_kernel(noise_kernel):
+    """``noise_kernel`` checked: ``"white"``, a named disturbance or a scikit-learn kernel.
+
+    Examples
+    --------
+    >>> check_noise_kernel("matern32")
+    'matern32'
+    >>> check_noise_kernel("pink")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: noise_kernel must be 'auto', 'white', ... or a scikit-learn kernel; got 'pink'
+    """
+    if isinstance(noise_kernel, Kernel):
+        return noise_kernel
+    if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white", AR1_DISTURBANCE)
+                                          or noise_kernel in NAMED_DISTURBANCES):
+        return noise_kernel
+    names = ", ".join(repr(name) for name in ("auto", "white", *NAMED_DISTURBANCES,
+                                              AR1_DISTURBANCE))
+    raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
+                     f"got {noise_kernel!r}")
+
+
+def takes_ar1_route(observation) -> bool:
+    """Whether ``noise_kernel="auto"`` tunes an AR(1) disturbance instead of dense Matérn ones.
+
+    So it does for more than ``AUTO_NOISE_DENSE_GATE`` slow samples, more
+    than the coefficients, on one uniform grid: there the AR(1) noise is
+    tuned through its tridiagonal precision
+    (:class:`~gpmultirate.covariance.AR1Covariance`) and the dense route's
+    ``M x M`` factorizations would dominate the fit.
+    """
+    if observation.n_outputs <= max(AUTO_NOISE_DENSE_GATE, observation.n_coefficients):
+        return False
+    return is_ar1(AR1_DISTURBANCE, observation)
+
+
+def is_ar1(choice, observation) -> bool:
+    """Whether the noise ``choice`` takes the AR(1) route on ``observation``."""
+    try:
+        noise = make_noise(choice, 1.0, (1e-5, 1e5), noise_instants(observation))
+    except ValueError:
+        return False
+    structure = getattr(noise, "structure", None)
+    return (structure is not None and structure() is not None and observation.has_regressor
+            and observation.n_outputs > observation.n_coefficients)
+
+
+def calls_for_disturbance(experiment, kernel, noise_level: float,
+                          check_tail: bool = True) -> bool:
+    """Whether ``noise_kernel="auto"`` goes on to tune disturbances after the white fit.
+
+    Three cheap checks on the tuned white-noise fit (``kernel`` and
+    ``noise_level`` on ``experiment``), in order:
+
+    * the order covers the data's memory: it is the default order read
+      from the data (``check_tail=False``), it reaches the longest record,
+      or the output variance the tuned prior gives the lags from the
+      order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
+      times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
+      the measure of the order check).
+      Otherwise the colour of the residuals may be the response's tail
+      cut by the order, which a longer order explains, not a disturbance
+      (the paper's study at orders below ``N``);
+    * at most ``MAX_CHECKED_SAMPLES`` slow samples (a disturbance is tuned
+      with the ``M x M`` data covariance);
+    * a fixed Matérn disturbance, with the tuned prior held, gains at
+      least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
+      (:func:`~gpmultirate.noise.disturbance_evidence_gain`; with more
+      slow samples than coefficients, where the fit has no ``M x M``
+      matrix, an AR(1) one on a uniform grid,
+      :func:`~gpmultirate.noise.ar1_evidence_gain`; off a uniform grid
+      the dense one up to ``AUTO_NOISE_DENSE_GATE`` slow samples, and
+      white noise beyond).
+    """
+    observation, y = experiment.observation, experiment.y
+    order, n_samples = observation.order, y.shape[0]
+    longest = max(np.asarray(r.u).shape[0] for r in observation.records)
+    if check_tail and order < longest:
+        powers = input_powers(experiment)
+        if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
+            _LOG.info("noise: white (the prior has not decayed against the noise by order "
+                      "%d: the residuals' colour may be the cut tail)", order)
+            return False
+    if n_samples > MAX_CHECKED_SAMPLES:
+        _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
+                  n_samples, MAX_CHECKED_SAMPLES)
+        return False
+    term = observe(kernel, observation)
+    gain = None
+    if n_samples > observation.n_coefficients and observation.has_regressor:
+        # the AR(1) form, O(M P^2) once, then P x P per grid point: the long-record
+        # route has no M x M matrix, and the check must not bring one
+        gain = ar1_evidence_gain(observation.matrix, term.kernel_matrix(), y, noise_level,
+                                 noise_instants(observation))
+    if gain is None and n_samples <= AUTO_NOISE_DENSE_GATE:
+        gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
+                                         noise_instants(observation))
+    if gain is None:
+        _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
+        return False
+    _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
+    return gain >= AUTO_NOISE_GATE
+
+
+def noise_kernel_in_fit_units(settings):
+    """The noise choice in the units of the normalized data (a kernel is given in the data's)."""
+    choice = settings.noise_kernel
+    if (isinstance(choice, str) or settings.scale is None
+            or settings.prior_in_normalized_units):
+        return choice
+    return units.scaled_noise_kernel(choice, settings.scale.variance(1.0, to_data=False))
+
+
+@dataclass(frozen=True)
+class DisturbanceFit:
+    """A disturbance model tuned with everything else.
+
+    ``evidence``: the :class:`~gpmultirate.inference.LogEvidence` with the
+    noise model; ``kernel``, ``noise_model``: the tuned prior and noise;
+    ``posterior``: the posterior of the coefficients there;
+    ``optimizer_result``: the optimizer's run (None when nothing was
+    tuned); ``score``: the tuning criterion at the tuned point.
+    """
+
+    evidence: object
+    kernel: object
+    noise_model: object
+    posterior: object
+    optimizer_result: object
+    score: float
+
+
+def fit_disturbance(observation, y, kernel, noise_level, noise_bounds, choice, settings,
+                    start=None) -> DisturbanceFit:
+    """Tune a disturbance model with everything else, from the white fit's point.
+
+    ``choice``: a noise choice (:func:`~gpmultirate.noise.make_noise`);
+    ``start``: a noise model to go on from instead.  By the criterion of
+    ``settings``: the log evidence, or the cross-validated log predictive
+    likelihood (:class:`~gpmultirate.crossvalidation.CrossValidation` with
+    the noise model, on the same folds as the white fit).
+    """
+    noise_model = start if start is not None else make_noise(
+        choice, noise_level, noise_bounds, noise_instants(observation))
+    evidence = LogEvidence(observation, y, kernel, noise_level, noise_bounds, noise=noise_model)
+    objective = evidence
+    if settings.criterion == "cross_validation":
+        objective = CrossValidation(observation, y, kernel, noise_level, noise_bounds,
+                                    settings.n_folds, noise=noise_model)
+    result = None
+    if settings.tuned:
+        result = tuning.maximize(objective, settings.n_restarts, settings.random_state)
+        if result is not None:
+            kernel, noise_model = objective.split_models(result.x)
+    posterior = evidence.posterior(kernel, noise_model)
+    if objective is evidence:
+        score = posterior.log_marginal_likelihood
+    else:
+        moved = objective.moved_to(kernel, noise_model)
+        score = float(moved(moved.theta))
+    return DisturbanceFit(evidence, kernel, noise_model, posterior, result, score)
+
+
+def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, white_score,
+                       settings, cross_validated: bool = False) -> DisturbanceFit | None:
+    """The disturbance the fit keeps after the white-noise fit, or None for white noise.
+
+    ``kernel``, ``noise_level``: the tuned white-noise fit on ``experiment``;
+    ``white_score``: its criterion (the log evidence, or with
+    ``cross_validated`` the cross-validated log predictive likelihood).  A
+    named disturbance or kernel in ``settings.noise_kernel`` is tuned and
+    kept; ``"auto"`` tunes candidates only when :func:`calls_for_disturbance`
+    (the Matérn ones, or beyond ``AUTO_NOISE_DENSE_GATE`` slow samples on one
+    uniform grid the AR(1) one, :func:`takes_ar1_route`) and keeps the best
+    only when it gains ``AUTO_NOISE_MARGIN`` over white noise.
+    """
+    choice = settings.noise_kernel
+    if choice == "white" or (choice == "auto" and not calls_for_disturbance(
+            experiment, kernel, noise_level, check_tail=not settings.order_from_data)):
+        return None
+    observation, y = experiment.observation, experiment.y
+    # the disturbance is tuned with everything else, from the white fit
+    if choice != "auto":
+        choices = [noise_kernel_in_fit_units(settings)]
+    elif takes_ar1_route(observation):
+        # a long record on one uniform grid: the AR(1) disturbance keeps the
+        # long-record cost where the dense Matérn ones need M x M matrices
+        choices = [AR1_DISTURBANCE]
+    else:
+        choices = list(NAMED_DISTURBANCES)
+    # cross-validation works in data space whatever the noise's structure
+    if cross_validated or not (len(choices) == 1 and is_ar1(choices[0], observation)):
+        check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 3)
+    best = None
+    for candidate in choices:
+        tried = fit_disturbance(observation, y, kernel, noise_level, noise_bounds, candidate,
+                                settings)
+        if best is None or tried.score > best.score:
+            best = tried
+    if choice != "auto" or best.score > white_score + AUTO_NOISE_MARGIN:
+        return best
+    return None

@@ -1,0 +1,153 @@
+"""A fit at one order: prior, resonance search, tuning, posterior, disturbance.
+
+:func:`fit_at_order` is the fit of :class:`~gpmultirate.FIRGaussianProcess`
+at one FIR order, on the data in the units of
+:func:`~gpmultirate.units.normalize`.  It returns the learned state as a
+:class:`Fit` and leaves the estimator alone; the order steps
+(:mod:`gpmultirate.fitting.order`) call it at the orders they try, and the
+estimator adopts the fit they keep.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gpmultirate import tuning, units
+from gpmultirate.crossvalidation import CrossValidation
+from gpmultirate.fitting import auto_kernel
+from gpmultirate.fitting.between_ticks import experiment_of
+from gpmultirate.fitting.disturbance import choose_disturbance
+from gpmultirate.fitting.prior import starting_prior
+from gpmultirate.inference import LogEvidence, blas_threads_for
+from gpmultirate.memory import check_fit_memory
+
+__all__ = ["Fit", "fit_at_order"]
+
+
+@dataclass
+class Fit:
+    """The learned state of a fit at one order (the estimator's attributes of that name)."""
+
+    experiment: object
+    observation_: object
+    y_slow_: np.ndarray
+    noise_level_bounds_: object
+    n_inputs_: int
+    optimizer_result_: object
+    kernel_: object
+    noise_level_: float
+    posterior_: object
+    evidence: object
+    coef_: np.ndarray
+    log_marginal_likelihood_value_: float
+    resonances_: object = None
+    cv_log_predictive_likelihood_: float | None = None
+    noise_kernel_: object = "white"
+    noise_model: object = None
+
+    def attributes(self) -> dict:
+        """The estimator's attributes of this fit (``_noise_model`` and ``_evidence`` private:
+        the evidence is kept for ``log_marginal_likelihood(theta)`` and the posterior at
+        real lags)."""
+        names = ("observation_", "y_slow_", "noise_level_bounds_", "n_inputs_",
+                 "optimizer_result_", "kernel_", "noise_level_", "posterior_", "coef_",
+                 "log_marginal_likelihood_value_", "noise_kernel_", "resonances_",
+                 "cv_log_predictive_likelihood_")
+        out = {name: getattr(self, name) for name in names}
+        out["_noise_model"], out["_evidence"] = self.noise_model, self.evidence
+        return out
+
+
+def fit_at_order(data, order, settings, start=None) -> Fit:
+    """Fit at one order; returns the learned state.
+
+    ``data``: ``(u, y_slow, sample_indices)``, normalized
+    (:func:`~gpmultirate.fitting.between_ticks.readings_of` gives the last);
+    ``order``: the FIR order (None: the longest record's length);
+    ``settings``: the fit's :class:`~gpmultirate.fitting.settings.Settings`;
+    ``start``: the ``(kernel, noise level)`` of a plain fit at that order
+    (the default order's pilot), where ``kernel="auto"`` starts its search.
+
+    The steps: the experiment and the starting prior, the memory guard, the
+    resonance search (``kernel="auto"``), the tuning by the criterion, the
+    posterior, the disturbance choice (``noise_kernel``) and, when a
+    disturbance is kept after a search, the search's terms judged again.
+    """
+    experiment = experiment_of(data, order, settings)
+    observation, y = experiment.observation, experiment.y
+    kernel, noise, noise_bounds = starting_prior(experiment, settings, start)
+    # refuse now what would be killed for lack of memory halfway
+    n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
+    check_fit_memory(observation.n_outputs, observation.n_coefficients, n_free + 1,
+                     n_inputs=experiment.n_inputs)
+    optimizer_result = found = cv_value = noise_model = None
+    with blas_threads_for(observation):
+        if settings.auto:
+            searched = auto_kernel.search(observation, y, kernel, noise, noise_bounds, settings)
+            kernel, noise = searched.kernel, searched.noise_level
+            optimizer_result, found = searched.optimizer_result, searched.resonances
+        evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
+        objective = evidence
+        if settings.criterion == "cross_validation":
+            check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 1)
+            objective = CrossValidation(
+                observation, y, kernel, noise, noise_bounds, settings.n_folds
+            )
+        if settings.tuned and (not settings.auto or objective is not evidence):
+            # with "auto", the search tuned by the evidence: cross-validation goes on from there
+            result = tuning.maximize(objective, settings.n_restarts, settings.random_state)
+            if result is not None:
+                optimizer_result = result
+                kernel, noise = evidence.split(result.x)
+        posterior = evidence.posterior(kernel, noise)
+        if objective is not evidence:
+            moved = objective.moved_to(kernel, noise)
+            cv_value = float(moved(moved.theta))
+        # the criterion of the tuning judges: the evidence, or the cross-validated
+        # log predictive likelihood (cv_value, the white fit's, is then set)
+        disturbance = choose_disturbance(
+            experiment, kernel, noise, noise_bounds,
+            posterior.log_marginal_likelihood if cv_value is None else cv_value, settings,
+            cross_validated=cv_value is not None)
+        if disturbance is not None:
+            steps = [disturbance]
+            # a disturbance without white noise (AR(1)) keeps the white fit's level
+            noise = disturbance.noise_model.level or noise
+            if found:  # the search judged its terms with white noise: again, with the disturbance
+                found, refitted = auto_kernel.rejudge(observation, y, disturbance, found, noise,
+                                                      noise_bounds, settings)
+                if refitted is not None:
+                    steps.append(refitted)
+                    noise = refitted.noise_model.level or noise
+            for step in steps:
+                if step.optimizer_result is not None:
+                    optimizer_result = step.optimizer_result
+            evidence, kernel, noise_model = (steps[-1].evidence, steps[-1].kernel,
+                                             steps[-1].noise_model)
+            posterior = steps[-1].posterior
+            if cv_value is not None:
+                cv_value = steps[-1].score
+    moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
+    if optimizer_result is not None:
+        tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))
+    coef = posterior.coef
+    return Fit(
+        experiment=experiment,
+        observation_=observation,
+        y_slow_=y,
+        noise_level_bounds_=noise_bounds,
+        n_inputs_=experiment.n_inputs,
+        optimizer_result_=optimizer_result,
+        kernel_=kernel,
+        noise_level_=noise,
+        posterior_=posterior,
+        evidence=moved_evidence,
+        coef_=coef.reshape(experiment.n_inputs, -1) if experiment.n_inputs > 1 else coef,
+        log_marginal_likelihood_value_=posterior.log_marginal_likelihood,
+        resonances_=found,
+        cv_log_predictive_likelihood_=cv_value,
+        noise_kernel_="white" if noise_model is None else noise_model.kernel,
+        noise_model=noise_model,
+    )
