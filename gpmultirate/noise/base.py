@@ -68,10 +68,9 @@ class NoiseModel:
 
     A subclass states ``N`` and its hyperparameters and gets the dense
     route of the data covariance for free; it overrides
-    :meth:`data_covariance` when its structure offers a faster one.
+    :meth:`data_covariance` when its structure offers a faster one
+    (``docs/adding_a_noise_model.rst``).  It provides
 
-    What a subclass provides
-    ------------------------
     * :attr:`theta` (log hyperparameters that are tuned, after the
       kernel's in the ``theta`` of tuning), :attr:`bounds` and
       :meth:`with_theta`;
