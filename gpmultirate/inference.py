@@ -44,6 +44,7 @@ from gpmultirate.covariance import (
     gaussian_samples,
     inverse_from_cholesky,
     log_gaussian,
+    posterior_covariance,
     robust_cholesky,
     takes_precision_route,
 )
@@ -153,7 +154,7 @@ def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCo
     of :func:`~gpmultirate.covariance.data_covariance` decides.
     """
     data, z = reduce_observation(operator, y)
-    return data_covariance(kernel, data, WhiteNoise(noise_level), space="posterior").posterior(z)
+    return posterior_covariance(kernel, data, WhiteNoise(noise_level)).posterior(z)
 
 
 def log_marginal_likelihood(
@@ -246,7 +247,7 @@ class TuningObjective:
     @property
     def noise_bounds(self):
         """The bounds of the noise variance, or ``"fixed"`` (None for a disturbance model)."""
-        return getattr(self.noise, "noise_bounds", None)
+        return self.noise.noise_bounds
 
     @property
     def noise_is_free(self) -> bool:
@@ -463,4 +464,4 @@ class LogEvidence(TuningObjective):
             return posterior(self.data, kernel, float(noise_level), self.z)
         if noise_level.white:
             return posterior(self.data, kernel, noise_level.level, self.z)
-        return data_covariance(kernel, self.data, noise_level, space="posterior").posterior(self.z)
+        return posterior_covariance(kernel, self.data, noise_level).posterior(self.z)

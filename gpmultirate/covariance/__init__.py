@@ -109,6 +109,7 @@ __all__ = [
     "kernel_root",
     "log_gaussian",
     "matrix_log_density",
+    "posterior_covariance",
     "relative_spectrum",
     "robust_cholesky",
     "takes_precision_route",
@@ -163,10 +164,31 @@ def data_covariance(kernel, observation, noise, derivatives: str | None = None,
     """
     if space not in _SPACES:
         raise ValueError(f"space must be one of {_SPACES}; got {space!r}")
-    term = observe(kernel, observation)
     if space == "posterior":
-        return noise.posterior_covariance(term)
-    return noise.data_covariance(term, derivatives)
+        return posterior_covariance(kernel, observation, noise)
+    return noise.data_covariance(observe(kernel, observation), derivatives)
+
+
+def posterior_covariance(kernel, observation, noise) -> DataCovariance:
+    """``S + N`` by the route of the posterior the noise offers; its ``posterior(y)`` is eq. (15).
+
+    For white noise on a reduced long record that is DC's precision or the
+    parameter space (the accuracy of least squares); otherwise the route of
+    the evidence.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.kernels import TC
+    >>> from gpmultirate.noise import WhiteNoise
+    >>> from gpmultirate.observations import reduce_observation
+    >>> op = DownsampledConvolution(np.sin(np.arange(300.0)), factor=3, order=20)
+    >>> data, z = reduce_observation(op, np.cos(np.arange(100.0)))
+    >>> type(posterior_covariance(TC(0.8), data, WhiteNoise(0.1)).posterior(z)).__name__
+    'ParameterSpacePosterior'
+    """
+    return noise.posterior_covariance(observe(kernel, observation))
 
 
 def takes_precision_route(kernel, observation, noise) -> bool:

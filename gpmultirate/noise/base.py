@@ -89,6 +89,8 @@ class NoiseModel:
 
     #: whether ``N`` is a multiple of the identity
     white = False
+    #: the bounds of a noise level the model scales ``N`` by, or None
+    noise_bounds = None
 
     @property
     def level(self) -> float:
