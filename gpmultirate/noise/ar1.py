@@ -106,9 +106,9 @@ class AR1Noise(NoiseModel):
     def from_kernel(cls, kernel, instants) -> "AR1Noise | None":
         """The AR(1) form of ``[C *] Matern(nu=0.5)`` at uniformly spaced instants, or None."""
         parts = exponential_parts(kernel)
-        blocks = instant_blocks(instants)
         if parts is None:
             return None
+        blocks = instant_blocks(instants)
         steps = np.concatenate([np.diff(t) for t in blocks])
         if steps.size == 0 or np.ptp(steps) > 1e-9 * abs(steps[0]) or steps[0] <= 0:
             return None
