@@ -77,7 +77,7 @@ def contiguous_folds(record_sizes, n_folds: int) -> list[np.ndarray]:
 
 
 def _held_out(operator, kernel, noise, y, folds, eval_gradient):
-    """The dense data covariance (every sample is used), ``A = Ky^{-1}``, ``a = A y``, the blocks."""
+    """The dense data covariance (every sample is used), ``Ky^{-1}``, ``Ky^{-1} y``, the blocks."""
     covariance = DenseCovariance.of(kernel, operator, noise,
                                     "contraction" if eval_gradient else None)
     return (covariance, *covariance.held_out(y, folds))

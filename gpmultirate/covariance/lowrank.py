@@ -27,10 +27,10 @@ __all__ = ["DiagonalPlusLowRank", "WoodburyCovariance", "woodbury_gain", "woodbu
 
 
 def woodbury_gain(eigenvalues, squared_projections):
-    """The log evidence a low-rank summand adds: ``1/2 sum_j (beta_j^2 / (1 + l_j) - log(1 + l_j))``.
+    """The log evidence a low-rank summand adds: ``1/2 sum_j (b_j^2 / (1 + l_j) - log(1 + l_j))``.
 
     ``l_j`` are the eigenvalues of ``W^T D^{-1} W`` and ``beta_j^2`` the
-    squared projections of ``W^T D^{-1} y`` on its eigenvectors; the sum is
+    squared projections ``b_j^2`` of ``W^T D^{-1} y`` on its eigenvectors; the sum is
     over the last axis (arrays broadcast, for grids of candidates).
 
     Examples
@@ -77,8 +77,10 @@ class DiagonalPlusLowRank:
     >>> update = DiagonalPlusLowRank(d, W)
     >>> A = np.diag(d) + W @ W.T
     >>> quad, log_det = update.inv_quad_logdet(y)
-    >>> bool(np.isclose(quad, y @ np.linalg.solve(A, y))), bool(np.isclose(log_det, np.linalg.slogdet(A)[1]))
-    (True, True)
+    >>> bool(np.isclose(quad, y @ np.linalg.solve(A, y)))
+    True
+    >>> bool(np.isclose(log_det, np.linalg.slogdet(A)[1]))
+    True
     >>> bool(np.allclose(update.solve(y), np.linalg.solve(A, y)))
     True
     """

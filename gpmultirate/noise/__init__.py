@@ -49,6 +49,9 @@ from gpmultirate.noise.white import WhiteNoise
 
 __all__ = [
     "AR1_DISTURBANCE",
+    "GAIN_LENGTH_SCALES",
+    "GAIN_SCALES",
+    "GAIN_SHARES",
     "NAMED_DISTURBANCES",
     "AR1Noise",
     "AR1Statistics",

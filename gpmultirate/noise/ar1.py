@@ -233,7 +233,7 @@ class AR1Noise(NoiseModel):
 
     @property
     def kernel(self):
-        """``ConstantKernel(sigma^2) * Matern(length_scale, nu=0.5)``, over instants in fast samples."""
+        """``ConstantKernel(sigma^2) * Matern(length_scale, nu=0.5)``, over fast-sample instants."""
         return ConstantKernel(self.variance, self.variance_bounds) * Matern(
             self.length_scale, self.length_scale_bounds, nu=0.5)
 

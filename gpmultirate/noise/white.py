@@ -1,4 +1,4 @@
-"""White measurement noise ``N = gamma I``: the model the long-record reduction and DC's precision rely on."""
+"""White measurement noise ``N = gamma I``: what the long-record reduction and DC's precision need."""
 
 from __future__ import annotations
 
