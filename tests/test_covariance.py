@@ -280,3 +280,45 @@ def test_spectral_covariance_matches_the_dense_matrix_for_any_scale_and_noise():
         quad, log_det = DiagonalPlusLowRank(d, V).inv_quad_logdet(spectral.rotated_y)
         np.testing.assert_allclose(log_det, np.linalg.slogdet(updated)[1], rtol=1e-10)
         np.testing.assert_allclose(quad, y @ np.linalg.solve(updated, y), rtol=1e-10)
+
+
+@pytest.mark.parametrize("identity", [False, True], ids=["diagonal", "identity"])
+def test_diagonal_plus_low_rank_answers_as_the_dense_matrix(identity):
+    from gpmultirate.covariance import woodbury_gain
+
+    rng = np.random.default_rng(5)
+    M, r = 9, 3
+    d = None if identity else rng.uniform(0.5, 2.0, M)
+    W, y, B = rng.standard_normal((M, r)), rng.standard_normal(M), rng.standard_normal((M, 2))
+    D = np.eye(M) if identity else np.diag(d)
+    A = D + W @ W.T
+    update = DiagonalPlusLowRank(d, W)
+    quad, log_det = update.inv_quad_logdet(y)
+    assert quad == pytest.approx(y @ np.linalg.solve(A, y), rel=1e-12)
+    assert log_det == pytest.approx(np.linalg.slogdet(A)[1], rel=1e-12, abs=1e-12)
+    np.testing.assert_allclose(update.solve(B), np.linalg.solve(A, B), rtol=1e-10)
+    inverse = np.linalg.inv(A)
+    np.testing.assert_allclose(update.inverse_diagonal(), np.diag(inverse), rtol=1e-10)
+    np.testing.assert_allclose(update.inverse_times_low_rank(), inverse @ W, rtol=1e-9,
+                               atol=1e-12)
+    # the evidence gain of the summand, from its capacitance's spectrum
+    gain = woodbury_gain(update.eigenvalues, update.projections(y) ** 2)
+    reference = (multivariate_normal(np.zeros(M), A).logpdf(y)
+                 - multivariate_normal(np.zeros(M), D).logpdf(y))
+    assert gain == pytest.approx(reference, rel=1e-10)
+
+
+def test_the_layer_asks_no_object_for_its_type():
+    """The routes are chosen by the noise models: no probes or type checks in the layer."""
+    import inspect
+    import pathlib
+    import re
+
+    import gpmultirate.covariance as layer
+
+    for path in pathlib.Path(layer.__file__).parent.glob("*.py"):
+        source = path.read_text(encoding="utf-8")
+        assert not re.search(r"\b(hasattr|getattr)\(|\btype\([^)]*\) is\b", source), path.name
+    for name in ("DenseCovariance", "PrecisionCovariance", "ParameterSpaceCovariance",
+                 "AR1Covariance"):
+        assert "def posterior" in inspect.getsource(getattr(layer, name))

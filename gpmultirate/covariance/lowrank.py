@@ -65,8 +65,9 @@ class DiagonalPlusLowRank:
 
     Parameters
     ----------
-    d : ndarray of shape (M,)
-        The positive diagonal.
+    d : ndarray of shape (M,) or None
+        The positive diagonal; None for the identity (a covariance whitened
+        by a factor of the rest).
     W : ndarray of shape (M, r)
 
     Examples
@@ -85,14 +86,19 @@ class DiagonalPlusLowRank:
     True
     """
 
-    def __init__(self, d: np.ndarray, W: np.ndarray):
+    def __init__(self, d: np.ndarray | None, W: np.ndarray):
         self.d = d
-        self.inv_d = 1.0 / d
+        self.inv_d = None if d is None else 1.0 / d
         self.W = W
-        self.DW = self.inv_d[:, None] * W  # D^{-1} W
+        self.DW = W if d is None else self.inv_d[:, None] * W  # D^{-1} W
         self.eigenvalues, self.vectors = np.linalg.eigh(W.T @ self.DW)
         # D^{-1} W Q (1 + lambda)^{-1/2}: D^{-1} - E E^T is the inverse
         self.E = (self.DW @ self.vectors) / np.sqrt(1.0 + self.eigenvalues)
+
+    def _inv_d_times(self, b: np.ndarray) -> np.ndarray:
+        if self.inv_d is None:
+            return b
+        return self.inv_d.reshape((-1,) + (1,) * (np.ndim(b) - 1)) * b
 
     def projections(self, y: np.ndarray) -> np.ndarray:
         """``beta = Q^T W^T D^{-1} y``."""
@@ -101,17 +107,17 @@ class DiagonalPlusLowRank:
     def inv_quad_logdet(self, y: np.ndarray) -> tuple[float, float]:
         """``y^T (D + W W^T)^{-1} y`` and ``log det(D + W W^T)``."""
         reduction, increase = woodbury_terms(self.eigenvalues, self.projections(y) ** 2)
-        return (float(y @ (self.inv_d * y) - reduction),
-                float(np.sum(np.log(self.d)) + increase))
+        log_det_d = 0.0 if self.d is None else np.sum(np.log(self.d))
+        return float(y @ self._inv_d_times(y) - reduction), float(log_det_d + increase)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``(D + W W^T)^{-1} b`` for ``b`` of shape ``(M,)`` or ``(M, k)``."""
-        scaled = self.inv_d.reshape((-1,) + (1,) * (np.ndim(b) - 1)) * b
-        return scaled - self.E @ (self.E.T @ b)
+        return self._inv_d_times(b) - self.E @ (self.E.T @ b)
 
     def inverse_diagonal(self) -> np.ndarray:
         """The diagonal of ``(D + W W^T)^{-1}``."""
-        return self.inv_d - np.einsum("ij,ij->i", self.E, self.E)
+        ones = np.ones(self.W.shape[0]) if self.inv_d is None else self.inv_d
+        return ones - np.einsum("ij,ij->i", self.E, self.E)
 
     def inverse_times_low_rank(self) -> np.ndarray:
         """``(D + W W^T)^{-1} W = D^{-1} W C^{-1}``."""
@@ -139,7 +145,7 @@ class WoodburyCovariance(DataCovariance):
         super().__init__(base.term, base.noise, base.remainder)
         self.base = base
         self.B = B
-        self.update = DiagonalPlusLowRank(np.ones(B.shape[0]), B)
+        self.update = DiagonalPlusLowRank(None, B)
 
     def solve(self, b):
         base = self.base
