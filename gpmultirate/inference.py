@@ -41,6 +41,7 @@ from gpmultirate.covariance import (
     ParameterSpacePosterior,
     PrecisionPosterior,
     data_covariance,
+    fisher_covariance,
     gaussian_samples,
     inverse_from_cholesky,
     log_gaussian,
@@ -181,7 +182,7 @@ def log_marginal_likelihood_fisher(
     ``log(noise_level)`` last.
     """
     noise = WhiteNoise(noise_level, (0.0, np.inf) if noise_free else "fixed")
-    return data_covariance(kernel, operator, noise, "matrices").log_likelihood_fisher(y)
+    return fisher_covariance(kernel, operator, noise).log_likelihood_fisher(y)
 
 
 def resonance_grid_log_marginal_likelihood(
@@ -421,10 +422,14 @@ class LogEvidence(TuningObjective):
         """The :class:`~gpmultirate.covariance.Remainder` of the reduced data at the initial noise."""
         return self.noise.remainder(self.data)
 
-    def data_covariance(self, theta, derivatives: str | None = None):
-        """The :class:`~gpmultirate.covariance.DataCovariance` of the (reduced) data at ``theta``."""
+    def data_covariance(self, theta, gradient: bool = False):
+        """The :class:`~gpmultirate.covariance.DataCovariance` of the (reduced) data at ``theta``.
+
+        The route is the noise model's (``noise.data_covariance``); with
+        ``gradient`` it is formed for ``log_likelihood_gradient``.
+        """
         kernel, noise = self.split_models(theta, into=self._work)
-        return data_covariance(kernel, self.data, noise, derivatives)
+        return noise.data_covariance(observe(kernel, self.data), gradient)
 
     def covariance(self) -> np.ndarray:
         """``S = Phi K Phi^T`` of the (reduced) data at the initial kernel."""
@@ -434,11 +439,12 @@ class LogEvidence(TuningObjective):
         """The log evidence at ``theta`` and, with ``eval_gradient``, its gradient."""
         if not eval_gradient:
             return self.data_covariance(theta).log_likelihood(self.z)
-        return self.data_covariance(theta, "contraction").log_likelihood_gradient(self.z)
+        return self.data_covariance(theta, gradient=True).log_likelihood_gradient(self.z)
 
     def with_fisher(self, theta):
         """The log evidence, its gradient and its Fisher information at ``theta``."""
-        return self.data_covariance(theta, "matrices").log_likelihood_fisher(self.z)
+        kernel, noise = self.split_models(theta, into=self._work)
+        return fisher_covariance(kernel, self.data, noise).log_likelihood_fisher(self.z)
 
     def along(self, theta, index: int, values):
         """The log evidence for each value of ``theta[index]``, or None.

@@ -322,3 +322,19 @@ def test_the_layer_asks_no_object_for_its_type():
     for name in ("DenseCovariance", "PrecisionCovariance", "ParameterSpaceCovariance",
                  "AR1Covariance"):
         assert "def posterior" in inspect.getsource(getattr(layer, name))
+
+
+def test_bad_route_requests_are_refused():
+    from gpmultirate.covariance import fisher_covariance
+    from gpmultirate.noise import HeteroscedasticNoise
+
+    op, y, _ = problem(60, 2, 30)
+    with pytest.raises(ValueError, match="space"):
+        data_covariance(TC(0.8), op, WhiteNoise(NOISE), space="parameters")
+    with pytest.raises(ValueError, match="derivatives"):
+        data_covariance(TC(0.8), op, WhiteNoise(NOISE), derivatives="hessian")
+    # the Fisher information's noise derivative is gamma I: white noise only
+    with pytest.raises(ValueError, match="white noise only"):
+        fisher_covariance(TC(0.8), op, HeteroscedasticNoise(np.ones(op.n_outputs), NOISE))
+    assert type(fisher_covariance(C(1.0) * DC(0.8, 0.5), op, WhiteNoise(NOISE))) \
+        is DenseCovariance

@@ -104,6 +104,7 @@ __all__ = [
     "data_covariance",
     "dense_log_evidence",
     "dense_posterior",
+    "fisher_covariance",
     "gaussian_samples",
     "inverse_from_cholesky",
     "kernel_root",
@@ -118,16 +119,18 @@ __all__ = [
 ]
 
 _SPACES = ("data", "posterior")
+_DERIVATIVES = (None, "contraction", "matrices")
 
 
 def data_covariance(kernel, observation, noise, derivatives: str | None = None,
                     space: str = "data") -> DataCovariance:
     """``S + N`` of ``observation`` under ``kernel`` and ``noise``, by the route the noise offers.
 
-    The noise model chooses (``noise.data_covariance(term, derivatives)``
-    or ``noise.posterior_covariance(term)``, :mod:`gpmultirate.noise`): it
-    knows its own structure, and asks the observed kernel term for its own
-    (a tridiagonal precision, a regressor on the integer lags).
+    The noise model chooses (``noise.data_covariance(term, gradient)``,
+    :func:`posterior_covariance`, :func:`fisher_covariance`,
+    :mod:`gpmultirate.noise`): it knows its own structure, and asks the
+    observed kernel term for its own (a tridiagonal precision, a regressor
+    on the integer lags).
 
     Parameters
     ----------
@@ -164,9 +167,23 @@ def data_covariance(kernel, observation, noise, derivatives: str | None = None,
     """
     if space not in _SPACES:
         raise ValueError(f"space must be one of {_SPACES}; got {space!r}")
+    if derivatives not in _DERIVATIVES:
+        raise ValueError(f"derivatives must be one of {_DERIVATIVES}; got {derivatives!r}")
     if space == "posterior":
         return posterior_covariance(kernel, observation, noise)
-    return noise.data_covariance(observe(kernel, observation), derivatives)
+    if derivatives == "matrices":
+        return fisher_covariance(kernel, observation, noise)
+    return noise.data_covariance(observe(kernel, observation), gradient=derivatives is not None)
+
+
+def fisher_covariance(kernel, observation, noise) -> DenseCovariance:
+    """``S + N`` with the derivative matrices the Fisher information needs (dense).
+
+    The noise model answers (``noise.fisher_covariance(term)``): white noise
+    offers :meth:`DenseCovariance.log_likelihood_fisher`, whose noise
+    derivative is ``gamma I``; other models refuse.
+    """
+    return noise.fisher_covariance(observe(kernel, observation))
 
 
 def posterior_covariance(kernel, observation, noise) -> DataCovariance:

@@ -84,24 +84,29 @@ class DenseCovariance(DataCovariance):
 
         ``derivatives`` as in :func:`~gpmultirate.covariance.data_covariance`.
         """
-        return cls.of_term(observe(kernel, observation), noise, noise.remainder(observation),
-                           derivatives)
+        term = observe(kernel, observation)
+        remainder = noise.remainder(observation)
+        if derivatives == "matrices":
+            return cls.with_derivatives(term, noise, remainder)
+        return cls.of_term(term, noise, remainder, gradient=derivatives == "contraction")
 
     @classmethod
-    def of_term(cls, term, noise, remainder, derivatives: str | None = None) -> "DenseCovariance":
-        """The dense route of an observed kernel term: what a noise model falls back on.
+    def of_term(cls, term, noise, remainder, gradient: bool = False) -> "DenseCovariance":
+        """The dense route of an observed kernel term: what every noise model falls back on.
 
-        ``derivatives``: None, ``"contraction"`` (the term's gradient
-        contraction, for :meth:`log_likelihood_gradient`) or ``"matrices"``
-        (its derivative matrices, for :meth:`log_likelihood_fisher`).
+        With ``gradient``, ``S`` is formed with the term's gradient
+        contraction, for :meth:`log_likelihood_gradient`.
         """
-        if derivatives == "contraction":
+        if gradient:
             S, contract = term.covariance_with_contractor()
             return cls(term, noise, remainder, S, contract=contract)
-        if derivatives == "matrices":
-            S, items = term.covariance_with_derivatives()
-            return cls(term, noise, remainder, S, derivatives=items)
         return cls(term, noise, remainder)
+
+    @classmethod
+    def with_derivatives(cls, term, noise, remainder) -> "DenseCovariance":
+        """The dense route with the term's derivative matrices, for :meth:`log_likelihood_fisher`."""
+        S, items = term.covariance_with_derivatives()
+        return cls(term, noise, remainder, S, derivatives=items)
 
     def log_det(self) -> float:
         """``log det Ky``."""

@@ -265,7 +265,7 @@ class AR1Noise(NoiseModel):
                 and observation.n_outputs > observation.n_coefficients
                 and self.n_samples == observation.n_outputs)
 
-    def data_covariance(self, term, derivatives: str | None = None, owner=None):
+    def data_covariance(self, term, gradient: bool = False, owner=None):
         """:class:`~gpmultirate.covariance.AR1Covariance` where it :meth:`fits`, else dense.
 
         ``owner`` is the noise model this is the structure of (a
@@ -275,12 +275,12 @@ class AR1Noise(NoiseModel):
         owner = self if owner is None else owner
         observation = term.observation
         remainder = owner.remainder(observation)
-        if derivatives != "matrices" and self.fits(observation):
+        if self.fits(observation):
             try:
                 return AR1Covariance(term, owner, remainder, self)
             except NotPositiveDefinite:
                 pass
-        return DenseCovariance.of_term(term, owner, remainder, derivatives)
+        return DenseCovariance.of_term(term, owner, remainder, gradient)
 
     def _band(self, a: float):
         """Diagonal and off-diagonal of ``T`` (records joined by zero off-diagonals)."""

@@ -133,18 +133,23 @@ class NoiseModel:
         return no_remainder(observation)
 
     # ------------------------------------------------------------ routes
-    def data_covariance(self, term, derivatives: str | None = None):
+    def data_covariance(self, term, gradient: bool = False):
         """``S + N`` for the observed kernel ``term``: the route of the evidence.
 
         The dense route (:class:`~gpmultirate.covariance.DenseCovariance`)
-        by default; ``derivatives`` as in
-        :func:`~gpmultirate.covariance.data_covariance`.
+        by default; with ``gradient`` it is formed for
+        ``log_likelihood_gradient``.
         """
-        return DenseCovariance.of_term(term, self, self.remainder(term.observation), derivatives)
+        return DenseCovariance.of_term(term, self, self.remainder(term.observation), gradient)
 
     def posterior_covariance(self, term):
         """``S + N`` for the observed kernel ``term``: the route of the posterior."""
         return self.data_covariance(term)
+
+    def fisher_covariance(self, term):
+        """``S + N`` with the derivative matrices of the Fisher information: white noise only."""
+        raise ValueError(f"the Fisher information is offered for white noise only, not for "
+                         f"{type(self).__name__}; tune with L-BFGS")
 
     def offers_precision(self, term) -> bool:
         """Whether the evidence goes through the kernel term's tridiagonal precision."""

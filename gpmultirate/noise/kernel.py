@@ -138,12 +138,12 @@ class KernelNoise(NoiseModel):
         """The same noise as an :class:`AR1Noise`, as a kernel over its instants (dense)."""
         return cls(ar1.kernel, ar1.instants)
 
-    def data_covariance(self, term, derivatives: str | None = None):
+    def data_covariance(self, term, gradient: bool = False):
         """The AR(1) route where the model is one (:meth:`structure`), else the dense route."""
         ar1 = self.structure()
         if ar1 is not None:
-            return ar1.data_covariance(term, derivatives, owner=self)
-        return super().data_covariance(term, derivatives)
+            return ar1.data_covariance(term, gradient, owner=self)
+        return super().data_covariance(term, gradient)
 
 
 def has_white(kernel) -> bool:

@@ -108,13 +108,17 @@ class WhiteNoise(NoiseModel):
         except NotPositiveDefinite:
             return None
 
-    def data_covariance(self, term, derivatives: str | None = None):
+    def data_covariance(self, term, gradient: bool = False):
         observation = term.observation
-        if derivatives != "matrices" and observation.n_outputs == observation.n_coefficients:
+        if observation.n_outputs == observation.n_coefficients:
             route = self._by_precision(term)
             if route is not None:
                 return route
-        return DenseCovariance.of_term(term, self, self.remainder(observation), derivatives)
+        return DenseCovariance.of_term(term, self, self.remainder(observation), gradient)
+
+    def fisher_covariance(self, term):
+        """The dense route with the term's derivative matrices (``dN = gamma I``)."""
+        return DenseCovariance.with_derivatives(term, self, self.remainder(term.observation))
 
     def posterior_covariance(self, term):
         observation = term.observation
