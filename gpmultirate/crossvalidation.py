@@ -29,6 +29,7 @@ import numpy as np
 
 from gpmultirate.covariance import DenseCovariance
 from gpmultirate.inference import LogEvidence, TuningObjective
+from gpmultirate.kernels import observe
 from gpmultirate.noise import WhiteNoise
 from gpmultirate.validation import check_int
 
@@ -78,8 +79,8 @@ def contiguous_folds(record_sizes, n_folds: int) -> list[np.ndarray]:
 
 def _held_out(operator, kernel, noise, y, folds, eval_gradient):
     """The dense data covariance (every sample is used), ``Ky^{-1}``, ``Ky^{-1} y``, the blocks."""
-    covariance = DenseCovariance.of(kernel, operator, noise,
-                                    "contraction" if eval_gradient else None)
+    covariance = DenseCovariance.of_term(observe(kernel, operator), noise,
+                                         noise.remainder(operator), gradient=eval_gradient)
     return (covariance, *covariance.held_out(y, folds))
 
 
