@@ -271,7 +271,8 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
 
         ``1/2 sum_j (s^2 beta_j^2 / (1 + s^2 lambda_j) - log(1 + s^2 lambda_j))``,
 
-    maximised here over ``s`` on a grid.
+    (:func:`~gpmultirate.covariance.woodbury_gain`), maximised here over ``s``
+    on a grid.
 
     Parameters
     ----------
