@@ -127,3 +127,23 @@ def test_bad_input_is_refused_and_the_weights_are_copied():
     data, _ = reduce_observation(DownsampledConvolution(np.ones(300), 3, 10), np.ones(100))
     with pytest.raises(ValueError, match="reduced observation assumes white noise"):
         data_covariance(TC(0.8), data, HeteroscedasticNoise(np.ones(10), 0.1))
+
+
+def test_one_variance_per_record_of_two_sensors():
+    from gpmultirate.observations import RecordStack
+
+    rng = np.random.default_rng(4)
+    records = [DownsampledConvolution(rng.standard_normal(n), 3, 12) for n in (90, 60)]
+    stack = RecordStack(records)
+    noise = HeteroscedasticNoise.per_record(stack, [1.0, 25.0], 0.01)
+    sizes = [r.n_outputs for r in records]
+    np.testing.assert_array_equal(noise.weights, np.repeat([1.0, 25.0], sizes))
+    y = stack.matvec(0.7 ** np.arange(12)) + np.sqrt(0.01 * noise.weights) \
+        * rng.standard_normal(stack.n_outputs)
+    kernel = C(0.5) * DC(0.7, 0.3)
+    Ky = dense_covariance(stack, kernel, 0.01, noise.weights)
+    reference = multivariate_normal(np.zeros(y.shape[0]), Ky).logpdf(y)
+    assert data_covariance(kernel, stack, noise).log_likelihood(y) == pytest.approx(reference,
+                                                                                   rel=1e-10)
+    with pytest.raises(ValueError, match="one weight per record"):
+        HeteroscedasticNoise.per_record(stack, [1.0, 2.0, 3.0], 0.01)

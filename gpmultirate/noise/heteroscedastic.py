@@ -62,6 +62,28 @@ class HeteroscedasticNoise(NoiseModel):
         self.noise_level = gamma
         self.noise_bounds = bounds
 
+    @classmethod
+    def per_record(cls, observation, weights, noise_level: float,
+                   bounds="fixed") -> "HeteroscedasticNoise":
+        """One relative variance per record of ``observation`` (each record's own sensor).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from gpmultirate import DownsampledConvolution
+        >>> from gpmultirate.observations import RecordStack
+        >>> stack = RecordStack([DownsampledConvolution(np.ones(6), 3, 2),
+        ...                      DownsampledConvolution(np.ones(3), 3, 2)])
+        >>> HeteroscedasticNoise.per_record(stack, [1.0, 4.0], 0.1).weights.tolist()
+        [1.0, 1.0, 4.0]
+        """
+        sizes = [record.n_outputs for record in observation.records]
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != (len(sizes),):
+            raise ValueError(f"weights must give one weight per record ({len(sizes)}); "
+                             f"got shape {weights.shape}")
+        return cls(np.repeat(weights, sizes), noise_level, bounds)
+
     @property
     def level(self) -> float:
         """``gamma``, the variance of a sample of weight 1."""
