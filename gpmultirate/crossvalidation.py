@@ -23,11 +23,14 @@ every kernel term already computes for the evidence.
 
 from __future__ import annotations
 
-import numpy as np
-from scipy import linalg
+import numbers
 
-from gpmultirate.covariance import DenseCovariance, WhiteNoise, log_gaussian, robust_cholesky
+import numpy as np
+
+from gpmultirate.covariance import DenseCovariance
 from gpmultirate.inference import LogEvidence, TuningObjective
+from gpmultirate.kernels import observe
+from gpmultirate.noise import WhiteNoise
 from gpmultirate.validation import check_int
 
 #: the bounds that mark a noise level as a free hyperparameter where only that matters
@@ -74,28 +77,18 @@ def contiguous_folds(record_sizes, n_folds: int) -> list[np.ndarray]:
     return [np.concatenate(f) for f in folds if sum(len(b) for b in f) > 0]
 
 
-def _fold_factors(A, alpha, folds):
-    """Per fold: the Cholesky factor of ``A_BB`` and the residual ``r_B = A_BB^{-1} a_B``."""
-    factors = []
-    for B in folds:
-        L_B, _ = robust_cholesky(A[np.ix_(B, B)], "held-out precision")
-        factors.append((L_B, linalg.cho_solve((L_B, True), alpha[B], check_finite=False)))
-    return factors
-
-
-def _data_precision(operator, kernel, noise, y, eval_gradient):
-    """``A = Ky^{-1}``, ``a = A y`` and the data covariance (dense: every sample is used)."""
-    covariance = DenseCovariance.of(kernel, operator, noise,
-                                    "contraction" if eval_gradient else None)
-    A = covariance.inverse()
-    return A, A @ y, covariance
+def _held_out(operator, kernel, noise, y, folds, eval_gradient):
+    """The dense data covariance (every sample is used), ``Ky^{-1}``, ``Ky^{-1} y``, the blocks."""
+    covariance = DenseCovariance.of_term(observe(kernel, operator), noise,
+                                         noise.remainder(operator), gradient=eval_gradient)
+    return (covariance, *covariance.held_out(y, folds))
 
 
 def _noise_model(noise_level, noise_free: bool = True):
     """A noise model as it is, or white noise of the level (free or fixed)."""
-    if hasattr(noise_level, "white"):
-        return noise_level
-    return WhiteNoise(noise_level, _FREE if noise_free else "fixed")
+    if isinstance(noise_level, numbers.Real):
+        return WhiteNoise(noise_level, _FREE if noise_free else "fixed")
+    return noise_level
 
 
 def log_predictive_likelihood(
@@ -148,22 +141,20 @@ def log_predictive_likelihood(
     (6,)
     """
     noise = _noise_model(noise_level, noise_free)
-    A, alpha, covariance = _data_precision(operator, kernel, noise, y, eval_gradient)
-    factors = _fold_factors(A, alpha, folds)
+    covariance, A, alpha, blocks = _held_out(operator, kernel, noise, y, folds, eval_gradient)
     value = 0.0
-    for B, (L_B, r_B) in zip(folds, factors):
-        # log N(r_B; 0, A_BB^{-1}): quadratic r^T A_BB r = a_B^T r_B, log det = -log det A_BB
-        value += log_gaussian(alpha[B] @ r_B, -2.0 * np.log(np.diag(L_B)).sum(), B.shape[0])
+    for block in blocks:
+        value += block.log_density(alpha)
     if not eval_gradient:
         return value
     # d CV = tr(W dKy):  W = sym(a v^T) - 1/2 A (Q + C) A, v = A q, q_B = r_B,
     # Q = blockdiag(r_B r_B^T), C = blockdiag(A_BB^{-1})
     q = np.zeros_like(alpha)
     middle = np.zeros_like(A)
-    for B, (L_B, r_B) in zip(folds, factors):
+    for block in blocks:
+        B, r_B = block.indices, block.residual
         q[B] = r_B
-        block = linalg.cho_solve((L_B, True), np.eye(B.shape[0]), check_finite=False)
-        middle[np.ix_(B, B)] = block + np.outer(r_B, r_B)
+        middle[np.ix_(B, B)] = block.covariance() + np.outer(r_B, r_B)
     v = A @ q
     W = -0.5 * (A @ middle @ A)
     W += 0.5 * (np.outer(alpha, v) + np.outer(v, alpha))
@@ -185,14 +176,13 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
         disturbance then links the folds.
     """
     noise = _noise_model(noise_level, noise_free=False)
-    A, alpha, _ = _data_precision(operator, kernel, noise, y, False)
+    _, _, _, blocks = _held_out(operator, kernel, noise, y, folds, False)
     mean = np.empty_like(y)
     variance = np.empty_like(y)
-    for B, (L_B, r_B) in zip(folds, _fold_factors(A, alpha, folds)):
-        mean[B] = y[B] - r_B
-        inverse = linalg.solve_triangular(L_B, np.eye(B.shape[0]), lower=True,
-                                          check_finite=False)
-        variance[B] = np.sum(inverse**2, axis=0)
+    for block in blocks:
+        B = block.indices
+        mean[B] = y[B] - block.residual
+        variance[B] = block.variances()
     return mean, variance
 
 

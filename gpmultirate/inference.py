@@ -17,8 +17,9 @@ The data covariance ``Ky`` is an object
 (:func:`gpmultirate.covariance.data_covariance`): its route (dense,
 low-rank update, DC's precision, parameter space) owns the factor, the
 evidence, its gradient and Fisher information, and the remainder of a reduced
-long record; each posterior here is built from one route's factor and holds
-the observation and the kernel it answers for.  :class:`LogEvidence`
+long record; each route answers its posterior
+(:mod:`gpmultirate.covariance.posteriors`), which holds the observation and
+the kernel it answers for.  :class:`LogEvidence`
 packages the evidence as a function of ``theta`` (the hyperparameters in their
 tuning coordinates: the log of most, ``artanh`` of DC's ``beta``) for tuning.
 """
@@ -30,26 +31,26 @@ import numbers
 import os
 
 import numpy as np
-from scipy import linalg
-
 from sklearn.base import clone
 from threadpoolctl import ThreadpoolController
 
 from gpmultirate.covariance import (
-    LOG_2PI,
-    AR1Covariance,
+    DataSpacePosterior,
     DenseCovariance,
-    ParameterSpaceCovariance,
-    PrecisionCovariance,
-    WhiteNoise,
+    GaussianCoefficients,
+    ParameterSpacePosterior,
+    PrecisionPosterior,
     data_covariance,
+    fisher_covariance,
+    gaussian_samples,
     inverse_from_cholesky,
     log_gaussian,
+    posterior_covariance,
     robust_cholesky,
     takes_precision_route,
 )
 from gpmultirate.kernels import observe
-from gpmultirate.kernels.structure import cross_kernel
+from gpmultirate.noise import WhiteNoise
 from gpmultirate.observations import reduce_observation
 
 __all__ = [
@@ -142,262 +143,6 @@ def idle_cores() -> int:
     return max(1, min(cores, cores + 1 - round(load)))
 
 
-def gaussian_samples(mean: np.ndarray, cov: np.ndarray, n_samples: int, rng) -> np.ndarray:
-    """Draws of ``N(mean, cov)`` as columns, for a positive semidefinite ``cov``.
-
-    The covariance is decomposed by ``eigh`` (negative rounding eigenvalues
-    clipped to zero), which also serves singular covariances.
-    """
-    values, vectors = linalg.eigh(cov, check_finite=False)
-    root = vectors * np.sqrt(np.maximum(values, 0.0))
-    return mean[:, None] + root @ rng.standard_normal((mean.shape[0], n_samples))
-
-
-class GaussianCoefficients:
-    """Gaussian distribution of FIR coefficients with covariance ``K - B^T B``.
-
-    The covariance is kept in this factored form so that linear functionals
-    (outputs, FRF values) never need the ``P x P`` posterior covariance.
-    """
-
-    def __init__(self, coef: np.ndarray, K: np.ndarray, B: np.ndarray):
-        self.coef = coef
-        self.K = K
-        self.B = B
-
-    def linear_map(self, A: np.ndarray, full_cov: bool = False):
-        """Mean and covariance (or variance) of ``A g`` for a ``(q, P)`` matrix ``A``."""
-        mean = A @ self.coef
-        if full_cov:
-            BA = self.B @ A.T
-            cov = A @ self.K @ A.T - BA.T @ BA
-            return mean, 0.5 * (cov + cov.T)
-        return mean, self.pair_variances(A, None)[0]
-
-    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
-        """``Var(A1 g)``, ``Var(A2 g)`` and ``Cov(A1 g, A2 g)`` row by row.
-
-        Each projection is formed once; with ``A2=None`` only the first
-        variance is computed (the others are None).
-        """
-        K1, B1 = A1 @ self.K, self.B @ A1.T
-        var1 = np.einsum("ij,ij->i", K1, A1) - np.einsum("ij,ij->j", B1, B1)
-        if A2 is None:
-            return np.maximum(var1, 0.0), None, None
-        K2, B2 = A2 @ self.K, self.B @ A2.T
-        var2 = np.einsum("ij,ij->i", K2, A2) - np.einsum("ij,ij->j", B2, B2)
-        cov = np.einsum("ij,ij->i", K1, A2) - np.einsum("ij,ij->j", B1, B2)
-        return np.maximum(var1, 0.0), np.maximum(var2, 0.0), cov
-
-    def covariance(self) -> np.ndarray:
-        """The ``P x P`` covariance ``K - B^T B``."""
-        cov = self.K - self.B.T @ self.B
-        return 0.5 * (cov + cov.T)
-
-
-class DataSpacePosterior(GaussianCoefficients):
-    """Posterior of the FIR coefficients given slow data, in the M x M data space.
-
-    Holds the observation and the kernel, so that it answers the posterior at
-    real lags (:meth:`at_lags`) on its own.
-
-    Parameters
-    ----------
-    covariance : DenseCovariance
-        ``Ky = S + gamma I`` of the data (:func:`~gpmultirate.covariance.data_covariance`).
-    y : ndarray of shape (M,)
-    """
-
-    def __init__(self, covariance, y: np.ndarray):
-        term = covariance.term
-        self.observation, self.kernel = covariance.observation, covariance.kernel
-        K = term.kernel_matrix()
-        PhiK = term.regressor_times_kernel()
-        self.L, self.jitter = covariance.L, covariance.jitter
-        self.alpha = covariance.solve(y)
-        B = covariance.whiten(PhiK)
-        # eq. (15): K Phi^T (Phi K Phi^T + gamma I)^{-1} y
-        super().__init__(PhiK.T @ self.alpha, K, B)
-        self.log_marginal_likelihood = log_gaussian(
-            y @ self.alpha, 2.0 * np.log(np.diag(self.L)).sum(), y.shape[0]
-        )
-
-    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
-        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return self.observation.cross_covariance(self.kernel, X) @ self.alpha
-
-    def at_lags(self, X: np.ndarray, full_cov: bool = False):
-        """Posterior mean and variance (or covariance) of ``g`` at the kernel inputs ``X``."""
-        kernel = self.kernel
-        cross = self.observation.cross_covariance(kernel, X)
-        mean = cross @ self.alpha
-        V = linalg.solve_triangular(self.L, cross.T, lower=True, check_finite=False)
-        if full_cov:
-            cov = kernel(X) - V.T @ V
-            return mean, 0.5 * (cov + cov.T)
-        var = kernel.diag(X) - np.einsum("ij,ij->j", V, V)
-        return mean, np.maximum(var, 0.0)
-
-
-class _FactoredCoefficients(GaussianCoefficients):
-    """Coefficients whose covariance ``Sigma = S S^T`` is used through products ``A S``.
-
-    Subclasses provide :meth:`times_root`; variances of linear functionals
-    are then row norms of ``A S``.
-    """
-
-    def times_root(self, A: np.ndarray) -> np.ndarray:
-        """``A S`` for a ``(q, P)`` matrix ``A``."""
-        raise NotImplementedError
-
-    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
-        F1 = self.times_root(A1)
-        var1 = np.einsum("ij,ij->i", F1, F1)
-        if A2 is None:
-            return var1, None, None
-        F2 = self.times_root(A2)
-        return var1, np.einsum("ij,ij->i", F2, F2), np.einsum("ij,ij->i", F1, F2)
-
-    def linear_map(self, A: np.ndarray, full_cov: bool = False):
-        mean = A @ self.coef
-        AF = self.times_root(A)
-        if full_cov:
-            return mean, AF @ AF.T
-        return mean, np.einsum("ij,ij->i", AF, AF)
-
-
-class ParameterSpacePosterior(_FactoredCoefficients):
-    """Posterior of the FIR coefficients in the parameter space, for ``M > P``.
-
-    With ``K = F F^T`` (eigen-decomposition, dropping directions of
-    numerically zero prior variance) and ``g = F z``, ``z ~ N(0, I)``, the
-    posterior mean of ``z`` solves the stacked least-squares problem
-
-        min_z ||y - Phi F z||^2 / gamma + ||z||^2,
-
-    which is solved by a QR factorisation of ``[Phi F / sqrt(gamma); I]``
-    (:class:`~gpmultirate.covariance.ParameterSpaceCovariance`): its accuracy
-    is that of least squares, not of the ``M x M`` matrix
-    ``Phi K Phi^T + gamma I``, whose condition number grows as ``1/gamma``
-    when ``M > P``.  The evidence follows from the same factor.
-
-    Parameters
-    ----------
-    covariance : ParameterSpaceCovariance
-    y : ndarray of shape (M,)
-    """
-
-    def __init__(self, covariance, y: np.ndarray):
-        self.observation, self.kernel = covariance.observation, covariance.kernel
-        self.inv_root = covariance.inv_root
-        self.z = covariance.whitened_coefficients(y)
-        self.R = covariance.R
-        self.log_marginal_likelihood = covariance.log_likelihood(y)
-        F = covariance.F
-        self.factor = linalg.solve_triangular(self.R, F.T, trans="T", check_finite=False).T
-        super().__init__(F @ self.z, covariance.K, None)
-
-    def times_root(self, A: np.ndarray) -> np.ndarray:
-        return A @ self.factor
-
-    def covariance(self) -> np.ndarray:
-        return self.factor @ self.factor.T
-
-    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
-        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return cross_kernel(self.kernel, X, self.observation.lags) @ (self.inv_root @ self.z)
-
-    def at_lags(self, X: np.ndarray, full_cov: bool = False):
-        """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged."""
-        kernel = self.kernel
-        J = cross_kernel(kernel, X, self.observation.lags) @ self.inv_root
-        mean = J @ self.z
-        JS = J @ linalg.solve_triangular(self.R, np.eye(self.R.shape[0]), check_finite=False)
-        if full_cov:
-            cov = kernel(X) - J @ J.T + JS @ JS.T
-            return mean, 0.5 * (cov + cov.T)
-        var = kernel.diag(X) - np.einsum("ij,ij->i", J, J) + np.einsum("ij,ij->i", JS, JS)
-        return mean, np.maximum(var, 0.0)
-
-
-class PrecisionPosterior(_FactoredCoefficients):
-    """Posterior of the FIR coefficients through a tridiagonal ``K^{-1}``, for ``M > P``.
-
-    For a prior whose precision ``Q = K^{-1}`` is tridiagonal (DC, a
-    constant times DC: :mod:`gpmultirate.kernels.precision`), the posterior
-    precision of the reduced observation ``C = Q + Phi^T Phi / gamma`` is
-    factored once, ``C = L L^T``
-    (:class:`~gpmultirate.covariance.PrecisionCovariance`, shared with the
-    evidence): the mean is ``mu = C^{-1} Phi^T y / gamma``, eq. (15), and
-    the covariance ``Sigma = C^{-1} = S S^T`` with ``S = L^{-T}``, applied by
-    triangular solves.  One Cholesky factorization replaces the two ``eigh``
-    and the QR of :class:`ParameterSpacePosterior`.
-
-    Parameters
-    ----------
-    covariance : PrecisionCovariance
-    y : ndarray of shape (P,)
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
-    >>> from gpmultirate import DownsampledConvolution
-    >>> from gpmultirate.kernels import DC
-    >>> rng = np.random.default_rng(0)
-    >>> op = DownsampledConvolution(rng.standard_normal(300), factor=2, order=20)
-    >>> y = op.matvec(0.8 ** np.arange(20)) + 0.01 * rng.standard_normal(op.n_outputs)
-    >>> type(posterior(op, C(1.0) * DC(0.8, 0.5), 1e-4, y)).__name__
-    'PrecisionPosterior'
-    """
-
-    def __init__(self, covariance, y: np.ndarray):
-        self.observation, self.kernel = covariance.observation, covariance.kernel
-        mu, _ = covariance.posterior_mean(y)
-        # every use of the covariance goes through L: no P x P prior matrix is kept
-        super().__init__(mu, None, None)
-        self.L = covariance.L
-        self.precision = covariance.precision
-        self.log_marginal_likelihood = covariance.log_likelihood(y)
-
-    def times_root(self, A: np.ndarray) -> np.ndarray:
-        # A L^{-T} = (L^{-1} A^T)^T
-        return linalg.solve_triangular(self.L, A.T, lower=True, check_finite=False).T
-
-    def covariance(self) -> np.ndarray:
-        return inverse_from_cholesky(self.L)
-
-    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
-        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
-        return cross_kernel(self.kernel, X, self.observation.lags) @ self.precision.times(self.coef)
-
-    def at_lags(self, X: np.ndarray, full_cov: bool = False):
-        """Posterior of ``g(X)``: the prior conditional on ``g(0..P-1)``, averaged.
-
-        With ``J = k(X, lags) K^{-1}`` (``K^{-1}`` tridiagonal): mean ``J mu``,
-        covariance ``k(X, X) - J k(lags, X) + J Sigma J^T``.
-        """
-        kernel = self.kernel
-        cross = cross_kernel(kernel, X, self.observation.lags)
-        J = self.precision.times(cross.T).T
-        mean = J @ self.coef
-        JS = self.times_root(J)
-        if full_cov:
-            cov = kernel(X) - J @ cross.T + JS @ JS.T
-            return mean, 0.5 * (cov + cov.T)
-        var = kernel.diag(X) - np.einsum("ij,ij->i", J, cross) + np.einsum("ij,ij->i", JS, JS)
-        return mean, np.maximum(var, 0.0)
-
-
-#: the posterior each route of the data covariance gives
-_POSTERIORS = {
-    DenseCovariance: DataSpacePosterior,
-    PrecisionCovariance: PrecisionPosterior,
-    ParameterSpaceCovariance: ParameterSpacePosterior,
-    AR1Covariance: ParameterSpacePosterior,
-}
-
-
 def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
     """The posterior in whichever space is smaller: data (``M <= P``) or parameters.
 
@@ -410,8 +155,7 @@ def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCo
     of :func:`~gpmultirate.covariance.data_covariance` decides.
     """
     data, z = reduce_observation(operator, y)
-    covariance = data_covariance(kernel, data, WhiteNoise(noise_level), space="posterior")
-    return _POSTERIORS[type(covariance)](covariance, z)
+    return posterior_covariance(kernel, data, WhiteNoise(noise_level)).posterior(z)
 
 
 def log_marginal_likelihood(
@@ -438,7 +182,7 @@ def log_marginal_likelihood_fisher(
     ``log(noise_level)`` last.
     """
     noise = WhiteNoise(noise_level, (0.0, np.inf) if noise_free else "fixed")
-    return data_covariance(kernel, operator, noise, "matrices").log_likelihood_fisher(y)
+    return fisher_covariance(kernel, operator, noise).log_likelihood_fisher(y)
 
 
 def resonance_grid_log_marginal_likelihood(
@@ -504,7 +248,7 @@ class TuningObjective:
     @property
     def noise_bounds(self):
         """The bounds of the noise variance, or ``"fixed"`` (None for a disturbance model)."""
-        return getattr(self.noise, "noise_bounds", None)
+        return self.noise.noise_bounds
 
     @property
     def noise_is_free(self) -> bool:
@@ -678,10 +422,14 @@ class LogEvidence(TuningObjective):
         """The :class:`~gpmultirate.covariance.Remainder` of the reduced data at the initial noise."""
         return self.noise.remainder(self.data)
 
-    def data_covariance(self, theta, derivatives: str | None = None):
-        """The :class:`~gpmultirate.covariance.DataCovariance` of the (reduced) data at ``theta``."""
+    def data_covariance(self, theta, gradient: bool = False):
+        """The :class:`~gpmultirate.covariance.DataCovariance` of the (reduced) data at ``theta``.
+
+        The route is the noise model's (``noise.data_covariance``); with
+        ``gradient`` it is formed for ``log_likelihood_gradient``.
+        """
         kernel, noise = self.split_models(theta, into=self._work)
-        return data_covariance(kernel, self.data, noise, derivatives)
+        return noise.data_covariance(observe(kernel, self.data), gradient)
 
     def covariance(self) -> np.ndarray:
         """``S = Phi K Phi^T`` of the (reduced) data at the initial kernel."""
@@ -691,11 +439,12 @@ class LogEvidence(TuningObjective):
         """The log evidence at ``theta`` and, with ``eval_gradient``, its gradient."""
         if not eval_gradient:
             return self.data_covariance(theta).log_likelihood(self.z)
-        return self.data_covariance(theta, "contraction").log_likelihood_gradient(self.z)
+        return self.data_covariance(theta, gradient=True).log_likelihood_gradient(self.z)
 
     def with_fisher(self, theta):
         """The log evidence, its gradient and its Fisher information at ``theta``."""
-        return self.data_covariance(theta, "matrices").log_likelihood_fisher(self.z)
+        kernel, noise = self.split_models(theta, into=self._work)
+        return fisher_covariance(kernel, self.data, noise).log_likelihood_fisher(self.z)
 
     def along(self, theta, index: int, values):
         """The log evidence for each value of ``theta[index]``, or None.
@@ -721,5 +470,4 @@ class LogEvidence(TuningObjective):
             return posterior(self.data, kernel, float(noise_level), self.z)
         if noise_level.white:
             return posterior(self.data, kernel, noise_level.level, self.z)
-        covariance = data_covariance(kernel, self.data, noise_level, space="posterior")
-        return _POSTERIORS[type(covariance)](covariance, self.z)
+        return posterior_covariance(kernel, self.data, noise_level).posterior(self.z)

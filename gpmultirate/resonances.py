@@ -84,12 +84,18 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg, optimize
+from scipy import optimize
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import tuning
-from gpmultirate.covariance import DenseCovariance, SpectralCovariance, WhiteNoise, log_gaussian
+from gpmultirate.covariance import (
+    DenseCovariance,
+    DiagonalPlusLowRank,
+    SpectralCovariance,
+    log_gaussian,
+    woodbury_gain,
+)
 from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
@@ -103,6 +109,7 @@ from gpmultirate.kernels import (
 )
 from gpmultirate.kernels.lag import damped_sinusoids
 from gpmultirate.metrics import fit_percent
+from gpmultirate.noise import WhiteNoise
 from gpmultirate.orders import MAX_CHECKED_SAMPLES
 from gpmultirate.validation import check_positive
 
@@ -264,7 +271,8 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
 
         ``1/2 sum_j (s^2 beta_j^2 / (1 + s^2 lambda_j) - log(1 + s^2 lambda_j))``,
 
-    maximised here over ``s`` on a grid.
+    (:func:`~gpmultirate.covariance.woodbury_gain`), maximised here over ``s``
+    on a grid.
 
     Parameters
     ----------
@@ -371,9 +379,9 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         q1 = np.cos(angle) * b1 + np.sin(angle) * b2
         q2 = -np.sin(angle) * b1 + np.cos(angle) * b2
         beta2 = np.stack([q1**2, q2**2], axis=1)
-        x = s2[None, :, None] * lam[:, None, :]  # (omega, amplitude, 2)
-        values = 0.5 * np.sum(s2[None, :, None] * beta2[:, None, :] / (1.0 + x)
-                              - np.log1p(x), axis=2)
+        # the capacitance of s U: eigenvalues s^2 lambda, projections s beta
+        values = woodbury_gain(s2[None, :, None] * lam[:, None, :],
+                               s2[None, :, None] * beta2[:, None, :])  # (omega, amplitude)
         best = np.argmax(values, axis=1)
         gain[a] = np.maximum(values[np.arange(omegas.size), best], 0.0)
         sigma[a] = np.sqrt(s2[best])
@@ -1095,7 +1103,6 @@ class _ResonantModel:
         d = self._spectral.diagonal(c, gamma)
         inv_d = 1.0 / d
         y = self._y
-        quad, log_det = y @ (inv_d * y), np.sum(np.log(d))
         r_terms = len(self.terms)
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((y.shape[0], 2 * r_terms))
@@ -1107,22 +1114,18 @@ class _ResonantModel:
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
             raw.append((rotated, rate, s1, s2))
         if r_terms:
-            DW = inv_d[:, None] * W
-            chol = self._spectral.capacitance_cholesky(W, DW)
-            v = linalg.solve_triangular(chol, DW.T @ y, lower=True, check_finite=False)
-            quad -= v @ v
-            log_det += 2.0 * np.log(np.diag(chol)).sum()
+            update = DiagonalPlusLowRank(d, W)
+            quad, log_det = update.inv_quad_logdet(y)
+        else:
+            quad, log_det = y @ (inv_d * y), np.sum(np.log(d))
         remainder = WhiteNoise(float(gamma)).remainder(self.evidence.data)
         rest, rest_grad, _ = remainder.log_likelihood()
         value = log_gaussian(quad, log_det, y.shape[0]) + rest
         if not eval_gradient:
             return value
         if r_terms:
-            # A W = D^{-1} W C^{-1}; a = D^{-1} y - D^{-1} W C^{-1} W^T D^{-1} y
-            E = linalg.solve_triangular(chol, DW.T, lower=True, check_finite=False).T
-            a = inv_d * y - E @ v
-            diag_A = inv_d - np.einsum("ij,ij->i", E, E)
-            AW = linalg.cho_solve((chol, True), DW.T, check_finite=False).T
+            a, diag_A = update.solve(y), update.inverse_diagonal()
+            AW = update.inverse_times_low_rank()
         else:
             a, diag_A = inv_d * y, inv_d
         grad = np.empty_like(x, dtype=float)

@@ -36,7 +36,7 @@ import numpy as np
 from scipy import linalg, optimize
 from sklearn.exceptions import ConvergenceWarning
 
-from gpmultirate.covariance import SpectralCovariance
+from gpmultirate.covariance import SpectralCovariance, relative_spectrum
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.validation import check_rng
 
@@ -295,15 +295,10 @@ def _prefit_each_scale(evidence, theta, bounds, sweeps: int = 2) -> np.ndarray:
         for k, (positions, powers, _) in enumerate(groups):
             R = sum(S for j, S in enumerate(parts) if j != k)
             R[np.diag_indices_from(R)] += noise
-            try:
-                L = linalg.cholesky(R, lower=True, check_finite=False)
-            except linalg.LinAlgError:
+            spectrum = relative_spectrum(R, parts[k], y)
+            if spectrum is None:
                 continue
-            A = linalg.solve_triangular(L, parts[k], lower=True, check_finite=False)
-            A = linalg.solve_triangular(L, A.T, lower=True, check_finite=False)
-            s, Q = linalg.eigh(0.5 * (A + A.T), check_finite=False)
-            s = np.maximum(s, 0.0)
-            z2 = (Q.T @ linalg.solve_triangular(L, y, lower=True, check_finite=False)) ** 2
+            s, z2 = spectrum
             low = max((bounds[i, 0] - theta[i]) / p for i, p in zip(positions, powers))
             high = min((bounds[i, 1] - theta[i]) / p for i, p in zip(positions, powers))
             if not low <= 0.0 <= high:

@@ -511,7 +511,7 @@ def evidence_in_data_units(evidence, scale):
     values = (noise,) + (() if isinstance(bounds, str) else bounds)
     if kernel is None or not all(_TINY <= v < np.inf for v in values):
         return evidence
-    from gpmultirate.covariance import WhiteNoise
+    from gpmultirate.noise import WhiteNoise
 
     moved = evidence.moved_to(kernel, noise)
     moved.noise = WhiteNoise(noise, bounds)

@@ -18,16 +18,17 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 import gpmultirate as gm
 from gpmultirate.covariance import (
     DenseCovariance,
+    DiagonalPlusLowRank,
     ParameterSpaceCovariance,
     PrecisionCovariance,
     Remainder,
     SpectralCovariance,
-    WhiteNoise,
     WoodburyCovariance,
     data_covariance,
     takes_precision_route,
 )
 from gpmultirate.inference import DataSpacePosterior, LogEvidence
+from gpmultirate.noise import WhiteNoise
 from gpmultirate.kernels import DC, PK, TC, observe
 from gpmultirate.observations import reduce_observation
 
@@ -153,16 +154,17 @@ def test_precision_route_of_square_data(constant, alpha, beta):
 
 
 def test_precision_route_needs_a_precision_and_falls_back_when_not_definite(monkeypatch):
-    from gpmultirate import covariance as module
+    from gpmultirate.covariance import precision as module
+    from gpmultirate.exceptions import NotPositiveDefinite
 
     op, y, rng = problem(60, 2, 30)
     assert not takes_precision_route(TC(0.8), op, WhiteNoise(NOISE))
     assert type(data_covariance(TC(0.8), op, WhiteNoise(NOISE))) is DenseCovariance
 
-    def fails(C):
-        raise module.NotPositiveDefinite("C")
+    def fails(C, **options):
+        raise NotPositiveDefinite("C")
 
-    monkeypatch.setattr(module, "_cholesky_of_posterior_precision", fails)
+    monkeypatch.setattr(module, "cholesky_or_raise", fails)
     kernel = C(1.0) * DC(0.85, 0.6)
     covariance = data_covariance(kernel, op, WhiteNoise(NOISE))
     assert type(covariance) is DenseCovariance
@@ -274,7 +276,65 @@ def test_spectral_covariance_matches_the_dense_matrix_for_any_scale_and_noise():
         np.testing.assert_allclose(np.sum(np.log(d)), np.linalg.slogdet(dense)[1], rtol=1e-10)
         # a low-rank summand in the rotated coordinates: Woodbury and the determinant lemma
         V = spectral.rotate(W)
-        chol = spectral.capacitance_cholesky(V, V / d[:, None])
         updated = dense + W @ W.T
-        log_det = np.sum(np.log(d)) + 2.0 * np.log(np.diag(chol)).sum()
+        quad, log_det = DiagonalPlusLowRank(d, V).inv_quad_logdet(spectral.rotated_y)
         np.testing.assert_allclose(log_det, np.linalg.slogdet(updated)[1], rtol=1e-10)
+        np.testing.assert_allclose(quad, y @ np.linalg.solve(updated, y), rtol=1e-10)
+
+
+@pytest.mark.parametrize("identity", [False, True], ids=["diagonal", "identity"])
+def test_diagonal_plus_low_rank_answers_as_the_dense_matrix(identity):
+    from gpmultirate.covariance import woodbury_gain
+
+    rng = np.random.default_rng(5)
+    M, r = 9, 3
+    d = None if identity else rng.uniform(0.5, 2.0, M)
+    W, y, B = rng.standard_normal((M, r)), rng.standard_normal(M), rng.standard_normal((M, 2))
+    D = np.eye(M) if identity else np.diag(d)
+    A = D + W @ W.T
+    update = DiagonalPlusLowRank(d, W)
+    quad, log_det = update.inv_quad_logdet(y)
+    assert quad == pytest.approx(y @ np.linalg.solve(A, y), rel=1e-12)
+    assert log_det == pytest.approx(np.linalg.slogdet(A)[1], rel=1e-12, abs=1e-12)
+    np.testing.assert_allclose(update.solve(B), np.linalg.solve(A, B), rtol=1e-10)
+    inverse = np.linalg.inv(A)
+    np.testing.assert_allclose(update.inverse_diagonal(), np.diag(inverse), rtol=1e-10)
+    np.testing.assert_allclose(update.inverse_times_low_rank(), inverse @ W, rtol=1e-9,
+                               atol=1e-12)
+    # the evidence gain of the summand, from its capacitance's spectrum
+    gain = woodbury_gain(update.eigenvalues, update.projections(y) ** 2)
+    reference = (multivariate_normal(np.zeros(M), A).logpdf(y)
+                 - multivariate_normal(np.zeros(M), D).logpdf(y))
+    assert gain == pytest.approx(reference, rel=1e-10)
+
+
+def test_the_layer_asks_no_object_for_its_type():
+    """The routes are chosen by the noise models: no probes or type checks in the layer."""
+    import inspect
+    import pathlib
+    import re
+
+    import gpmultirate.covariance as layer
+
+    for path in pathlib.Path(layer.__file__).parent.glob("*.py"):
+        source = path.read_text(encoding="utf-8")
+        assert not re.search(r"\b(hasattr|getattr)\(|\btype\([^)]*\) is\b", source), path.name
+    for name in ("DenseCovariance", "PrecisionCovariance", "ParameterSpaceCovariance",
+                 "AR1Covariance"):
+        assert "def posterior" in inspect.getsource(getattr(layer, name))
+
+
+def test_bad_route_requests_are_refused():
+    from gpmultirate.covariance import fisher_covariance
+    from gpmultirate.noise import HeteroscedasticNoise
+
+    op, y, _ = problem(60, 2, 30)
+    with pytest.raises(ValueError, match="space"):
+        data_covariance(TC(0.8), op, WhiteNoise(NOISE), space="parameters")
+    with pytest.raises(ValueError, match="derivatives"):
+        data_covariance(TC(0.8), op, WhiteNoise(NOISE), derivatives="hessian")
+    # the Fisher information's noise derivative is gamma I: white noise only
+    with pytest.raises(ValueError, match="white noise only"):
+        fisher_covariance(TC(0.8), op, HeteroscedasticNoise(np.ones(op.n_outputs), NOISE))
+    assert type(fisher_covariance(C(1.0) * DC(0.8, 0.5), op, WhiteNoise(NOISE))) \
+        is DenseCovariance

@@ -22,6 +22,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 import gpmultirate as gm
 from gpmultirate import covariance, inference
+from gpmultirate.exceptions import NotPositiveDefinite
 from gpmultirate.inference import ParameterSpacePosterior, PrecisionPosterior, posterior
 from gpmultirate.kernels import DC, PK, TC
 from gpmultirate.observations import reduce_observation
@@ -142,10 +143,10 @@ def test_kernels_without_a_precision_keep_the_parameter_space(record, kernel):
 
 def test_a_failed_factorization_falls_back_to_the_parameter_space(record, monkeypatch):
     kernel = C(1.0) * DC(0.9, -0.6)
-    def fails(C):
-        raise covariance.NotPositiveDefinite("C")
+    def fails(C, **options):
+        raise NotPositiveDefinite("C")
 
-    monkeypatch.setattr(covariance, "_cholesky_of_posterior_precision", fails)
+    monkeypatch.setattr(covariance.precision, "cholesky_or_raise", fails)
     result = posterior(record["op"], kernel, NOISE, record["y"])
     assert type(result) is ParameterSpacePosterior
     check_posterior(result, kernel, dc(1.0, 0.9, -0.6), record, NOISE)

@@ -19,7 +19,8 @@ from gpmultirate.inference import (
     log_marginal_likelihood_fisher,
     posterior,
 )
-from gpmultirate.covariance import WhiteNoise, data_covariance
+from gpmultirate.covariance import data_covariance
+from gpmultirate.noise import WhiteNoise
 from gpmultirate.observations import ReducedObservation, reduce_observation
 
 

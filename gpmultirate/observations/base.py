@@ -59,7 +59,7 @@ class Observation:
     n_outputs: int
     n_inputs: int = 1
     #: samples a reduction has summarized (their likelihood is the noise model's
-    #: :meth:`~gpmultirate.covariance.WhiteNoise.remainder`)
+    #: :meth:`~gpmultirate.noise.WhiteNoise.remainder`)
     n_discarded: int = 0
     #: the sum of squares ``rho^2`` of those samples
     residual: float = 0.0

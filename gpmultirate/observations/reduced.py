@@ -74,7 +74,7 @@ class ReducedObservation(Observation):
     is the upper-triangular ``R`` and whose outputs are ``z``
     (``n_outputs = P``); ``n_discarded = M - P`` and ``residual = rho^2``
     are the statistics of the rest of the evidence (its likelihood is the
-    noise model's :meth:`~gpmultirate.covariance.WhiteNoise.remainder`).  Products with matrices of the sparsity
+    noise model's :meth:`~gpmultirate.noise.WhiteNoise.remainder`).  Products with matrices of the sparsity
     of ``R`` use triangular BLAS (half the flops).
 
     Parameters

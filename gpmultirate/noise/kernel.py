@@ -1,0 +1,153 @@
+"""Noise as a scikit-learn kernel over the instants of the slow samples: ``N = k(t, t)``."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import linalg
+from sklearn.gaussian_process.kernels import Kernel, Sum, WhiteKernel
+
+from gpmultirate.noise.ar1 import AR1Noise
+from gpmultirate.noise.base import NoiseModel, instant_blocks, kernel_blocks
+
+__all__ = ["KernelNoise", "white_level"]
+
+
+def white_level(kernel) -> float:
+    """The sum of the ``WhiteKernel`` levels among the summands of ``kernel`` (0 if none).
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C, Matern, WhiteKernel
+    >>> white_level(WhiteKernel(0.3) + C(2.0) * Matern(10.0, nu=1.5))
+    0.3
+    """
+    if isinstance(kernel, WhiteKernel):
+        return float(kernel.noise_level)
+    if isinstance(kernel, Sum):
+        return white_level(kernel.k1) + white_level(kernel.k2)
+    return 0.0
+
+
+class KernelNoise(NoiseModel):
+    """A noise model ``N = k(t, t)``: a scikit-learn kernel over the sample instants.
+
+    The instants are in fast samples: the slow sample ``m`` of a uniform
+    sampling is at ``t_m = offset + m F``.  Samples of different records
+    are independent (``N`` is block diagonal).  The hyperparameters are the
+    kernel's, in its ``theta`` (log values), so they are tuned with the
+    prior's.  A ``WhiteKernel`` summand is the white measurement noise; the
+    other summands are the disturbance.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        Stationary kernel over one feature, the instant.
+    instants : array-like of shape (M,), or a list of them
+        The instant of each slow sample, one array per record.
+
+    Attributes
+    ----------
+    white : bool
+        False: ``N`` is not a multiple of the identity.
+    level : float
+        The white part of ``N`` (the ``WhiteKernel`` summands' level, 0 if none).
+    is_free : bool
+        Whether any hyperparameter is tuned.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C, Matern, WhiteKernel
+    >>> noise = KernelNoise(WhiteKernel(0.1) + C(1.0) * Matern(6.0, nu=0.5), np.arange(4) * 3)
+    >>> N = noise.matrix()
+    >>> N[0, :2].round(6).tolist(), bool(np.isclose(N[0, 1], np.exp(-3.0 / 6.0)))
+    ([1.1, 0.606531], True)
+    >>> noise.theta.round(3).tolist(), noise.level
+    ([-2.303, 0.0, 1.792], 0.1)
+    """
+
+    def __init__(self, kernel, instants):
+        if not isinstance(kernel, Kernel):
+            raise ValueError(f"kernel must be a scikit-learn kernel; got {type(kernel).__name__}")
+        self.kernel = kernel
+        self.instants = instant_blocks(instants)
+
+    @property
+    def n_samples(self) -> int:
+        """``M``, the number of slow samples."""
+        return sum(t.shape[0] for t in self.instants)
+
+    @property
+    def level(self) -> float:
+        """The white part of ``N``: the ``WhiteKernel`` summands' level (0 if none)."""
+        return white_level(self.kernel)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The kernel's ``theta`` (log hyperparameters that are not fixed)."""
+        return self.kernel.theta
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Bounds of :attr:`theta`, of shape ``(len(theta), 2)``."""
+        return self.kernel.bounds.reshape(-1, 2)
+
+    def with_theta(self, theta) -> "KernelNoise":
+        """The same noise model at ``theta`` (its own entries of the whole ``theta``)."""
+        return KernelNoise(self.kernel.clone_with_theta(np.asarray(theta, dtype=float)),
+                           self.instants)
+
+    def matrix(self) -> np.ndarray:
+        """``N``, of shape ``(M, M)``."""
+        return linalg.block_diag(*(self.kernel(t[:, None]) for t in self.instants))
+
+    def matrix_with_gradient(self) -> tuple[np.ndarray, np.ndarray]:
+        """``N`` and ``dN / d theta``, of shapes ``(M, M)`` and ``(M, M, len(theta))``."""
+        return kernel_blocks(self.kernel, self.instants)
+
+    def derivatives(self) -> list[np.ndarray]:
+        """``dN / d theta_j`` for each entry of :attr:`theta`, dense ``(M, M)`` each."""
+        _, dN = self.matrix_with_gradient()
+        return [np.ascontiguousarray(dN[:, :, j]) for j in range(dN.shape[2])]
+
+    def add_to(self, S: np.ndarray) -> np.ndarray:
+        """``S + N`` in place (``S`` square, of the size of the data); returns ``S``."""
+        S += self.matrix()
+        return S
+
+    def contract(self, W: np.ndarray, weight: float = 1.0) -> np.ndarray:
+        """``[weight tr(W dN / d theta_j)]_j`` for symmetric ``W``."""
+        _, dN = self.matrix_with_gradient()
+        return weight * np.einsum("ij,ijk->k", W, dN)
+
+    def sample_variance(self) -> float:
+        """The variance of one measured sample, ``k(t, t)`` (stationary kernels)."""
+        return float(self.kernel.diag(np.zeros((1, 1)))[0])
+
+    def structure(self):
+        """The :class:`AR1Noise` this model is, or None.
+
+        So it is when the kernel is ``Matern(nu=0.5)``, optionally times a
+        constant, and the instants of every record are uniformly spaced with
+        one spacing.
+        """
+        return AR1Noise.from_kernel(self.kernel, self.instants)
+
+    @classmethod
+    def from_ar1(cls, ar1: AR1Noise) -> "KernelNoise":
+        """The same noise as an :class:`AR1Noise`, as a kernel over its instants (dense)."""
+        return cls(ar1.kernel, ar1.instants)
+
+    def data_covariance(self, term, gradient: bool = False):
+        """The AR(1) route where the model is one (:meth:`structure`), else the dense route."""
+        ar1 = self.structure()
+        if ar1 is not None:
+            return ar1.data_covariance(term, gradient, owner=self)
+        return super().data_covariance(term, gradient)
+
+
+def has_white(kernel) -> bool:
+    """Whether ``kernel`` has a ``WhiteKernel`` summand."""
+    if isinstance(kernel, WhiteKernel):
+        return True
+    return isinstance(kernel, Sum) and (has_white(kernel.k1) or has_white(kernel.k2))
