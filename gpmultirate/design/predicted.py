@@ -19,7 +19,7 @@ import numpy as np
 
 from gpmultirate.design.prior import design_prior
 from gpmultirate.design.sampling import as_scheme
-from gpmultirate.inference import LogEvidence, posterior
+from gpmultirate.inference import LogEvidence, blas_threads_for, posterior
 from gpmultirate.noise import make_noise, noise_instants
 from gpmultirate.responses import (
     FrequencyResponse,
@@ -57,13 +57,14 @@ def _experiment(prior, u, factor, offset, sample_times, exposure, noise_level, o
 def _posterior_of(prior, observation):
     """The library's posterior of ``observation`` under ``prior``, from outputs all zero."""
     zeros = np.zeros(observation.n_outputs)
-    if isinstance(prior.noise_kernel, str) and prior.noise_kernel == "white":
-        return posterior(observation, prior.kernel, prior.noise_level, zeros)
-    noise = make_noise(prior.noise_kernel, prior.noise_level, "fixed",
-                       noise_instants(observation))
-    evidence = LogEvidence(observation, zeros, prior.kernel, prior.noise_level, "fixed",
-                           noise=noise)
-    return evidence.posterior(prior.kernel, noise)
+    with blas_threads_for(observation):
+        if isinstance(prior.noise_kernel, str) and prior.noise_kernel == "white":
+            return posterior(observation, prior.kernel, prior.noise_level, zeros)
+        noise = make_noise(prior.noise_kernel, prior.noise_level, "fixed",
+                           noise_instants(observation))
+        evidence = LogEvidence(observation, zeros, prior.kernel, prior.noise_level, "fixed",
+                               noise=noise)
+        return evidence.posterior(prior.kernel, noise)
 
 
 def predicted_posterior(prior, u, factor=3, offset=0, sample_times=None, exposure=None,
@@ -176,8 +177,9 @@ def predicted_frequency_response(prior, u, factor=3, offset=0, sample_times=None
         freqs = default_frequencies(n_samples, prior.sample_time)
     freqs, _ = check_frequencies(freqs, prior.sample_time)
     E = dft_matrix(freqs, prior.sample_time, prior.order)
-    var_re, var_im, cov = post.pair_variances(np.ascontiguousarray(E.real),
-                                              np.ascontiguousarray(E.imag))
+    with blas_threads_for(observation):
+        var_re, var_im, cov = post.pair_variances(np.ascontiguousarray(E.real),
+                                                  np.ascontiguousarray(E.imag))
     return FrequencyResponse.from_gaussian(
         freqs, np.zeros(freqs.shape[0], dtype=complex), var_re, var_im, cov, level=level,
         sample_time=prior.sample_time, factor=scheme.factor)
