@@ -25,19 +25,31 @@ from gpmultirate.design.predicted import (
     predicted_impulse_response,
     predicted_posterior,
 )
+from gpmultirate.design.criterion import BandCriterion
+from gpmultirate.design.length import RecordLength, required_length
+from gpmultirate.design.multisine import MultisineDesign, design_multisine, flat_multisine
 from gpmultirate.design.prior import DesignPrior, design_prior
 from gpmultirate.design.sampling import SamplingScheme
+from gpmultirate.design.schemes import SamplingComparison, compare_sampling
 
 __all__ = [
+    "BandCriterion",
     "Confounding",
     "DesignPrior",
+    "MultisineDesign",
+    "RecordLength",
+    "SamplingComparison",
     "SamplingScheme",
     "alias_frequency",
     "band_decibels",
     "band_radius",
+    "compare_sampling",
     "confounded_frequencies",
+    "design_multisine",
     "design_prior",
+    "flat_multisine",
     "predicted_frequency_response",
     "predicted_impulse_response",
     "predicted_posterior",
+    "required_length",
 ]
