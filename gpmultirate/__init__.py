@@ -6,7 +6,7 @@ through a downsampled convolution with the known fast-rate input.  See
 for the prior covariances.
 """
 
-from gpmultirate import datasets, holdout, kernels, simulation
+from gpmultirate import datasets, design, holdout, kernels, simulation
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import (
