@@ -142,6 +142,24 @@ def test_readings_between_the_ticks_with_exposure_are_those_of_the_fit(u):
     assert not np.allclose(plain.real_std, frf.real_std, rtol=1e-3)
 
 
+def test_a_disturbance_model_enters_the_band_as_the_dense_noise_covariance(u):
+    # white noise plus gamma * exp(-|t - s| / 10) over the instants (make_noise's Matern 1/2)
+    prior = design.DesignPrior(KERNEL, ORDER, NOISE, noise_kernel="matern12")
+    instants = np.arange(0, N, FACTOR)
+    K = dc_matrix(np.arange(ORDER))
+    phi = brute_regressor(u, instants, ORDER)
+    R = NOISE * (np.eye(len(instants)) + np.exp(-np.abs(np.subtract.outer(instants,
+                                                                           instants)) / 10.0))
+    sigma = K - K @ phi.T @ np.linalg.solve(phi @ K @ phi.T + R, phi @ K)
+    freqs = np.linspace(0.0, 0.5, 9)
+    var_re, _, _ = frf_moments(sigma, freqs, 1.0)
+    frf = design.predicted_frequency_response(prior, u, FACTOR, freqs=freqs)
+    np.testing.assert_allclose(frf.real_std, np.sqrt(var_re), rtol=1e-7)
+    white = design.predicted_frequency_response(KERNEL, u, FACTOR, freqs=freqs, order=ORDER,
+                                                noise_level=NOISE)
+    assert np.all(frf.real_std >= white.real_std - 1e-12)
+
+
 @pytest.mark.slow
 def test_predicted_band_matches_monte_carlo_of_the_posterior():
     # responses drawn from the prior, simulated, fitted with the hyperparameters held fixed:
@@ -230,6 +248,29 @@ def test_designed_multisine_has_the_rms_its_spectrum_and_a_narrower_band():
     assert found.narrowing > 1.2
     assert design.design_multisine(kernel, 90, FACTOR, band, rms=3.0, noise_level=NOISE,
                                    random_state=4, order=30).shape == (90,)
+
+
+def test_worst_case_and_relative_designs_narrow_what_they_minimize():
+    kernel = KERNEL + PK(alpha=0.92, omega=2.2, sigma1=1.0, sigma2=1.0)
+    _, worst = design.design_multisine(kernel, 90, FACTOR, (0.05, 0.45), noise_level=NOISE,
+                                       random_state=8, order=30, criterion="worst",
+                                       return_design=True)
+    assert worst.designed.worst < worst.reference.worst
+    rng = np.random.default_rng(9)
+    g = 0.85 ** np.arange(30) * np.sin(2.2 * np.arange(30))
+    x = rng.standard_normal(90)
+    pilot = gm.FIRGaussianProcess(kernel, factor=FACTOR, order=30, noise_level=NOISE,
+                                  optimizer=None).fit(x, np.convolve(x, g)[:90][::FACTOR])
+    _, relative = design.design_multisine(pilot, 90, FACTOR, (0.05, 0.45), random_state=8,
+                                          relative=True, return_design=True)
+    magnitude = np.abs(pilot.frequency_response(relative.eval_freqs).mean)
+    frf = design.predicted_frequency_response(pilot, relative.u, FACTOR,
+                                              freqs=relative.eval_freqs)
+    assert relative.designed.mean == pytest.approx(
+        np.mean(design.band_radius(frf) / magnitude), rel=1e-6)
+    assert relative.designed.value <= relative.reference.value
+    with pytest.raises(ValueError, match="pilot"):
+        design.design_multisine(kernel, 90, FACTOR, (0.05, 0.45), order=30, relative=True)
 
 
 def test_confounded_frequencies_are_those_whose_slow_samples_coincide():

@@ -279,8 +279,8 @@ def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_le
         for number, x0 in enumerate(starts):
             run = optimize.minimize(fun, x0, jac=True, method="L-BFGS-B",
                                     options={"maxiter": max_iter})
-            _LOG.debug("design start %d: %d evaluations, criterion %.4g of the flat input's",
-                       number, run.nfev, run.fun)
+            _LOG.debug("design start %d: %d evaluations, criterion %.4g of the flat input's "
+                       "(%s)", number, run.nfev, run.fun, run.message)
             if best is None or run.fun < best.fun:
                 best = run
         a = amplitudes(best.x)
