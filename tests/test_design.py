@@ -282,7 +282,8 @@ def test_confounded_frequencies_are_those_whose_slow_samples_coincide():
     # brute force: two frequencies are confounded when the slow samples of their
     # cosine and sine span the same plane
     def plane(k):
-        return np.stack([np.cos(2 * np.pi * k * n[::4] / 120), np.sin(2 * np.pi * k * n[::4] / 120)])
+        phase = 2 * np.pi * k * n[::4] / 120
+        return np.stack([np.cos(phase), np.sin(phase)])
 
     expected = []
     for a in bins:

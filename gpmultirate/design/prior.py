@@ -1,4 +1,4 @@
-"""The prior an experiment is designed for: a kernel with fixed hyperparameters, in the data's units.
+"""The prior an experiment is designed for: a kernel with fixed hyperparameters, in data units.
 
 A design needs what a fit with fixed hyperparameters needs and nothing that
 depends on the output: the kernel over lag, the FIR order ``P``, the white
