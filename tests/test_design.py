@@ -411,3 +411,14 @@ def test_design_command_end_to_end(tmp_path, capsys):
         main(["design", str(tmp_path / "model.npz"), "--band", "45", "10", "--out",
               str(tmp_path / "other"), "--quiet"])
     assert "--band" in capsys.readouterr().err
+    # a given input to compare with: its length is the record's, its band the "before"
+    given = tmp_path / "given.csv"
+    given.write_text("u\n" + "\n".join(f"{v:.17g}" for v in u) + "\n")
+    assert main(["design", str(tmp_path / "model.npz"), "--band", "10", "45", "--compare",
+                 str(given), "--out", str(tmp_path / "compared"), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "compared" / "summary.json").read_text())
+    frf = design.predicted_frequency_response(model, u, 3, freqs=freqs)
+    assert summary["before"]["mean_band_radius"] == pytest.approx(
+        design.band_radius(frf)[inside].mean(), rel=1e-6)
+    assert summary["before_input"] == "the given input"
+    assert summary["rms"] == pytest.approx(np.sqrt(np.mean(u ** 2)))  # equal power

@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from gpmultirate.arguments import check_out, finite_float, int_at_least
 
 __all__ = ["DESIGN_OUT", "add_design_parser"]
@@ -42,8 +44,9 @@ def add_design_parser(commands) -> None:
                         help="downsampling factor (default: the pilot's)")
     design.add_argument("--offset", type=int_at_least(0), nargs="+", default=[0], metavar="O",
                         help="offset(s) of the slow sensor(s), 0..F-1 (default: 0)")
-    design.add_argument("--rms", type=finite_float, default=1.0,
-                        help="input rms in the pilot's input units (default: 1)")
+    design.add_argument("--rms", type=finite_float, default=None,
+                        help="input rms in the pilot's input units (default: that of the "
+                             "--compare input, else 1)")
     design.add_argument("--criterion", choices=("mean", "worst"), default="mean",
                         help="minimize the mean band over the range or the worst (default: mean)")
     design.add_argument("--relative", action="store_true",
@@ -84,18 +87,20 @@ def run_design(parser, args) -> int:
     if not isinstance(model, gm.FIRGaussianProcess):
         parser.error(f"{args.model}: a design needs a FIRGaussianProcess model; got "
                      f"{type(model).__name__}")
-    if args.rms <= 0:
+    if args.rms is not None and args.rms <= 0:
         parser.error(f"argument --rms: must be positive; got {args.rms:g}")
-    given = None
+    given, rms = None, args.rms or 1.0
     if args.compare is not None:
         given, _ = read_record(args.compare, [args.input])
+        # the designed input has the power of the one it is compared with
+        rms = args.rms or float(np.sqrt(np.mean(given ** 2)))
     n_samples = args.samples if given is None else given.shape[0]
     offset = args.offset[0] if len(args.offset) == 1 else tuple(args.offset)
     _say(args, f"gpmultirate design: {args.model}, {args.band[0]:g}..{args.band[1]:g} Hz ...")
     try:
         files, summary = design_files(
             model, tuple(args.band), n_samples=n_samples, factor=args.factor, offset=offset,
-            rms=args.rms, criterion=args.criterion, relative=args.relative,
+            rms=rms, criterion=args.criterion, relative=args.relative,
             random_state=args.seed, given_input=given, source=str(args.model))
     except ValueError as error:
         message = str(error)
