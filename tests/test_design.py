@@ -317,15 +317,14 @@ def test_sampling_comparison_ranks_schemes_by_their_bands(u):
 def test_required_length_is_the_shortest_that_meets_the_target():
     prior = design.design_prior(KERNEL, order=ORDER, noise_level=NOISE)
     answer = design.required_length(prior, 0.15, (0.05, 0.45), FACTOR, n_draws=4,
-                                    random_state=5)
+                                    random_state=5, resolution=0.0)
     assert answer.n_samples % FACTOR == 0 and answer.n_samples >= ORDER
     assert answer.achieved <= 0.15
     shorter = [n for n, value in answer.tried.items() if n < answer.n_samples]
     if shorter:
         # every shorter length tried misses; the one just below was tried
         assert all(answer.tried[n] > 0.15 for n in shorter)
-        assert max(shorter) == answer.n_samples - FACTOR or answer.n_samples == min(
-            answer.tried)
+        assert max(shorter) == answer.n_samples - FACTOR
     # independently: the same flat inputs at that length meet the target
     seeds = np.random.RandomState(5).randint(0, 2**31 - 1, size=4)
     freqs = np.linspace(0.05, 0.45, 101)

@@ -64,7 +64,8 @@ class RecordLength:
 def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
                     sample_time=None, criterion="mean", input="flat", *, order=None, offset=0,
                     relative=False, level=0.95, probability=0.95, n_draws=20,
-                    random_state=None, max_samples=None) -> RecordLength:
+                    random_state=None, max_samples=None,
+                    resolution: float = 0.02) -> RecordLength:
     """The shortest record whose predicted band over ``band_hz`` meets ``target``.
 
     Parameters
@@ -93,6 +94,10 @@ def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
     random_state : int, RandomState or None
     max_samples : int, optional
         The longest record tried; default 64 times the shortest.
+    resolution : float, default=0.02
+        The bisection stops when the shortest length known to meet the target
+        is within this fraction of the longest known to miss it (or a factor
+        apart): the answer errs on the long side by at most that much.
 
     Returns
     -------
@@ -119,6 +124,7 @@ def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
     level = check_level(level)
     probability = check_level(probability, "probability")
     n_draws = check_int(n_draws, "n_draws", low=1)
+    resolution = check_positive(resolution, "resolution", allow_zero=True)
     seeds = check_rng(random_state).randint(0, 2**31 - 1, size=n_draws)
     scheme = SamplingScheme(factor=factor, offsets=offset)
     freqs = np.linspace(band[0], band[1], N_FREQUENCIES)
@@ -160,7 +166,7 @@ def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
                 f"(the band there is {tried[high]:.4g}): raise max_samples, the rms or the "
                 "target")
         high = min(2 * high, longest)
-    while low is not None and high - low > factor:
+    while low is not None and high - low > max(factor, resolution * high):
         middle = factor * ((low + high) // (2 * factor))
         if middle <= low or middle >= high:
             break
