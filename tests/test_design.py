@@ -273,6 +273,34 @@ def test_worst_case_and_relative_designs_narrow_what_they_minimize():
         design.design_multisine(kernel, 90, FACTOR, (0.05, 0.45), order=30, relative=True)
 
 
+@pytest.mark.parametrize("floor", [0.0, 0.5])
+def test_power_shares_keep_the_rms_and_the_floor_and_pull_gradients_back(floor):
+    from gpmultirate.design.multisine import PowerShares
+
+    shares = PowerShares(rms=1.7, floor=floor, n_bins=6)
+    x = np.random.default_rng(10).standard_normal(6)
+    a = shares(x)
+    assert np.linalg.norm(a) == pytest.approx(1.7)
+    assert np.all(np.abs(a) >= floor * 1.7 / np.sqrt(6) - 1e-12)
+    weights = np.random.default_rng(11).standard_normal(6)
+    step = 1e-6
+    numeric = [(weights @ shares(x + step * e) - weights @ shares(x - step * e)) / (2 * step)
+               for e in np.eye(6)]
+    np.testing.assert_allclose(shares.pullback(x, weights), numeric, atol=1e-8)
+
+
+def test_the_floor_keeps_every_bin_excited():
+    kernel = KERNEL + PK(alpha=0.92, omega=2.2, sigma1=1.0, sigma2=1.0)
+    args = dict(order=30, noise_level=NOISE, random_state=4, return_design=True)
+    _, free = design.design_multisine(kernel, 90, FACTOR, (0.1, 0.45), floor=0.0, **args)
+    _, kept = design.design_multisine(kernel, 90, FACTOR, (0.1, 0.45), floor=0.6, **args)
+    flat_amplitude = 1.0 / np.sqrt(kept.freqs.shape[0])
+    assert kept.amplitudes.min() >= 0.6 * flat_amplitude - 1e-12
+    assert free.designed.value <= kept.designed.value * (1 + 1e-6)  # the floor costs band
+    with pytest.raises(ValueError, match="floor"):
+        design.design_multisine(kernel, 90, FACTOR, (0.1, 0.45), floor=1.0, **args)
+
+
 def test_confounded_frequencies_are_those_whose_slow_samples_coincide():
     n = np.arange(120)
     bins = [5, 15, 35, 45, 50]  # F = 4: 30 bins per slow period

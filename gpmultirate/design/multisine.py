@@ -14,8 +14,10 @@ Bins that alias onto each other at the slow rate
 (:func:`~gpmultirate.design.confounding.confounded_frequencies`) share what
 the slow samples see of them, so where the power goes within such a group
 matters most: besides the flat start (all bins at equal amplitude), the
-design starts from the input that excites one bin per alias group (the one
-of largest prior band), and keeps the better optimum.  The flat start with
+design starts from the input that puts the designed power on one bin per
+alias group (the one of largest prior band), and keeps the better optimum.
+A ``floor`` of the power stays flat (:class:`PowerShares`), so that the
+second experiment still excites the whole range.  The flat start with
 the same phases is the reference the design is judged against.
 """
 
@@ -38,10 +40,13 @@ from gpmultirate.validation import as_real_array, check_int, check_positive, che
 
 _LOG = logging.getLogger("gpmultirate.design")
 
-__all__ = ["MultisineDesign", "design_multisine", "flat_multisine", "multisine_bins"]
+__all__ = ["MultisineDesign", "PowerShares", "design_multisine", "flat_multisine",
+           "multisine_bins"]
 
 #: iterations of each L-BFGS run of :func:`design_multisine`
 MAX_ITERATIONS = 150
+#: the share of the flat amplitude every bin keeps by default (a quarter of the power)
+DEFAULT_FLOOR = 0.5
 
 
 @dataclass(frozen=True)
@@ -123,6 +128,45 @@ def _basis(n_samples: int, bins: np.ndarray, phases: np.ndarray) -> np.ndarray:
     return np.sqrt(2.0) * np.cos(2.0 * np.pi * n * bins[None, :] / n_samples + phases[None, :])
 
 
+class PowerShares:
+    """Amplitudes of rms ``rms`` from free coordinates ``x``, each bin keeping a floor.
+
+    ``a_k = rms sqrt(floor^2 / K + (1 - floor^2) x_k^2 / ||x||^2)``: the power
+    ``rms^2`` is split into a flat part (``floor^2`` of it, every bin at least
+    ``floor`` times the flat amplitude) and a designed part.  With ``floor = 0``,
+    ``a = rms x / ||x||`` (the sphere itself, signs as phase flips).
+    :meth:`pullback` carries a gradient with respect to ``a`` to ``x``.
+
+    Examples
+    --------
+    >>> shares = PowerShares(rms=2.0, floor=0.5, n_bins=4)
+    >>> a = shares(np.array([1.0, 0.0, 0.0, 0.0]))
+    >>> round(float(np.linalg.norm(a)), 12), (a >= 0.5 * 2.0 / 2 - 1e-12).all()
+    (2.0, np.True_)
+    """
+
+    def __init__(self, rms: float, floor: float, n_bins: int):
+        self.rms, self.floor, self.n_bins = rms, floor, n_bins
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        norm = np.linalg.norm(x)
+        if self.floor == 0.0:
+            return self.rms * x / norm
+        shares = (x / norm) ** 2
+        return self.rms * np.sqrt(self.floor ** 2 / self.n_bins + (1 - self.floor ** 2) * shares)
+
+    def pullback(self, x: np.ndarray, grad_a: np.ndarray) -> np.ndarray:
+        norm = np.linalg.norm(x)
+        unit = x / norm
+        if self.floor == 0.0:
+            # the gradient through the projection onto the sphere ||a|| = rms
+            return (self.rms / norm) * (grad_a - unit * (unit @ grad_a))
+        shares = unit ** 2
+        root = np.sqrt(self.floor ** 2 / self.n_bins + (1 - self.floor ** 2) * shares)
+        grad_shares = grad_a * self.rms * (1 - self.floor ** 2) / (2.0 * root)
+        return (2.0 / norm) * (unit * grad_shares - unit * (shares @ grad_shares))
+
+
 def flat_multisine(n_samples: int, band_hz, rms: float = 1.0, sample_time: float = 1.0,
                    random_state=None) -> np.ndarray:
     """A random-phase multisine with equal amplitudes on the bins of ``band_hz``, at ``rms``.
@@ -165,7 +209,7 @@ def relative_weights(prior, freqs) -> np.ndarray:
 
 def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_level=None,
                      sample_time=None, random_state=None, criterion="mean", *, order=None,
-                     offset=0, excite_hz=None, relative=False, level=0.95,
+                     offset=0, excite_hz=None, relative=False, level=0.95, floor=DEFAULT_FLOOR,
                      max_iter=MAX_ITERATIONS, return_design=False):
     """A multisine of ``n_samples`` at ``rms`` whose amplitudes minimize the predicted band.
 
@@ -198,6 +242,14 @@ def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_le
         Minimize the band relative to the pilot model's ``|G|`` (the band in
         dB) instead of the band itself.
     level : float, default=0.95
+    floor : float, default=0.5
+        Every candidate bin keeps at least ``floor`` times the flat
+        amplitude (``floor^2`` of the power stays flat), in ``[0, 1)``: an
+        input that still excites the whole range, so that hyperparameters
+        tuned again on the second experiment stay determined (without it a
+        design may starve frequencies the pilot's prior deems known, and a
+        re-tuned fit can then widen its band there).  0 lets the design
+        leave bins out.
     max_iter : int, default=150
         Iterations of each optimizer run.
     return_design : bool, default=False
@@ -230,6 +282,9 @@ def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_le
     excite = band if excite_hz is None else check_band(excite_hz, T, "excite_hz")
     criterion = check_criterion(criterion)
     max_iter = check_int(max_iter, "max_iter", low=1)
+    floor = check_positive(floor, "floor", allow_zero=True)
+    if not floor < 1.0:
+        raise ValueError(f"floor must lie in [0, 1); got {floor}")
     scheme = SamplingScheme(factor=factor, offsets=offset)
     bins = multisine_bins(n_samples, T, excite)
     phases = check_rng(random_state).uniform(0.0, 2.0 * np.pi, size=bins.shape[0])
@@ -238,8 +293,7 @@ def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_le
     weights = relative_weights(prior, eval_freqs) if relative else None
     objective = BandCriterion(prior, eval_freqs, criterion, weights, level)
 
-    def amplitudes(x):
-        return rms * x / np.linalg.norm(x)
+    amplitudes = PowerShares(rms, floor, bins.shape[0])
 
     flat_x = np.ones(bins.shape[0])
     flat = basis @ amplitudes(flat_x)
@@ -251,13 +305,8 @@ def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_le
     unit_value = reference.value or 1.0
 
     def fun(x):
-        norm = np.linalg.norm(x)
-        a = rms * x / norm
-        result, grad_u = objective.value_and_gradient(basis @ a, scheme)
-        grad_a = basis.T @ grad_u
-        unit = x / norm
-        # the gradient through the projection onto the sphere ||a|| = rms
-        gradient = (rms / norm) * (grad_a - unit * (unit @ grad_a))
+        result, grad_u = objective.value_and_gradient(basis @ amplitudes(x), scheme)
+        gradient = amplitudes.pullback(x, basis.T @ grad_u)
         return result.value / unit_value, gradient / unit_value
 
     starts = [flat_x]
@@ -284,9 +333,10 @@ def design_multisine(prior, n_samples, factor=3, band_hz=None, rms=1.0, noise_le
             if best is None or run.fun < best.fun:
                 best = run
         a = amplitudes(best.x)
-        # bins the optimum leaves (nearly) empty are left out
-        a[np.abs(a) < 1e-3 * np.max(np.abs(a))] = 0.0
-        a *= rms / np.linalg.norm(a)
+        if floor == 0.0:
+            # bins the optimum leaves (nearly) empty are left out
+            a[np.abs(a) < 1e-3 * np.max(np.abs(a))] = 0.0
+            a *= rms / np.linalg.norm(a)
         u = basis @ a
         designed = objective.value(u, scheme)
     if reference.value < designed.value:  # never worse than the reference
