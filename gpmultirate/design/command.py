@@ -49,6 +49,9 @@ def add_design_parser(commands) -> None:
                              "--compare input, else 1)")
     design.add_argument("--criterion", choices=("mean", "worst"), default="mean",
                         help="minimize the mean band over the range or the worst (default: mean)")
+    design.add_argument("--floor", type=finite_float, default=0.5, metavar="SHARE",
+                        help="every bin keeps at least this share of the flat amplitude, in "
+                             "[0, 1) (default: 0.5)")
     design.add_argument("--relative", action="store_true",
                         help="minimize the band relative to the pilot's |G| (in dB)")
     design.add_argument("--compare", metavar="DATA", default=None,
@@ -100,12 +103,12 @@ def run_design(parser, args) -> int:
     try:
         files, summary = design_files(
             model, tuple(args.band), n_samples=n_samples, factor=args.factor, offset=offset,
-            rms=rms, criterion=args.criterion, relative=args.relative,
+            rms=rms, criterion=args.criterion, relative=args.relative, floor=args.floor,
             random_state=args.seed, given_input=given, source=str(args.model))
     except ValueError as error:
         message = str(error)
         option = {"band_hz": "--band", "n_samples": "--samples", "factor": "--factor",
-                  "offsets": "--offset", "offset": "--offset"}.get(message.split(" ", 1)[0])
+                  "offsets": "--offset", "offset": "--offset", "floor": "--floor"}.get(message.split(" ", 1)[0])
         parser.error(f"argument {option}: {message}" if option else f"{args.model}: {message}")
     check_out(parser, lambda: write_folder(out, files, overwrite=args.force,
                                             replaceable=DESIGN_FILES))

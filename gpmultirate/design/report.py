@@ -38,7 +38,7 @@ def _summary_of(frf, freqs_mask, magnitude):
 
 
 def design_files(model, band_hz, *, n_samples=None, factor=None, offset=0, rms=1.0,
-                 criterion="mean", relative=False, random_state=0, given_input=None,
+                 criterion="mean", relative=False, floor=0.5, random_state=0, given_input=None,
                  source="model") -> tuple[dict, dict]:
     """Design an input from a pilot model and return the files of the result.
 
@@ -51,7 +51,7 @@ def design_files(model, band_hz, *, n_samples=None, factor=None, offset=0, rms=1
         Record length; default the pilot's.
     factor : int, optional
         Default the pilot's downsampling factor.
-    offset, rms, criterion, relative, random_state
+    offset, rms, criterion, relative, floor, random_state
         As for :func:`~gpmultirate.design.design_multisine`.
     given_input : ndarray, optional
         The input to compare with (the "before"); default a flat random-phase
@@ -71,7 +71,8 @@ def design_files(model, band_hz, *, n_samples=None, factor=None, offset=0, rms=1
     factor = int(model.observation_.slow_factor) if factor is None else int(factor)
     u, design = design_multisine(prior, n_samples, factor, band_hz, rms,
                                  random_state=random_state, criterion=criterion,
-                                 offset=offset, relative=relative, return_design=True)
+                                 offset=offset, relative=relative, floor=floor,
+                                 return_design=True)
     if given_input is None:
         before_input = flat_multisine(n_samples, band_hz, rms, T, random_state=random_state)
         before_name = "flat random-phase multisine over the range"
@@ -89,7 +90,7 @@ def design_files(model, band_hz, *, n_samples=None, factor=None, offset=0, rms=1
         "n_samples": n_samples, "sample_time": T, "factor": factor,
         "offset": offset if np.ndim(offset) == 0 else list(offset),
         "slow_nyquist_hz": after.slow_nyquist, "rms": rms, "criterion": criterion,
-        "relative": bool(relative), "noise_level": prior.noise_level,
+        "relative": bool(relative), "floor": floor, "noise_level": prior.noise_level,
         "before_input": before_name,
         "before": _summary_of(before, inside, pilot.magnitude),
         "designed": _summary_of(after, inside, pilot.magnitude),
