@@ -7,6 +7,12 @@ searches the shortest record, a multiple of the factor, whose predicted band
 radius over the range (mean or worst, absolute or relative to a pilot
 model's ``|G|``) meets the target for a fraction ``probability`` of the
 inputs' random phases: doubling the length until it is met, then bisecting.
+
+The band of a new draw of the phases is bounded by the upper prediction
+bound of the ``n_draws`` draws at ``probability``,
+``mean + t_{n-1}(probability) s sqrt(1 + 1/n)`` (Student's t): a new input of
+the recommended length meets the target with that probability, where the
+bands of the draws spread normally, not only in the draws that were seen.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.stats
 
 from gpmultirate.design.criterion import BandCriterion, check_criterion
 from gpmultirate.design.multisine import (
@@ -27,7 +34,7 @@ from gpmultirate.design.sampling import SamplingScheme
 from gpmultirate.inference import blas_threads_for
 from gpmultirate.validation import check_int, check_level, check_positive, check_rng
 
-__all__ = ["INPUTS", "RecordLength", "required_length"]
+__all__ = ["INPUTS", "RecordLength", "required_length", "upper_prediction_bound"]
 
 #: the inputs :func:`required_length` plans with
 INPUTS = ("flat", "designed")
@@ -46,9 +53,9 @@ class RecordLength:
     duration : float
         Its length in seconds (``n_samples * T``).
     achieved : float
-        The band at that length: the ``probability`` quantile over the
-        inputs' phases of the criterion (band radius, or its dB for a
-        relative target).
+        The band at that length: the upper prediction bound at
+        ``probability`` of the criterion over the inputs' phases (band
+        radius, or its dB for a relative target).
     target : float
     tried : dict
         Every length tried and its ``achieved`` value.
@@ -59,6 +66,24 @@ class RecordLength:
     achieved: float
     target: float
     tried: dict = field(default_factory=dict)
+
+
+def upper_prediction_bound(values, probability: float) -> float:
+    """The bound a new draw stays below with ``probability``, from normal draws ``values``.
+
+    ``mean + t_{n-1}(probability) s sqrt(1 + 1/n)``; the largest value for one draw.
+
+    Examples
+    --------
+    >>> round(upper_prediction_bound([1.0, 2.0, 3.0], 0.95), 4)
+    5.3717
+    """
+    values = np.asarray(values, dtype=float)
+    n = values.shape[0]
+    if n < 2:
+        return float(values.max())
+    spread = values.std(ddof=1) * np.sqrt(1.0 + 1.0 / n)
+    return float(values.mean() + scipy.stats.t.ppf(probability, n - 1) * spread)
 
 
 def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
@@ -154,7 +179,7 @@ def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
                                          offset=offset, relative=relative, level=level)
                 with blas_threads_for(scheme.observation(u, prior.order)):
                     values.append(objective.value(u, scheme).value)
-            tried[n_samples] = float(threshold(np.quantile(values, probability)))
+            tried[n_samples] = float(threshold(upper_prediction_bound(values, probability)))
         return tried[n_samples]
 
     low, high = None, shortest
