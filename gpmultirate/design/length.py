@@ -88,7 +88,7 @@ def upper_prediction_bound(values, probability: float) -> float:
 
 def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
                     sample_time=None, criterion="mean", input="flat", *, order=None, offset=0,
-                    relative=False, level=0.95, probability=0.95, n_draws=20,
+                    relative=False, level=0.95, probability=0.95, n_draws=10,
                     random_state=None, max_samples=None,
                     resolution: float = 0.02) -> RecordLength:
     """The shortest record whose predicted band over ``band_hz`` meets ``target``.
@@ -114,7 +114,7 @@ def required_length(prior, target, band_hz, factor=3, rms=1.0, noise_level=None,
     level : float, default=0.95
     probability : float, default=0.95
         The fraction of phase draws that must meet the target.
-    n_draws : int, default=20
+    n_draws : int, default=10
         Phase draws per length (the same draws at every length).
     random_state : int, RandomState or None
     max_samples : int, optional
