@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gpmultirate.design.bands import chi2_2
-from gpmultirate.design.predicted import _posterior_of
+from gpmultirate.design.predicted import posterior_of
 from gpmultirate.observations import DownsampledConvolution, SampledConvolution
 from gpmultirate.responses import dft_matrix
 from gpmultirate.validation import check_level
@@ -117,7 +117,7 @@ class BandCriterion:
 
     def value(self, u, scheme) -> CriterionValue:
         """The criterion of input ``u`` read through ``scheme`` (any scheme, any noise)."""
-        post = _posterior_of(self.prior, self._observation(u, scheme))
+        post = posterior_of(self.prior, self._observation(u, scheme))
         var_re, var_im, _ = post.pair_variances(self._re, self._im)
         return self._summary(var_re + var_im)[0]
 
@@ -139,7 +139,7 @@ class BandCriterion:
         if not isinstance(observation, (DownsampledConvolution, SampledConvolution)):
             raise ValueError("the criterion's gradient needs readings on the fast ticks "
                              "without exposure")
-        post = _posterior_of(prior, observation)
+        post = posterior_of(prior, observation)
         n = self.freqs.shape[0]
         # Sigma [Re E; Im E]^T in one product: (P, 2n)
         sigma_e = post.covariance() @ self._parts.T

@@ -31,6 +31,7 @@ from gpmultirate.kernels import check_lags
 from gpmultirate.validation import check_level, check_signal
 
 __all__ = [
+    "posterior_of",
     "predicted_frequency_response",
     "predicted_impulse_response",
     "predicted_posterior",
@@ -54,7 +55,7 @@ def _experiment(prior, u, factor, offset, sample_times, exposure, noise_level, o
     return prior, scheme, observation
 
 
-def _posterior_of(prior, observation):
+def posterior_of(prior, observation):
     """The library's posterior of ``observation`` under ``prior``, from outputs all zero."""
     zeros = np.zeros(observation.n_outputs)
     with blas_threads_for(observation):
@@ -92,7 +93,7 @@ def predicted_posterior(prior, u, factor=3, offset=0, sample_times=None, exposur
     """
     prior, _, observation = _experiment(prior, u, factor, offset, sample_times, exposure,
                                         noise_level, order, sample_time, scheme)
-    return _posterior_of(prior, observation)
+    return posterior_of(prior, observation)
 
 
 def predicted_frequency_response(prior, u, factor=3, offset=0, sample_times=None,
@@ -171,7 +172,7 @@ def predicted_frequency_response(prior, u, factor=3, offset=0, sample_times=None
     level = check_level(level)
     prior, scheme, observation = _experiment(prior, u, factor, offset, sample_times, exposure,
                                              noise_level, order, sample_time, scheme)
-    post = _posterior_of(prior, observation)
+    post = posterior_of(prior, observation)
     n_samples = np.asarray(u).shape[0]
     if freqs is None:
         freqs = default_frequencies(n_samples, prior.sample_time)
@@ -215,6 +216,6 @@ def predicted_impulse_response(prior, u, factor=3, offset=0, sample_times=None,
                                         noise_level, order, sample_time, scheme)
     lags = (np.arange(prior.order, dtype=float) if lags is None
             else check_lags(lags, "lags"))
-    post = _posterior_of(prior, observation)
+    post = posterior_of(prior, observation)
     _, var = post.at_lags(lags[:, None])
     return lags, np.sqrt(np.maximum(var, 0.0))
