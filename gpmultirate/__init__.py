@@ -36,7 +36,7 @@ _EXPORTS = {
     "save_model": "gpmultirate.persistence",
 }
 # the subpackages and modules reached as attributes of the package
-_SUBMODULES = ("datasets", "holdout", "kernels", "simulation", "plotting")
+_SUBMODULES = ("datasets", "design", "holdout", "kernels", "simulation", "plotting")
 
 __all__ = sorted([*_EXPORTS, "__version__"], key=str.lower)
 

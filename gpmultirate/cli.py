@@ -46,6 +46,7 @@ from gpmultirate import __version__
 from gpmultirate.arguments import (OneLineErrorParser, available_cpus, check_out, check_slow_log,
                                    duration, finite_float, int_at_least, nonzero_int, one_line,
                                    order_or_auto, sample_time)
+from gpmultirate.design.command import add_design_parser
 from gpmultirate.progress import show_progress
 from gpmultirate.report import FIT_KERNELS
 from gpmultirate.study import METHODS, paper_example, run_paper_study
@@ -221,6 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      parser_class=OneLineErrorParser)
     _add_fit_parser(commands)
     _add_predict_parser(commands)
+    add_design_parser(commands)
 
     demo = commands.add_parser(
         "demo", help="Monte Carlo study of LS, DC and PK estimators (paper Section 5)",

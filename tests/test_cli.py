@@ -76,7 +76,7 @@ def test_help_documents_every_option(capsys):
     # and everything any parser declares, found from the parsers themselves
     parser = build_parser()
     commands = parser._subparsers._group_actions[0].choices
-    assert set(commands) == {"demo", "example1", "fit", "predict"}
+    assert set(commands) == {"demo", "design", "example1", "fit", "predict"}
     for name, sub in commands.items():
         assert f"gpmultirate {name}" in text
         for action in sub._actions:
