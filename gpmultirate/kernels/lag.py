@@ -26,6 +26,8 @@ from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
+from gpmultirate.kernels.instants import PKTimedTerm, ShiftScaledTimedTerm
+from gpmultirate.kernels.offsets import OffsetStructure, dc_pieces, ss_pieces, tc_pieces
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
 from gpmultirate.kernels.transforms import ARTANH, LOG, ThetaTransform
@@ -308,6 +310,20 @@ class ShiftScaledKernel(LagKernel):
         """The recursion where it pays off, :meth:`unshifted_term` elsewhere."""
         return ShiftScaledTerm(self, observation, path, self.unshifted_term(observation, path))
 
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags at the hyperparameter ``values``.
+
+        See :mod:`gpmultirate.kernels.offsets`; ``values`` may be complex
+        (the complex step).
+        """
+        raise NotImplementedError
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input), else dense."""
+        if observation.n_inputs != 1:
+            return observation.dense_term(self, path)
+        return ShiftScaledTimedTerm(self, observation, path)
+
 
 class _DecayKernel(ShiftScaledKernel):
     """A lag kernel with the single hyperparameter ``alpha`` (TC, SS)."""
@@ -447,6 +463,9 @@ class TC(_DecayKernel):
     def unshifted_term(self, observation, path=""):
         return _TCTerm(self, observation, path)
 
+    def offset_structure(self, values, order):
+        return tc_pieces(values, order)
+
 
 class _TCTerm(ObservedTerm):
     """TC off the recursion: the gradient contraction without the gradient array."""
@@ -582,6 +601,14 @@ class DC(ShiftScaledKernel):
     def unshifted_term(self, observation, path=""):
         return DCFilterTerm(self, observation, path)
 
+    def offset_structure(self, values, order):
+        return dc_pieces(values, order)
+
+    def observed_at_instants(self, observation, path=""):
+        if float(self.beta) == 0.0:  # no pieces: beta^(k - l) divides by beta
+            return observation.dense_term(self, path)
+        return super().observed_at_instants(observation, path)
+
 
 class SS(_DecayKernel):
     r"""Second-order stable-spline kernel (paper eq. 17, without ``lambda``).
@@ -619,6 +646,9 @@ class SS(_DecayKernel):
         """Return ``k(X, X)`` on the diagonal only."""
         (alpha,) = self.checked_values().values()
         return alpha ** (3.0 * check_lags(X, "X")) / 3.0
+
+    def offset_structure(self, values, order):
+        return ss_pieces(values, order)
 
     def shift_scale(self):
         return self.checked_values()["alpha"] ** 3, {"alpha": 3.0}
@@ -830,6 +860,12 @@ class PK(LagKernel):
             self, observation, np.column_stack([c, s]), np.diag([var1, var2]),
             np.column_stack([lags * c, lags * s]), weights, path,
         )
+
+    def observed_at_instants(self, observation, path=""):
+        """Readings at their own instants by the rank-two basis at the real lags (one input)."""
+        if observation.n_inputs != 1:
+            return observation.dense_term(self, path)
+        return PKTimedTerm(self, observation, path)
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
