@@ -43,7 +43,7 @@ from gpmultirate.kernels.offsets import (
 from gpmultirate.kernels.structure import ConstantTerm, ObservedTerm
 
 __all__ = ["BLOCK_ENTRIES", "ConstantTimedTerm", "DenseTimedTerm", "PKTimedTerm",
-           "ShiftScaledTimedTerm"]
+           "ShiftScaledTimedTerm", "semiseparable_term"]
 
 #: the complex step of the derivatives (relative to the value)
 _STEP = 1e-30
@@ -180,6 +180,9 @@ class _TimedTerm(ObservedTerm):
 
 class ShiftScaledTimedTerm(_TimedTerm):
     """TC, DC or SS through timed readings, by the semiseparable structure.
+
+    The kernel gives its pieces (``kernel.offset_structure(values, order)``,
+    see :mod:`gpmultirate.kernels.offsets`).
 
     With the strictly lower pieces ``A_r, f_r, h_r`` and the shift scale
     ``c`` (:func:`~gpmultirate.kernels.offsets.offset_structure`), the
@@ -376,3 +379,16 @@ class DenseTimedTerm(_TimedTerm):
             S = point_sum(S)
             self._covariance = 0.5 * (S + S.T)
         return [point_sum(d) for d in dS]
+
+
+def semiseparable_term(kernel, observation, path: str = "") -> ObservedTerm:
+    """A kernel with semiseparable pieces between integer lags through timed readings.
+
+    ``kernel`` declares ``offset_structure(values, order)``
+    (:mod:`gpmultirate.kernels.offsets`); its term is
+    :class:`ShiftScaledTimedTerm` for one input, and the observation's dense
+    term for several (the pieces are of one lag axis).
+    """
+    if observation.n_inputs != 1:
+        return observation.dense_term(kernel, path)
+    return ShiftScaledTimedTerm(kernel, observation, path)

@@ -26,7 +26,7 @@ from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
-from gpmultirate.kernels.instants import PKTimedTerm, ShiftScaledTimedTerm
+from gpmultirate.kernels.instants import PKTimedTerm, semiseparable_term
 from gpmultirate.kernels.offsets import OffsetStructure, dc_pieces, ss_pieces, tc_pieces
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
@@ -310,20 +310,6 @@ class ShiftScaledKernel(LagKernel):
         """The recursion where it pays off, :meth:`unshifted_term` elsewhere."""
         return ShiftScaledTerm(self, observation, path, self.unshifted_term(observation, path))
 
-    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
-        """The semiseparable pieces between integer lags at the hyperparameter ``values``.
-
-        See :mod:`gpmultirate.kernels.offsets`; ``values`` may be complex
-        (the complex step).
-        """
-        raise NotImplementedError
-
-    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
-        """Readings at their own instants by the semiseparable pieces (one input), else dense."""
-        if observation.n_inputs != 1:
-            return observation.dense_term(self, path)
-        return ShiftScaledTimedTerm(self, observation, path)
-
 
 class _DecayKernel(ShiftScaledKernel):
     """A lag kernel with the single hyperparameter ``alpha`` (TC, SS)."""
@@ -463,8 +449,13 @@ class TC(_DecayKernel):
     def unshifted_term(self, observation, path=""):
         return _TCTerm(self, observation, path)
 
-    def offset_structure(self, values, order):
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
         return tc_pieces(values, order)
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input)."""
+        return semiseparable_term(self, observation, path)
 
 
 class _TCTerm(ObservedTerm):
@@ -601,13 +592,15 @@ class DC(ShiftScaledKernel):
     def unshifted_term(self, observation, path=""):
         return DCFilterTerm(self, observation, path)
 
-    def offset_structure(self, values, order):
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
         return dc_pieces(values, order)
 
-    def observed_at_instants(self, observation, path=""):
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input, ``beta != 0``)."""
         if float(self.beta) == 0.0:  # no pieces: beta^(k - l) divides by beta
             return observation.dense_term(self, path)
-        return super().observed_at_instants(observation, path)
+        return semiseparable_term(self, observation, path)
 
 
 class SS(_DecayKernel):
@@ -647,8 +640,13 @@ class SS(_DecayKernel):
         (alpha,) = self.checked_values().values()
         return alpha ** (3.0 * check_lags(X, "X")) / 3.0
 
-    def offset_structure(self, values, order):
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
         return ss_pieces(values, order)
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input)."""
+        return semiseparable_term(self, observation, path)
 
     def shift_scale(self):
         return self.checked_values()["alpha"] ** 3, {"alpha": 3.0}

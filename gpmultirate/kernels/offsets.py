@@ -101,9 +101,9 @@ def _positive(x):
 def offset_structure(kernel, values: dict, order: int) -> OffsetStructure:
     """The semiseparable pieces of a shift-scaled kernel at the hyperparameter ``values``.
 
-    The kernel answers for its pieces
-    (:meth:`~gpmultirate.kernels.lag.ShiftScaledKernel.offset_structure`:
-    :func:`tc_pieces`, :func:`dc_pieces`, :func:`ss_pieces`).
+    The kernel answers for its pieces (its method ``offset_structure``:
+    :func:`tc_pieces` for TC, :func:`dc_pieces` for DC, :func:`ss_pieces`
+    for SS).
 
     Parameters
     ----------
