@@ -133,7 +133,7 @@ def offset_structure(kernel, values: dict, order: int) -> OffsetStructure:
 
 
 def tc_pieces(values: dict, order: int) -> OffsetStructure:
-    """TC's pieces: ``k(t, s) = alpha^max(t, s)``, one exponential (see :func:`offset_structure`)."""
+    """TC's pieces: ``k(t, s) = alpha^max(t, s)``, one exponential."""
     k = np.arange(order, dtype=float)
     ones = np.ones(order)
     alpha = values["alpha"]

@@ -47,14 +47,14 @@ integer lag is in closed form
 (:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`, a
 divided difference of ``exp``; it agrees with the quadrature to ``1e-12``);
 DC with ``beta < 0`` splits the double integral at the kink
-(:func:`~gpmultirate.kernels.instants._ordered_integral`), and the cross-covariance with ``g`` at real lags
-likewise, so with an exposure they are exact to rounding (8 and 16 nodes
-agree to ``1e-10``; a brute-force double sum with 96 nodes agrees to its own
-error, about ``1e-6``).  PK and constants are smooth: exact to rounding as
-well.  The dense route integrates by the points; for smooth kernels (RBF)
-its error is below ``1e-8``, for a kinked kernel inside a product, or TC/DC
-of several inputs, it falls as the square of the nodes (about ``5e-4`` of
-the covariance with 16 nodes).
+(:func:`~gpmultirate.kernels.instants._ordered_integral`), and the
+cross-covariance with ``g`` at real lags likewise, so with an exposure they
+are exact to rounding (8 and 16 nodes agree to ``1e-10``; a brute-force
+double sum with 96 nodes agrees to its own error, about ``1e-6``).  PK and
+constants are smooth: exact to rounding as well.  The dense route integrates
+by the points; for smooth kernels (RBF) its error is below ``1e-8``, for a
+kinked kernel inside a product, or TC/DC of several inputs, it falls as the
+square of the nodes (about ``5e-4`` of the covariance with 16 nodes).
 """
 
 from __future__ import annotations
@@ -547,11 +547,11 @@ class TimedConvolution(Observation):
 
     # -------------------------------------------------------- with a kernel
     def structured_term(self, kernel, path: str = "") -> ObservedTerm:
-        """A structured leaf through these readings: its
-        :meth:`~gpmultirate.kernels.StructuredKernel.observed_at_instants`."""
+        """A structured leaf through these readings: the kernel's ``observed_at_instants``."""
         return kernel.observed_at_instants(self, path)
 
     def constant_term(self, kernel, path: str = "") -> ObservedTerm:
+        """A constant through these readings: rank one, the readings of the constant 1."""
         return ConstantTimedTerm(kernel, self, path)
 
     def dense_term(self, kernel, path: str = "") -> ObservedTerm:
