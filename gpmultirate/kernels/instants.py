@@ -27,9 +27,11 @@ single exponentials
 (:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`) and
 split at the kink otherwise (:func:`_ordered_integral`).
 
-The terms read the readings' points (their ticks, offsets, quadrature
-weights and window pieces) from the observation; how those are formed is the
-observation's business.
+The terms read the readings' points (their regressor rows, offsets from
+their ticks, quadrature weights and window pieces: ``unique_rows``,
+``point_offsets``, ``point_readings``, ``point_weights``, ``point_row_ids``,
+``pieces``) from the observation; how those are formed is the observation's
+business.
 """
 
 from __future__ import annotations
@@ -199,7 +201,7 @@ class ShiftScaledTimedTerm(_TimedTerm):
         obs = self.observation
         P = obs.order
         found = offset_structure(self.kernel, values, P)
-        d = obs._offsets
+        d = obs.point_offsets
         S = 0.0
         for p, q, c, f, h in found.lower:
             X = obs.weighted_rows(f(d))
@@ -210,7 +212,7 @@ class ShiftScaledTimedTerm(_TimedTerm):
         scale = found.scale ** np.arange(P, dtype=float)
         G = _step_product(rows * scale, rows.T)
         if obs.exposure == 0.0:
-            ids = obs._row_id
+            ids = obs.point_row_ids
             return S + G[np.ix_(ids, ids)] * _base_at_points(found, d)
         return S + self._windows_on_equal_lags(found, G)
 
@@ -232,11 +234,11 @@ class ShiftScaledTimedTerm(_TimedTerm):
         sums: ``O(n E)`` for ``n`` pieces and ``E <= 2 n`` cells.
         """
         obs = self.observation
-        start, stop = obs._piece_start, obs._piece_stop
+        piece, start, stop = obs.pieces
         n_pieces = start.shape[0]
-        first_point = np.searchsorted(obs._piece, np.arange(n_pieces))
-        reading = obs._reading[first_point]
-        row = obs._row_id[first_point]
+        first_point = np.searchsorted(piece, np.arange(n_pieces))
+        reading = obs.point_readings[first_point]
+        row = obs.point_row_ids[first_point]
         edges = np.unique(np.concatenate([start, stop]))
         low, high = np.searchsorted(edges, start), np.searchsorted(edges, stop)
         a, b = edges[:-1], edges[1:]
@@ -275,7 +277,7 @@ class ShiftScaledTimedTerm(_TimedTerm):
         # its integral split at the kink replaces it (exact to rounding)
         out = super().cross_covariance(lags)
         if self.observation.exposure > 0.0:
-            out += self.observation._kink_correction(self.kernel, lags[:, 0])
+            out += self.observation.kink_correction(self.kernel, lags[:, 0])
         return out
 
     def regressor_times_kernel(self):
@@ -283,7 +285,7 @@ class ShiftScaledTimedTerm(_TimedTerm):
         obs = self.observation
         P = obs.order
         found = offset_structure(self.kernel, self._values(), P)
-        d = obs._offsets
+        d = obs.point_offsets
         zero = np.zeros(1)
         out = 0.0
         for p, q, c, f, h in found.lower:
@@ -318,12 +320,12 @@ class PKTimedTerm(_TimedTerm):
         P = obs.order
         alpha, omega = values["alpha"], values["omega"]
         rows = obs.point_rows()
-        lags = np.arange(P)[None, :] + obs._offsets[:, None]
+        lags = np.arange(P)[None, :] + obs.point_offsets[:, None]
         envelope = alpha ** (lags / 2.0)
         cos_part = np.einsum("ij,ij->i", rows, envelope * np.cos(omega * lags))
         sin_part = np.einsum("ij,ij->i", rows, envelope * np.sin(omega * lags))
         Q = sparse.csr_matrix(
-            (obs._weights, (obs._reading, np.arange(obs.n_points))),
+            (obs.point_weights, (obs.point_readings, np.arange(obs.n_points))),
             shape=(obs.n_outputs, obs.n_points),
         )
         U = np.column_stack([Q @ cos_part, Q @ sin_part])
@@ -337,7 +339,7 @@ class DenseTimedTerm(_TimedTerm):
     def _pairs(self, eval_gradient: bool):
         obs = self.observation
         rows = obs.point_rows()
-        offsets, group = np.unique(obs._offsets, return_inverse=True)
+        offsets, group = np.unique(obs.point_offsets, return_inverse=True)
         group = group.reshape(-1)
         n = obs.n_points
         n_theta = self.kernel.n_dims if eval_gradient else 0

@@ -327,6 +327,33 @@ class TimedConvolution(Observation):
         """The number of instants the readings are formed from (quadrature nodes)."""
         return self._offsets.shape[0]
 
+    # the points, as the kernels' terms read them (:mod:`gpmultirate.kernels.instants`)
+    @property
+    def point_offsets(self) -> np.ndarray:
+        """Each point's offset from its tick, in ``[0, 1)``: shape ``(n_points,)``."""
+        return self._offsets
+
+    @property
+    def point_readings(self) -> np.ndarray:
+        """The reading each point belongs to: shape ``(n_points,)``."""
+        return self._reading
+
+    @property
+    def point_weights(self) -> np.ndarray:
+        """Each point's quadrature weight in its reading (1 without exposure)."""
+        return self._weights
+
+    @property
+    def point_row_ids(self) -> np.ndarray:
+        """Each point's row in :meth:`unique_rows` (its record and tick)."""
+        return self._row_id
+
+    @property
+    def pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(piece, start, stop)``: each point's piece of its window between two ticks,
+        and each piece's ends as offsets from its tick."""
+        return self._piece, self._piece_start, self._piece_stop
+
     @property
     def matrix(self):
         """Not available: the readings are no matrix on the integer lags."""
@@ -585,7 +612,7 @@ class TimedConvolution(Observation):
             lags = lags[:, None]
         return observe(kernel, self).cross_covariance(lags)
 
-    def _kink_correction(self, kernel, lags) -> np.ndarray:
+    def kink_correction(self, kernel, lags) -> np.ndarray:
         """Exact minus quadrature, for the window lags on the same integer lag as ``lags``."""
         values = {h.name: float(getattr(kernel, h.name)) for h in kernel.hyperparameters}
         found = offset_structure(kernel, values, self.order)
