@@ -121,3 +121,13 @@ def test_the_cross_covariance_walks_the_same_terms():
     parts = (1.7 * timed.cross_covariance(DC(0.85, 0.5), lags)
              + timed.cross_covariance(PK(0.9, 0.7), lags))
     np.testing.assert_allclose(timed.cross_covariance(kernel, lags), parts, rtol=1e-13)
+
+
+def test_the_old_type_check_warns_and_asks_the_kernel():
+    import pytest
+
+    from gpmultirate.kernels import offsets
+
+    with pytest.warns(DeprecationWarning, match="supports_offsets"):
+        supports = offsets.supports_offsets
+    assert supports(DC(0.8, 0.5)) and supports(TC(0.9)) and not supports(PK())
