@@ -119,8 +119,6 @@ from gpmultirate.kernels import DC, PK, SS, TC, PerInputKernel
 from gpmultirate.multioutput import MultiOutputFIR, stacked_coefficients
 from gpmultirate.observations import (
     DownsampledConvolution,
-    InterpolatedConvolution,
-    TimedConvolution,
     build_experiment,
 )
 from gpmultirate.observations.timed import QUADRATURE_NODES
@@ -323,16 +321,14 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         )
     check_is_fitted(model, "coef_")
     operator = model.observation_
-    if isinstance(operator, InterpolatedConvolution):  # the same readings, interpolated
-        operator = operator.timed
-    if isinstance(operator, TimedConvolution):  # readings at their own instants
+    if operator.file_layout == "timed":  # readings at their own instants (or interpolated)
         version = 4
         fitted = {
             "layout": "timed",
             "n_records": len(operator.records),
             "several_records": _several(model),
             "order": int(operator.order),
-            "quadrature_nodes": int(operator.nodes),
+            "quadrature_nodes": int(operator.records[0].nodes),
         }
         arrays = {"coef": model.posterior_.coef}
         start = 0
@@ -342,7 +338,7 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
             arrays[f"sample_times_{r}"] = record.sample_times
             arrays[f"y_slow_{r}"] = model.y_slow_[start:stop]
             start = stop
-    elif isinstance(operator, DownsampledConvolution):  # the layout of version 1
+    elif operator.file_layout == "downsampled":  # the layout of version 1
         version = 1
         fitted: dict[str, Any] = {
             "factor": int(operator.factor),

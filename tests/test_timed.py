@@ -484,7 +484,7 @@ def test_multioutput_passes_the_instants_through():
 # ------------------------------------------- exposure windows in closed form
 def test_ordered_exponential_integral_against_the_quadrature():
     from gpmultirate.kernels.offsets import ordered_exponential_integral
-    from gpmultirate.observations.timed import _ordered_integral
+    from gpmultirate.kernels.instants import _ordered_integral
 
     rng = np.random.default_rng(5)
     n = 400
@@ -534,7 +534,7 @@ def test_closed_form_windows_match_the_quadrature(name, monkeypatch):
     closed, closed_grad = observe_covariance(kernel, timed)
     original = offsets.offset_structure
     monkeypatch.setattr(
-        "gpmultirate.observations.timed.offset_structure",
+        "gpmultirate.kernels.instants.offset_structure",
         lambda *args: original(*args)._replace(rates=None))
     quadrature, quadrature_grad = observe_covariance(kernel, timed)
     assert np.allclose(closed, quadrature, rtol=1e-8, atol=1e-10 * np.abs(quadrature).max())
@@ -552,7 +552,7 @@ def test_independent_inputs_sum_each_inputs_structured_readings():
     # route; checked against each input's single-input observation and, without an
     # exposure, against the dense route
     from gpmultirate.kernels import PerInputKernel
-    from gpmultirate.observations.timed import DenseTimedTerm
+    from gpmultirate.kernels.instants import DenseTimedTerm
 
     rng = np.random.default_rng(5)
     u = rng.standard_normal((60, 2))
@@ -602,7 +602,7 @@ def test_order_too_short_is_named_at_own_instants():
                 u, y, sample_times=t)
     # the identity the exact route's check reads: y - gamma S_y^{-1} y is the posterior
     # mean of the readings (predict at their instants), S_y formed densely here
-    from gpmultirate.observations.timed import DenseTimedTerm
+    from gpmultirate.kernels.instants import DenseTimedTerm
 
     u, y, t = u[:300], y[:100], t[:100]
     model = gm.FIRGaussianProcess(DC(0.9, 0.8), optimizer=None, noise_level=0.01,
@@ -631,7 +631,7 @@ def test_disturbances_with_more_readings_than_coefficients_off_the_ticks(noise_k
 
 def test_independent_inputs_over_several_records():
     from gpmultirate.kernels import PerInputKernel
-    from gpmultirate.observations.timed import DenseTimedTerm
+    from gpmultirate.kernels.instants import DenseTimedTerm
 
     rng = np.random.default_rng(6)
     kernel = PerInputKernel([C(1.3) * DC(0.9, 0.7), C(0.7) * TC(0.8)])

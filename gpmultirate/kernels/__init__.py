@@ -6,12 +6,15 @@ kernel answers for its own fast paths (:mod:`gpmultirate.kernels.structure`,
 with :func:`observe`, the one walker over ``Sum``, ``Product`` and
 ``ConstantKernel``), the diagonal recursion of shift-scaled kernels
 (:mod:`gpmultirate.kernels.recursion`), the filter form of DC
-(:mod:`gpmultirate.kernels.filters`) and independent priors for several
+(:mod:`gpmultirate.kernels.filters`), the terms of readings at their own
+instants (:mod:`gpmultirate.kernels.instants`, with the semiseparable pieces
+of :mod:`gpmultirate.kernels.offsets`) and independent priors for several
 inputs (:mod:`gpmultirate.kernels.inputs`).
 
 A new kernel subclasses :class:`StructuredKernel` and, to get a fast path,
-returns a structured term from :meth:`StructuredKernel.observed`; see the
-"Adding a kernel" guide.
+returns a structured term from :meth:`StructuredKernel.observed` (readings on
+the integer lags) and :meth:`StructuredKernel.observed_at_instants`
+(readings between them); see the "Adding a kernel" guide.
 """
 
 from gpmultirate.kernels.inputs import (

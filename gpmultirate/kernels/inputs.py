@@ -160,6 +160,12 @@ class PerInputKernel(StructuredKernel, Kernel):
             path,
         )
 
+    def observed_at_instants(self, observation, path: str = ""):
+        """Each input's kernel through that input's readings (:meth:`observed`), if they match."""
+        if self.n_inputs != observation.n_inputs:
+            return observation.dense_term(self, path)
+        return self.observed(observation, path)
+
     def roles_term(self, path: str = "") -> ObservedTerm:
         """The term used for questions about the hyperparameters only."""
         return BlockTerm(

@@ -26,6 +26,8 @@ from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
+from gpmultirate.kernels.instants import PKTimedTerm, semiseparable_term
+from gpmultirate.kernels.offsets import OffsetStructure, dc_pieces, ss_pieces, tc_pieces
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
 from gpmultirate.kernels.transforms import ARTANH, LOG, ThetaTransform
@@ -447,6 +449,14 @@ class TC(_DecayKernel):
     def unshifted_term(self, observation, path=""):
         return _TCTerm(self, observation, path)
 
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
+        return tc_pieces(values, order)
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input)."""
+        return semiseparable_term(self, observation, path)
+
 
 class _TCTerm(ObservedTerm):
     """TC off the recursion: the gradient contraction without the gradient array."""
@@ -582,6 +592,16 @@ class DC(ShiftScaledKernel):
     def unshifted_term(self, observation, path=""):
         return DCFilterTerm(self, observation, path)
 
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
+        return dc_pieces(values, order)
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input, ``beta != 0``)."""
+        if float(self.beta) == 0.0:  # no pieces: beta^(k - l) divides by beta
+            return observation.dense_term(self, path)
+        return semiseparable_term(self, observation, path)
+
 
 class SS(_DecayKernel):
     r"""Second-order stable-spline kernel (paper eq. 17, without ``lambda``).
@@ -619,6 +639,14 @@ class SS(_DecayKernel):
         """Return ``k(X, X)`` on the diagonal only."""
         (alpha,) = self.checked_values().values()
         return alpha ** (3.0 * check_lags(X, "X")) / 3.0
+
+    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
+        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
+        return ss_pieces(values, order)
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants by the semiseparable pieces (one input)."""
+        return semiseparable_term(self, observation, path)
 
     def shift_scale(self):
         return self.checked_values()["alpha"] ** 3, {"alpha": 3.0}
@@ -830,6 +858,12 @@ class PK(LagKernel):
             self, observation, np.column_stack([c, s]), np.diag([var1, var2]),
             np.column_stack([lags * c, lags * s]), weights, path,
         )
+
+    def observed_at_instants(self, observation, path=""):
+        """Readings at their own instants by the rank-two basis at the real lags (one input)."""
+        if observation.n_inputs != 1:
+            return observation.dense_term(self, path)
+        return PKTimedTerm(self, observation, path)
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""

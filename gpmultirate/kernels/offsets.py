@@ -31,8 +31,11 @@ from typing import NamedTuple
 import numpy as np
 from scipy import signal
 
-__all__ = ["OffsetStructure", "exp_divided_difference", "lower_matrix", "offset_structure",
-           "ordered_exponential_integral", "supports_offsets", "times_lower"]
+from gpmultirate.deprecation import warn_deprecated
+
+__all__ = ["OffsetStructure", "dc_pieces", "exp_divided_difference", "lower_matrix",
+           "offset_structure", "ordered_exponential_integral", "ss_pieces", "tc_pieces",
+           "times_lower"]
 
 #: below this spread of the points the divided differences of exp are Taylor series
 _SERIES_SPREAD = 0.5
@@ -67,11 +70,17 @@ class OffsetStructure(NamedTuple):
     rates: list | None = None
 
 
-def supports_offsets(kernel) -> bool:
-    """Whether :func:`offset_structure` knows ``kernel`` (TC, DC or SS, by its class)."""
-    from gpmultirate.kernels.lag import DC, SS, TC
+def _declares_offsets(kernel) -> bool:
+    """Whether ``kernel`` declares its pieces (the deprecated ``supports_offsets``)."""
+    return callable(getattr(kernel, "offset_structure", None))
 
-    return type(kernel) in (TC, DC, SS)
+
+def __getattr__(name):
+    if name == "supports_offsets":
+        warn_deprecated("gpmultirate.kernels.offsets.supports_offsets",
+                        "the kernel's own offset_structure and observed_at_instants")
+        return _declares_offsets
+    raise AttributeError(f"module 'gpmultirate.kernels.offsets' has no attribute {name!r}")
 
 
 def lower_matrix(p, q, c) -> np.ndarray:
@@ -105,12 +114,16 @@ def _positive(x):
 
 
 def offset_structure(kernel, values: dict, order: int) -> OffsetStructure:
-    """The semiseparable pieces of TC, DC or SS at the hyperparameter ``values``.
+    """The semiseparable pieces of a shift-scaled kernel at the hyperparameter ``values``.
+
+    The kernel answers for its pieces (its method ``offset_structure``:
+    :func:`tc_pieces` for TC, :func:`dc_pieces` for DC, :func:`ss_pieces`
+    for SS).
 
     Parameters
     ----------
     kernel : TC, DC or SS
-        Only its class is read; the values come from ``values``.
+        Only its kind is read; the values come from ``values``.
     values : dict
         ``{name: value}``, real or complex (for the complex step).
     order : int
@@ -131,74 +144,84 @@ def offset_structure(kernel, values: dict, order: int) -> OffsetStructure:
     >>> bool(np.isclose(value[0], kernel([[3.3]], [[1.7]])[0, 0]))
     True
     """
-    from gpmultirate.kernels.lag import DC, SS, TC
+    return kernel.offset_structure(values, order)
 
+
+def tc_pieces(values: dict, order: int) -> OffsetStructure:
+    """TC's pieces: ``k(t, s) = alpha^max(t, s)``, one exponential."""
     k = np.arange(order, dtype=float)
     ones = np.ones(order)
-    if type(kernel) is TC:
-        alpha = values["alpha"]
-        return OffsetStructure(
-            [(alpha**k, ones, 1.0, lambda d: alpha**d, lambda e: np.ones_like(e, dtype=float))],
-            alpha,
-            lambda d, e: alpha ** np.maximum.outer(d, e),
-            [(np.log(alpha), 0.0)],
-        )
-    if type(kernel) is DC:
-        alpha, beta = values["alpha"], values["beta"]
-        b = _positive(beta)
-        negative = np.real(beta) < 0
-        # A[k, l] = alpha^((k + l) / 2) beta^(k - l): |beta|^(k - l) times (-1)^(k - l) for beta < 0
-        half = alpha ** (k / 2.0)
+    alpha = values["alpha"]
+    return OffsetStructure(
+        [(alpha**k, ones, 1.0, lambda d: alpha**d, lambda e: np.ones_like(e, dtype=float))],
+        alpha,
+        lambda d, e: alpha ** np.maximum.outer(d, e),
+        [(np.log(alpha), 0.0)],
+    )
 
-        def base(d, e):
-            distance = np.abs(np.subtract.outer(d, e))
-            rho = b**distance
-            if negative:
-                rho = rho * np.cos(np.pi * distance)
-            return alpha ** (np.add.outer(d, e) / 2.0) * rho
 
-        def rising(d):
-            return alpha ** (d / 2.0) * b**d
+def dc_pieces(values: dict, order: int) -> OffsetStructure:
+    """DC's pieces: one exponential for ``beta > 0``, two for ``beta < 0`` (the cosine's)."""
+    k = np.arange(order, dtype=float)
+    alpha, beta = values["alpha"], values["beta"]
+    b = _positive(beta)
+    negative = np.real(beta) < 0
+    # A[k, l] = alpha^((k + l) / 2) beta^(k - l): |beta|^(k - l) times (-1)^(k - l) for beta < 0
+    half = alpha ** (k / 2.0)
 
-        def falling(e):
-            return alpha ** (e / 2.0) * b ** (-e)
+    def base(d, e):
+        distance = np.abs(np.subtract.outer(d, e))
+        rho = b**distance
+        if negative:
+            rho = rho * np.cos(np.pi * distance)
+        return alpha ** (np.add.outer(d, e) / 2.0) * rho
 
-        if not negative:
-            log_a, log_b = np.log(alpha) / 2.0, np.log(b)
-            return OffsetStructure([(half, half, beta, rising, falling)], alpha, base,
-                                   [(log_a + log_b, log_a - log_b)])
-        # cos(pi (n + d - e)) = (-1)^n (cos(pi d) cos(pi e) + sin(pi d) sin(pi e))
-        return OffsetStructure(
-            [
-                (half, half, beta, lambda d: rising(d) * np.cos(np.pi * d),
-                 lambda e: falling(e) * np.cos(np.pi * e)),
-                (half, half, beta, lambda d: rising(d) * np.sin(np.pi * d),
-                 lambda e: falling(e) * np.sin(np.pi * e)),
-            ],
-            alpha,
-            base,
-        )
-    if type(kernel) is SS:
-        alpha = values["alpha"]
+    def rising(d):
+        return alpha ** (d / 2.0) * b**d
 
-        def base(d, e):
-            longest = np.maximum.outer(d, e)
-            return (alpha ** (np.add.outer(d, e) + longest) / 2.0
-                    - alpha ** (3.0 * longest) / 6.0)
+    def falling(e):
+        return alpha ** (e / 2.0) * b ** (-e)
 
-        # t > s: alpha^(2t + s) / 2 - alpha^(3t) / 6
-        return OffsetStructure(
-            [
-                (alpha ** (2.0 * k), alpha**k / 2.0, 1.0,
-                 lambda d: alpha ** (2.0 * d), lambda e: alpha**e),
-                (alpha ** (3.0 * k), -ones / 6.0, 1.0,
-                 lambda d: alpha ** (3.0 * d), lambda e: np.ones_like(e, dtype=float)),
-            ],
-            alpha**3,
-            base,
-            [(2.0 * np.log(alpha), np.log(alpha)), (3.0 * np.log(alpha), 0.0)],
-        )
-    raise TypeError(f"no offset structure for {type(kernel).__name__}")
+    if not negative:
+        log_a, log_b = np.log(alpha) / 2.0, np.log(b)
+        return OffsetStructure([(half, half, beta, rising, falling)], alpha, base,
+                               [(log_a + log_b, log_a - log_b)])
+    # cos(pi (n + d - e)) = (-1)^n (cos(pi d) cos(pi e) + sin(pi d) sin(pi e))
+    return OffsetStructure(
+        [
+            (half, half, beta, lambda d: rising(d) * np.cos(np.pi * d),
+             lambda e: falling(e) * np.cos(np.pi * e)),
+            (half, half, beta, lambda d: rising(d) * np.sin(np.pi * d),
+             lambda e: falling(e) * np.sin(np.pi * e)),
+        ],
+        alpha,
+        base,
+    )
+
+
+def ss_pieces(values: dict, order: int) -> OffsetStructure:
+    """SS's pieces: two exponentials (see :func:`offset_structure`)."""
+    k = np.arange(order, dtype=float)
+    ones = np.ones(order)
+    alpha = values["alpha"]
+
+    def base(d, e):
+        longest = np.maximum.outer(d, e)
+        return (alpha ** (np.add.outer(d, e) + longest) / 2.0
+                - alpha ** (3.0 * longest) / 6.0)
+
+    # t > s: alpha^(2t + s) / 2 - alpha^(3t) / 6
+    return OffsetStructure(
+        [
+            (alpha ** (2.0 * k), alpha**k / 2.0, 1.0,
+             lambda d: alpha ** (2.0 * d), lambda e: alpha**e),
+            (alpha ** (3.0 * k), -ones / 6.0, 1.0,
+             lambda d: alpha ** (3.0 * d), lambda e: np.ones_like(e, dtype=float)),
+        ],
+        alpha**3,
+        base,
+        [(2.0 * np.log(alpha), np.log(alpha)), (3.0 * np.log(alpha), 0.0)],
+    )
 
 
 def exp_divided_difference(z0, z1, z2):

@@ -14,6 +14,7 @@ question                                       method of :class:`ObservedTerm`
 ``S`` and every ``dS_j = Phi dK_j Phi^T``      ``covariance_with_derivatives``
 ``Phi K``                                      ``regressor_times_kernel``
 ``S`` with one summand left out                ``covariance_without``
+``Cov(g(lags), y)`` at any lags                ``cross_covariance``
 =============================================  ===============================
 
 (``dK_j`` is the derivative with respect to the ``j``-th entry of
@@ -31,8 +32,20 @@ observation's business: terms call its products and never ask its type.
 
 :func:`observe` is the one walker over the kernel algebra: ``Sum`` adds
 terms, ``ConstantKernel * k`` keeps the constant a scalar factor, any other
-``Product`` is formed densely with the product rule, and ``ConstantKernel``
-alone is rank one.
+``Product`` is formed densely with the product rule (in parameter space,
+which needs the observation's regressor; readings without one take their
+dense term of the product), and every leaf is asked of the observation,
+which decides what it asks of the kernel:
+
+* :meth:`~gpmultirate.observations.Observation.structured_term` for a
+  :class:`StructuredKernel`: on the integer lags the kernel's
+  :meth:`StructuredKernel.observed`, for readings at their own instants its
+  :meth:`StructuredKernel.observed_at_instants`
+  (:mod:`gpmultirate.kernels.instants`);
+* :meth:`~gpmultirate.observations.Observation.constant_term` for
+  ``ConstantKernel`` (rank one);
+* :meth:`~gpmultirate.observations.Observation.dense_term` for any other
+  scikit-learn kernel.
 
 Tuning also asks what each free hyperparameter *is* (:class:`Role`): a decay
 in (0, 1] (``"decay"``, tuned in decay-rate coordinates), a correlation in
@@ -191,6 +204,14 @@ class ObservedTerm:
         """``Phi K``, of shape ``(M, P)``: the covariance of the data with the coefficients."""
         return self.observation.matrix @ self.kernel_matrix()
 
+    def cross_covariance(self, lags: np.ndarray) -> np.ndarray:
+        """``Cov(g(lags), y)`` for the lags of shape ``(n, d)``: shape ``(n, M)``.
+
+        From the kernel between ``lags`` and the observation's own lags
+        (:meth:`~gpmultirate.observations.Observation.dense_cross_covariance`).
+        """
+        return self.observation.dense_cross_covariance(self.kernel, lags)
+
     def covariance_without(self, kernel: Kernel) -> np.ndarray | None:
         """``S`` with the summand ``kernel`` left out, or None if it is not a summand."""
         if self.kernel is kernel:
@@ -290,6 +311,8 @@ class StructuredKernel:
 
     * override :meth:`observed` to return a term whose methods use its
       structure (subclass :class:`ObservedTerm`, or use :class:`LowRankTerm`);
+    * override :meth:`observed_at_instants` likewise for readings at their
+      own instants (see :mod:`gpmultirate.kernels.instants`);
     * declare ``tuning_roles``, a dict from hyperparameter name to
       ``(kind, power)`` (see :class:`Role`), so that tuning treats decays,
       frequencies and amplitudes well.
@@ -304,6 +327,16 @@ class StructuredKernel:
     def observed(self, observation, path: str = "") -> ObservedTerm:
         """This kernel seen through ``observation``; dense unless overridden."""
         return ObservedTerm(self, observation, path)
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """This kernel seen through readings at their own instants; dense unless overridden.
+
+        ``observation`` has no regressor on the integer lags (a
+        :class:`~gpmultirate.observations.TimedConvolution`); its
+        :meth:`~gpmultirate.observations.Observation.dense_term` forms the
+        covariance from the kernel at the readings' real lags.
+        """
+        return observation.dense_term(self, path)
 
     def roles_term(self, path: str = "") -> ObservedTerm:
         """The term that answers questions about the hyperparameters only (no observation)."""
@@ -340,6 +373,9 @@ class SumTerm(ObservedTerm):
 
     def regressor_times_kernel(self):
         return self.first.regressor_times_kernel() + self.second.regressor_times_kernel()
+
+    def cross_covariance(self, lags):
+        return self.first.cross_covariance(lags) + self.second.cross_covariance(lags)
 
     def covariance_without(self, kernel):
         if self.kernel is kernel:
@@ -440,6 +476,9 @@ class ScaledTerm(ObservedTerm):
 
     def regressor_times_kernel(self):
         return self.value * self.inner.regressor_times_kernel()
+
+    def cross_covariance(self, lags):
+        return self.value * self.inner.cross_covariance(lags)
 
     def _own_roles(self):
         if not self.free:
@@ -664,9 +703,6 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
     >>> [role.kind for role in term.roles()]
     ['amplitude', 'decay', 'correlation', 'decay', 'frequency', 'amplitude', 'amplitude']
     """
-    if observation is not None and hasattr(observation, "observe_kernel"):
-        # readings that are no matrix on the integer lags walk the kernel themselves
-        return observation.observe_kernel(kernel, path)
     if isinstance(kernel, Sum):
         return SumTerm(
             kernel,
@@ -681,6 +717,9 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
             constant, other, first = split
             inner = observe(other, observation, path + ("k2__" if first else "k1__"))
             return ScaledTerm(kernel, constant, inner, first, observation, path)
+        if observation is not None and not observation.has_regressor:
+            # the product rule is applied in parameter space, through the regressor
+            return observation.dense_term(kernel, path)
         return ProductTerm(
             kernel,
             observe(kernel.k1, observation, path + "k1__"),
@@ -688,13 +727,17 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
             observation,
             path,
         )
-    if isinstance(kernel, ConstantKernel):
-        return ConstantTerm(kernel, observation, path)
-    if isinstance(kernel, StructuredKernel):
-        if observation is None:
+    if observation is None:  # the hyperparameters only
+        if isinstance(kernel, ConstantKernel):
+            return ConstantTerm(kernel, None, path)
+        if isinstance(kernel, StructuredKernel):
             return kernel.roles_term(path)
-        return kernel.observed(observation, path)
-    return ObservedTerm(kernel, observation, path)
+        return ObservedTerm(kernel, None, path)
+    if isinstance(kernel, ConstantKernel):
+        return observation.constant_term(kernel, path)
+    if isinstance(kernel, StructuredKernel):
+        return observation.structured_term(kernel, path)
+    return observation.dense_term(kernel, path)
 
 
 def rescaled(kernel: Kernel, factor: float) -> Kernel:

@@ -3,6 +3,8 @@
 See :mod:`gpmultirate.observations.base` for the interface shared by the
 family; :class:`DownsampledConvolution` is the paper's eq. (8) and
 :class:`ReducedObservation` the triangular factor of a long record;
+:class:`FilteredConvolution` reads the output through a sensor's known
+first-order response;
 :class:`SampledConvolution` observes any instants, several inputs and
 periodic or unknown initial conditions, and :class:`RecordStack` stacks
 several records.
@@ -15,6 +17,7 @@ from gpmultirate.observations.convolution import (
     regressor_rows,
 )
 from gpmultirate.observations.experiment import Experiment, build_experiment
+from gpmultirate.observations.filtered import FilteredConvolution
 from gpmultirate.observations.reduced import ReducedObservation, reduce_observation
 from gpmultirate.observations.sampled import (
     INITIAL_CONDITIONS,
@@ -30,6 +33,7 @@ __all__ = [
     "ColumnBlock",
     "DownsampledConvolution",
     "Experiment",
+    "FilteredConvolution",
     "InterpolatedConvolution",
     "Observation",
     "RecordStack",

@@ -23,7 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gpmultirate.kernels import observe
+from gpmultirate.kernels import ObservedTerm, observe
+from gpmultirate.kernels.structure import ConstantTerm, cross_kernel
 from gpmultirate.validation import check_array
 
 __all__ = ["ColumnBlock", "Observation", "UniformSampling"]
@@ -68,6 +69,13 @@ class Observation:
     #: whether the data are a regressor on the integer lags (:attr:`matrix`); readings
     #: between the ticks are not, and the routes that need ``Phi`` pass them by
     has_regressor: bool = True
+    #: whether the readings see the response between the integer lags (a model of it
+    #: is then fitted and drawn there)
+    between_ticks: bool = False
+    #: the layout of the observation in a model file (:mod:`gpmultirate.persistence`):
+    #: ``"records"`` (each record's input and sample indices), ``"downsampled"``
+    #: (one input, factor and offset) or ``"timed"`` (each record's input and instants)
+    file_layout: str = "records"
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -217,6 +225,24 @@ class Observation:
         gram *= 0.5
         return gram, projection
 
+    # ------------------------------------------------------ the kernel's terms
+    def structured_term(self, kernel, path: str = "") -> ObservedTerm:
+        """A :class:`~gpmultirate.kernels.StructuredKernel` leaf seen through this observation.
+
+        What the walker (:func:`~gpmultirate.kernels.observe`) asks for each
+        leaf that answers for its own structure: on the integer lags, the
+        kernel's :meth:`~gpmultirate.kernels.StructuredKernel.observed`.
+        """
+        return kernel.observed(self, path)
+
+    def constant_term(self, kernel, path: str = "") -> ObservedTerm:
+        """A ``ConstantKernel`` leaf seen through this observation: rank one."""
+        return ConstantTerm(kernel, self, path)
+
+    def dense_term(self, kernel, path: str = "") -> ObservedTerm:
+        """Any kernel seen through this observation, densely from ``K`` and ``Phi``."""
+        return ObservedTerm(kernel, self, path)
+
     # ------------------------------------------------- with a kernel (dense)
     def kernel_matrix(self, kernel, eval_gradient: bool = False):
         """Return the prior covariance ``K`` of the coefficients at lags ``0..P-1``."""
@@ -239,8 +265,10 @@ class Observation:
 
     def cross_covariance(self, kernel, lags) -> np.ndarray:
         """Return ``Cov(g(lags), y) = k(lags, 0..P-1) Phi^T``, shape ``(n, M)``."""
-        from gpmultirate.kernels.structure import cross_kernel
+        return self.dense_cross_covariance(kernel, lags)
 
+    def dense_cross_covariance(self, kernel, lags) -> np.ndarray:
+        """``Cov(g(lags), y)`` from the kernel between ``lags`` and the observation's own lags."""
         return cross_kernel(kernel, lags, self.lags) @ self.matrix.T
 
     # ------------------------------------------------- what a fit of these data reads

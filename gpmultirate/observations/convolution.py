@@ -60,6 +60,9 @@ class DownsampledConvolution(Observation):
     array([1., 3., 5.])
     """
 
+    #: a model file holds the input, the factor and the offset (format version 1)
+    file_layout = "downsampled"
+
     def __init__(self, u, factor: int, order: int, offset: int = 0):
         u = check_signal(u, "u")
         self.factor = check_int(factor, "factor", low=1)

@@ -119,6 +119,11 @@ class InterpolatedConvolution(Observation):
     True
     """
 
+    # the model is fitted on the integer lags but read between them; a model file holds
+    # the timed readings it interpolates (:attr:`records`)
+    between_ticks = True
+    file_layout = "timed"
+
     def __init__(self, timed, points: int = DEFAULT_POINTS):
         nodes = stencil(points)
         if not isinstance(timed, TimedConvolution):

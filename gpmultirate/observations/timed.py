@@ -17,7 +17,11 @@ the posterior and its bands stay exact Gaussian computations;
 Its readings are not a matrix on the integer lags, so the routes of the
 integer-lag observations (the long-record reduction, the diagonal recursion,
 the filters of DC) do not apply.  The covariance of the readings is formed by
-the kernel's terms below:
+the kernel's terms for readings at their own instants
+(:mod:`gpmultirate.kernels.instants`): the walker
+(:func:`~gpmultirate.kernels.observe`) asks this observation for each leaf,
+and the observation asks a structured kernel for its
+:meth:`~gpmultirate.kernels.StructuredKernel.observed_at_instants`:
 
 * TC, DC and SS by their semiseparable structure between integer lags
   (:mod:`gpmultirate.kernels.offsets`): ``O(M P + M^2 P)``, the products
@@ -43,14 +47,14 @@ integer lag is in closed form
 (:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`, a
 divided difference of ``exp``; it agrees with the quadrature to ``1e-12``);
 DC with ``beta < 0`` splits the double integral at the kink
-(:func:`_ordered_integral`), and the cross-covariance with ``g`` at real lags
-likewise, so with an exposure they are exact to rounding (8 and 16 nodes
-agree to ``1e-10``; a brute-force double sum with 96 nodes agrees to its own
-error, about ``1e-6``).  PK and constants are smooth: exact to rounding as
-well.  The dense route integrates by the points; for smooth kernels (RBF)
-its error is below ``1e-8``, for a kinked kernel inside a product, or TC/DC
-of several inputs, it falls as the square of the nodes (about ``5e-4`` of
-the covariance with 16 nodes).
+(:func:`~gpmultirate.kernels.instants._ordered_integral`), and the
+cross-covariance with ``g`` at real lags likewise, so with an exposure they
+are exact to rounding (8 and 16 nodes agree to ``1e-10``; a brute-force
+double sum with 96 nodes agrees to its own error, about ``1e-6``).  PK and
+constants are smooth: exact to rounding as well.  The dense route integrates
+by the points; for smooth kernels (RBF) its error is below ``1e-8``, for a
+kinked kernel inside a product, or TC/DC of several inputs, it falls as the
+square of the nodes (about ``5e-4`` of the covariance with 16 nodes).
 """
 
 from __future__ import annotations
@@ -59,17 +63,10 @@ import copy
 
 import numpy as np
 from scipy import linalg, sparse
-from sklearn.gaussian_process.kernels import ConstantKernel, Product, Sum
 
-from gpmultirate.kernels.inputs import PerInputKernel
-from gpmultirate.kernels.lag import PK
-from gpmultirate.kernels.offsets import (
-    _exp_integral, offset_structure, ordered_exponential_integral, supports_offsets,
-    times_lower,
-)
-from gpmultirate.kernels.structure import (
-    ConstantTerm, ObservedTerm, ScaledTerm, SumTerm, split_constant,
-)
+from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
+from gpmultirate.kernels.offsets import offset_structure
+from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
 from gpmultirate.observations.sampled import check_initial_conditions
@@ -82,10 +79,6 @@ __all__ = [
 
 #: Gauss-Legendre nodes on each piece of an exposure window between two ticks
 QUADRATURE_NODES = 16
-#: the complex step of the derivatives (relative to the value)
-_STEP = 1e-30
-#: kernel entries formed at once by the dense route and the cross-covariance
-_BLOCK_ENTRIES = 2**22
 
 
 def check_sample_times(times, n_samples: int, name: str = "sample_times") -> np.ndarray:
@@ -151,71 +144,6 @@ def _window_points(times, exposure: float, latency: float, nodes: int):
             (np.array(starts), np.array(stops)))
 
 
-def _ordered_integral(f, h, a1, b1, a2, b2, xi, w):
-    """``int_{x in [a1, b1]} int_{y in [a2, b2], y < x} f(x) h(y) dy dx``, elementwise.
-
-    The region's edge ``y = x`` is where the kernel has its kink; on each
-    side of ``x = b2`` the integrand is smooth, so nested Gauss-Legendre
-    rules on the two parts are exact to rounding for the exponentials and
-    cosines of the lag kernels.
-    """
-    low = np.maximum(a1, a2)
-    high = np.maximum(b1, low)
-    split = np.clip(b2, low, high)
-    total = 0.0
-    for start, stop, follows_x in ((low, split, True), (split, high, False)):
-        half = 0.5 * (stop - start)
-        x = start[..., None] + half[..., None] * (xi + 1.0)
-        upper = x if follows_x else np.broadcast_to(b2[..., None], x.shape)
-        inner_half = 0.5 * (upper - a2[..., None])
-        y = a2[..., None, None] + inner_half[..., None] * (xi + 1.0)
-        inner = (h(y) @ w) * inner_half
-        total = total + ((f(x) * inner) @ w) * half
-    return total
-
-
-def _cell_integrals(found, r, f, h, a, b, nodes):
-    """Over each cell ``[a, b]``: the integrals of ``f_r`` and ``h_r``, and of ``f_r(x) h_r(y)``
-    over its triangle ``y < x`` (closed form for exponentials, else Gauss-Legendre)."""
-    if found.rates is not None:
-        lam, mu = found.rates[r]
-        return (_exp_integral(lam, a, b), _exp_integral(mu, a, b),
-                ordered_exponential_integral(lam, mu, a, b, a, b))
-    xi, w = np.polynomial.legendre.leggauss(nodes)
-    half = 0.5 * (b - a)
-    x = a[:, None] + half[:, None] * (xi + 1.0)
-    return ((f(x) @ w) * half, (h(x) @ w) * half, _ordered_integral(f, h, a, b, a, b, xi, w))
-
-
-def _step_product(A, B):
-    """``A @ B`` for real or complex-step matrices, in real products.
-
-    A complex-step value is ``x + i h x'`` with ``h`` far below rounding, so
-    the product of the two imaginary parts (``O(h^2)``) is dropped, as the
-    complex step drops it from the real part: three real products where
-    the complex one takes four, two where one factor is real.
-    """
-    a_complex, b_complex = np.iscomplexobj(A), np.iscomplexobj(B)
-    if not (a_complex or b_complex):
-        return A @ B
-    if not b_complex:
-        return (A.real @ B) + 1j * (A.imag @ B)
-    if not a_complex:
-        return (A @ B.real) + 1j * (A @ B.imag)
-    return (A.real @ B.real) + 1j * (A.imag @ B.real + A.real @ B.imag)
-
-
-def _base_at_points(found, d):
-    """``k(d_i, d_j)`` at the offsets, from the lower pieces (``k(x, y) = sum_r A_r[0, 0]
-    f_r(x) h_r(y)`` for ``x >= y``): ``O(M)`` exponentials instead of ``O(M^2)`` powers."""
-    later = d[:, None] >= d[None, :]
-    out = 0.0
-    for p_r, q_r, _, f, h in found.lower:
-        outer = np.multiply.outer(f(d), h(d))
-        out = out + p_r[0] * q_r[0] * np.where(later, outer, outer.T)
-    return out
-
-
 class TimedConvolution(Observation):
     """The readings of a slow sensor at its own instants, with exposure and latency.
 
@@ -273,6 +201,8 @@ class TimedConvolution(Observation):
     reducible = False
 
     has_regressor = False
+    between_ticks = True
+    file_layout = "timed"
 
     def __init__(self, u, sample_times, order: int, exposure: float = 0.0,
                  latency: float = 0.0, initial_conditions: str = "zero",
@@ -397,6 +327,33 @@ class TimedConvolution(Observation):
         """The number of instants the readings are formed from (quadrature nodes)."""
         return self._offsets.shape[0]
 
+    # the points, as the kernels' terms read them (:mod:`gpmultirate.kernels.instants`)
+    @property
+    def point_offsets(self) -> np.ndarray:
+        """Each point's offset from its tick, in ``[0, 1)``: shape ``(n_points,)``."""
+        return self._offsets
+
+    @property
+    def point_readings(self) -> np.ndarray:
+        """The reading each point belongs to: shape ``(n_points,)``."""
+        return self._reading
+
+    @property
+    def point_weights(self) -> np.ndarray:
+        """Each point's quadrature weight in its reading (1 without exposure)."""
+        return self._weights
+
+    @property
+    def point_row_ids(self) -> np.ndarray:
+        """Each point's row in :meth:`unique_rows` (its record and tick)."""
+        return self._row_id
+
+    @property
+    def pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(piece, start, stop)``: each point's piece of its window between two ticks,
+        and each piece's ends as offsets from its tick."""
+        return self._piece, self._piece_start, self._piece_stop
+
     @property
     def matrix(self):
         """Not available: the readings are no matrix on the integer lags."""
@@ -514,7 +471,7 @@ class TimedConvolution(Observation):
         rows = self.unique_rows()[:, input * P:(input + 1) * P]
         lags = np.arange(P, dtype=float)
         out = None
-        step = max(1, _BLOCK_ENTRIES // (4 * P))
+        step = max(1, BLOCK_ENTRIES // (4 * P))
         for start in range(0, self.n_points, step):
             stop = min(start + step, self.n_points)
             x = lags[None, :] + self._offsets[start:stop, None]
@@ -566,7 +523,7 @@ class TimedConvolution(Observation):
         spectrum = np.fft.rfft(rows * envelope, n=2 * n_fft, axis=1)[:, index]
         omegas = np.pi * index / n_fft
         out = np.zeros((self.n_outputs, index.shape[0]), dtype=complex)
-        step = max(1, _BLOCK_ENTRIES // (4 * max(index.shape[0], 1)))
+        step = max(1, BLOCK_ENTRIES // (4 * max(index.shape[0], 1)))
         for start in range(0, self.n_points, step):
             stop = min(start + step, self.n_points)
             d = self._offsets[start:stop, None]
@@ -616,9 +573,17 @@ class TimedConvolution(Observation):
         return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
 
     # -------------------------------------------------------- with a kernel
-    def observe_kernel(self, kernel, path: str = "") -> ObservedTerm:
-        """``kernel`` seen through these readings: the tree of terms (see the module)."""
-        return timed_term(kernel, self, path)
+    def structured_term(self, kernel, path: str = "") -> ObservedTerm:
+        """A structured leaf through these readings: the kernel's ``observed_at_instants``."""
+        return kernel.observed_at_instants(self, path)
+
+    def constant_term(self, kernel, path: str = "") -> ObservedTerm:
+        """A constant through these readings: rank one, the readings of the constant 1."""
+        return ConstantTimedTerm(kernel, self, path)
+
+    def dense_term(self, kernel, path: str = "") -> ObservedTerm:
+        """Any kernel through these readings, from the kernel at their real lags."""
+        return DenseTimedTerm(kernel, self, path)
 
     def kernel_matrix(self, kernel, eval_gradient: bool = False):
         if eval_gradient:
@@ -627,7 +592,7 @@ class TimedConvolution(Observation):
 
     def covariance(self, kernel, eval_gradient: bool = False):
         """The prior covariance of the noise-free readings (and its gradient in ``theta``)."""
-        term = timed_term(kernel, self)
+        term = observe(kernel, self)
         if not eval_gradient:
             return term.covariance()
         S, items = term.covariance_with_derivatives()
@@ -645,18 +610,9 @@ class TimedConvolution(Observation):
         lags = np.asarray(lags, dtype=float)
         if lags.ndim == 1:
             lags = lags[:, None]
-        if isinstance(kernel, Sum):
-            return self.cross_covariance(kernel.k1, lags) + self.cross_covariance(kernel.k2, lags)
-        split = split_constant(kernel) if isinstance(kernel, Product) else None
-        if split is not None:
-            return float(split[0].constant_value) * self.cross_covariance(split[1], lags)
-        out = self._point_cross_covariance(kernel, lags)
-        if (self.exposure > 0.0 and self.n_inputs == 1 and supports_offsets(kernel)
-                and float(getattr(kernel, "beta", 1.0)) != 0.0):
-            out += self._kink_correction(kernel, lags[:, 0])
-        return out
+        return observe(kernel, self).cross_covariance(lags)
 
-    def _kink_correction(self, kernel, lags) -> np.ndarray:
+    def kink_correction(self, kernel, lags) -> np.ndarray:
         """Exact minus quadrature, for the window lags on the same integer lag as ``lags``."""
         values = {h.name: float(getattr(kernel, h.name)) for h in kernel.hyperparameters}
         found = offset_structure(kernel, values, self.order)
@@ -698,7 +654,8 @@ class TimedConvolution(Observation):
         out[inside] = correction * scale[:, None]
         return out
 
-    def _point_cross_covariance(self, kernel, lags) -> np.ndarray:
+    def dense_cross_covariance(self, kernel, lags) -> np.ndarray:
+        """``Cov(g(lags), y)`` from the kernel at the real lags of the readings' points."""
         rows = self.unique_rows()
         out = np.zeros((lags.shape[0], self.n_outputs))
         offsets, group = np.unique(self._offsets, return_inverse=True)
@@ -786,298 +743,6 @@ def _dense(item) -> np.ndarray:
         U, D = item
         return U @ D @ U.T
     return item
-
-
-# ---------------------------------------------------------------- the terms
-class _TimedTerm(ObservedTerm):
-    """A leaf kernel seen through timed readings; subclasses provide :meth:`_build`.
-
-    ``_build(values)`` returns the covariance of the readings for the
-    hyperparameter ``values`` (real, or complex for the complex step); the
-    derivative with respect to a free ``theta`` entry is
-    ``Im build(value + i h) / h`` times ``d value / d theta``.
-    """
-
-    def _values(self) -> dict:
-        return {h.name: float(getattr(self.kernel, h.name)) for h in self.kernel.hyperparameters}
-
-    def _free(self):
-        return [h for h in self.kernel.hyperparameters if not h.fixed]
-
-    def _build(self, values):
-        raise NotImplementedError
-
-    def covariance(self):
-        if getattr(self, "_covariance", None) is None:
-            S = np.real(self._build(self._values()))
-            self._covariance = 0.5 * (S + S.T)
-        return self._covariance
-
-    def _derivatives(self):
-        values = self._values()
-        items = []
-        for h in self._free():
-            step = _STEP * max(abs(values[h.name]), 1.0)
-            moved = dict(values)
-            moved[h.name] = values[h.name] + 1j * step
-            built = self._build(moved)
-            if getattr(self, "_covariance", None) is None:
-                # the real part of the complex step is the value to O(step^2): no build of its own
-                S = np.real(built)
-                self._covariance = 0.5 * (S + S.T)
-            dS = np.imag(built) / step
-            transform = getattr(self.kernel, "theta_transform", None)
-            chain = (values[h.name] if transform is None
-                     else float(transform(h.name).derivative(values[h.name])))
-            dS = chain * 0.5 * (dS + dS.T)
-            items.append(dS)
-        return items
-
-    def covariance_with_derivatives(self):
-        items = self._derivatives()
-        return self.covariance(), items
-
-    def covariance_with_contractor(self):
-        items = self._derivatives()
-        return self.covariance(), lambda W: np.array([np.sum(W * dS) for dS in items])
-
-    def regressor_times_kernel(self):
-        return self.observation.cross_covariance(self.kernel, self.observation.lags).T
-
-    def low_rank(self):
-        return None
-
-    def precision(self):
-        return None
-
-
-class ShiftScaledTimedTerm(_TimedTerm):
-    """TC, DC or SS through timed readings, by the semiseparable structure.
-
-    With the strictly lower pieces ``A_r, f_r, h_r`` and the shift scale
-    ``c`` (:func:`~gpmultirate.kernels.offsets.offset_structure`), the
-    readings' covariance is
-
-    ``S = sum_r (X_r A_r Y_r^T + Y_r A_r^T X_r^T) + Q ((R C R^T) o H) Q^T``
-
-    with ``X_r = Q diag(f_r) R`` and ``Y_r = Q diag(h_r) R`` (``R`` the
-    points' regressor rows, ``Q`` the quadrature sums), ``C = diag(c^k)``
-    and ``H = k(d_i, d_j)`` at the points' offsets.
-    """
-
-    def _build(self, values):
-        obs = self.observation
-        P = obs.order
-        found = offset_structure(self.kernel, values, P)
-        d = obs._offsets
-        S = 0.0
-        for p, q, c, f, h in found.lower:
-            X = obs.weighted_rows(f(d))
-            Y = obs.weighted_rows(h(d))
-            part = _step_product(times_lower(X, p, q, c), Y.T)
-            S = S + part + part.T
-        rows = obs.unique_rows()
-        scale = found.scale ** np.arange(P, dtype=float)
-        G = _step_product(rows * scale, rows.T)
-        if obs.exposure == 0.0:
-            ids = obs._row_id
-            return S + G[np.ix_(ids, ids)] * _base_at_points(found, d)
-        return S + self._windows_on_equal_lags(found, G)
-
-    def _windows_on_equal_lags(self, found, G):
-        """``sum_k c^k`` times the kernel at the offsets, integrated over pairs of window pieces.
-
-        ``k(k + x, k + y) = c^k k(x, y)`` has its kink at ``x = y``, with
-        ``k(x, y) = sum_r A_r[0, 0] f_r(x) h_r(y)`` for ``x > y``.  The ends
-        of all the pieces cut ``[0, 1]`` into cells; a piece is a run of
-        cells, and the integral over ``y < x`` of two pieces is the sum of
-        ``F_a H_b`` over their cells ``a > b`` (``F``, ``H`` the integrals of
-        ``f_r``, ``h_r`` over a cell) plus, over their common cells, the
-        integral ``T_a`` over the triangle ``y < x`` of the cell.  These are
-        in closed form where ``f_r`` and ``h_r`` are exponentials
-        (:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`),
-        otherwise by Gauss-Legendre quadrature on the cell (nested on the
-        triangle, :func:`_ordered_integral`), where the integrands are
-        smooth.  The sums over runs of cells are differences of cumulative
-        sums: ``O(n E)`` for ``n`` pieces and ``E <= 2 n`` cells.
-        """
-        obs = self.observation
-        start, stop = obs._piece_start, obs._piece_stop
-        n_pieces = start.shape[0]
-        first_point = np.searchsorted(obs._piece, np.arange(n_pieces))
-        reading = obs._reading[first_point]
-        row = obs._row_id[first_point]
-        edges = np.unique(np.concatenate([start, stop]))
-        low, high = np.searchsorted(edges, start), np.searchsorted(edges, stop)
-        a, b = edges[:-1], edges[1:]
-        cells = np.arange(a.shape[0] + 1)
-        # common cells of two pieces: from max(low) to max(min(high), max(low))
-        common_low = np.maximum.outer(low, low)
-        common_high = np.maximum(np.minimum.outer(high, high), common_low)
-        block = max(1, _BLOCK_ENTRIES // (4 * cells.shape[0]))
-        value = 0.0
-        for r, (p_r, q_r, _, f, h) in enumerate(found.lower):
-            F, H, T = _cell_integrals(found, r, f, h, a, b, obs.nodes)
-            zero = np.zeros(1, dtype=F.dtype)
-            cum_H = np.concatenate([zero, np.cumsum(H)])
-            cum_T = np.concatenate([zero, np.cumsum(T)])
-            # I[i, j] = int_{x in piece i} int_{y in piece j, y < x} f_r(x) h_r(y)
-            I = np.empty((n_pieces, n_pieces), dtype=F.dtype)
-            for j0 in range(0, n_pieces, block):
-                j = slice(j0, min(j0 + block, n_pieces))
-                # V[j, x]: the integral of h_r over the cells of piece j before cell x
-                before = np.clip(cells[None, :-1], low[j, None], high[j, None])
-                V = cum_H[before] - cum_H[low[j], None]
-                W = np.concatenate([np.zeros((V.shape[0], 1), dtype=V.dtype),
-                                    np.cumsum(V * F, axis=1)], axis=1)
-                I[:, j] = (W[:, high] - W[:, low]).T
-            I += cum_T[common_high] - cum_T[common_low]
-            value = value + p_r[0] * q_r[0] * (I + I.T)
-        pieces = value * G[np.ix_(row, row)] / obs.exposure**2
-        Q = sparse.csr_matrix(
-            (np.ones(n_pieces), (reading, np.arange(n_pieces))),
-            shape=(obs.n_outputs, n_pieces),
-        )
-        return np.asarray(Q @ np.asarray(Q @ pieces).T).T
-
-    def regressor_times_kernel(self):
-        # Cov(y_i, g(l)): k > l from f_r(d) h_r(0), k < l from f_r(0) h_r(d), k = l from c^k k(d, 0)
-        obs = self.observation
-        P = obs.order
-        found = offset_structure(self.kernel, self._values(), P)
-        d = obs._offsets
-        zero = np.zeros(1)
-        out = 0.0
-        for p, q, c, f, h in found.lower:
-            out = out + times_lower(obs.weighted_rows(f(d)), p, q, c) * float(np.real(h(zero)[0]))
-            out = out + float(np.real(f(zero)[0])) * times_lower(
-                obs.weighted_rows(h(d)), p, q, c, transpose=True)
-        scale = found.scale ** np.arange(P, dtype=float)
-        out = out + obs.weighted_rows(found.base(d, zero)[:, 0]) * scale
-        return np.real(out)
-
-
-class LowRankTimedTerm(_TimedTerm):
-    """PK or a constant through timed readings: ``S = U D U^T``, ``U`` the basis's readings."""
-
-    def _factors(self, values):
-        obs = self.observation
-        P = obs.order
-        if isinstance(self.kernel, ConstantKernel):
-            U = obs.weighted_rows().sum(axis=1, keepdims=True)
-            return U, np.array([[values["constant_value"]]])
-        alpha, omega = values["alpha"], values["omega"]
-        rows = obs.point_rows()
-        lags = np.arange(P)[None, :] + obs._offsets[:, None]
-        envelope = alpha ** (lags / 2.0)
-        cos_part = np.einsum("ij,ij->i", rows, envelope * np.cos(omega * lags))
-        sin_part = np.einsum("ij,ij->i", rows, envelope * np.sin(omega * lags))
-        Q = sparse.csr_matrix(
-            (obs._weights, (obs._reading, np.arange(obs.n_points))),
-            shape=(obs.n_outputs, obs.n_points),
-        )
-        U = np.column_stack([Q @ cos_part, Q @ sin_part])
-        D = np.diag([values["sigma1"] ** 2, values["sigma2"] ** 2])
-        return U, D
-
-    def _build(self, values):
-        U, D = self._factors(values)
-        return (U @ D) @ U.T
-
-    def roles(self):
-        if not isinstance(self.kernel, ConstantKernel):
-            return super().roles()
-        return ConstantTerm(self.kernel, None, self.path).roles()
-
-    def scale_roles(self):
-        if not isinstance(self.kernel, ConstantKernel):
-            return super().scale_roles()
-        return [0] if self._free() else None
-
-
-class DenseTimedTerm(_TimedTerm):
-    """Any kernel through timed readings, from the kernel at the real lags, by distinct offsets."""
-
-    def _pairs(self, eval_gradient: bool):
-        obs = self.observation
-        rows = obs.point_rows()
-        offsets, group = np.unique(obs._offsets, return_inverse=True)
-        group = group.reshape(-1)
-        n = obs.n_points
-        n_theta = self.kernel.n_dims if eval_gradient else 0
-        S = np.zeros((n, n))
-        dS = np.zeros((n_theta, n, n))
-        members = [np.flatnonzero(group == g) for g in range(offsets.shape[0])]
-        lags = [obs.point_lags(o) for o in offsets]
-        for a in range(offsets.shape[0]):
-            for b in range(a, offsets.shape[0]):
-                ia, ib = members[a], members[b]
-                if eval_gradient:
-                    # scikit-learn's gradients are of k(X, X): both offsets' lags stacked
-                    both = lags[a] if a == b else np.vstack([lags[a], lags[b]])
-                    K, dK = self.kernel(both, eval_gradient=True)
-                    size = lags[a].shape[0]
-                    K, dK = K[:size, -size:], dK[:size, -size:]
-                else:
-                    K = self.kernel(lags[a], lags[b])
-                block = rows[ia] @ K @ rows[ib].T
-                S[np.ix_(ia, ib)] = block
-                S[np.ix_(ib, ia)] = block.T
-                for j in range(n_theta):
-                    block = rows[ia] @ dK[:, :, j] @ rows[ib].T
-                    dS[j][np.ix_(ia, ib)] = block
-                    dS[j][np.ix_(ib, ia)] = block.T
-        return S, dS
-
-    def covariance(self):
-        if getattr(self, "_covariance", None) is None:
-            S, _ = self._pairs(False)
-            S = self.observation.point_sum(S)
-            self._covariance = 0.5 * (S + S.T)
-        return self._covariance
-
-    def _derivatives(self):
-        S, dS = self._pairs(True)
-        point_sum = self.observation.point_sum
-        if getattr(self, "_covariance", None) is None:
-            S = point_sum(S)
-            self._covariance = 0.5 * (S + S.T)
-        return [point_sum(d) for d in dS]
-
-
-def timed_term(kernel, observation: TimedConvolution, path: str = "") -> ObservedTerm:
-    """The walker for timed readings: sums and constant multiples kept, leaves by their structure.
-
-    TC, DC (``beta != 0``) and SS of one input take their semiseparable term,
-    PK of one input and constants their low-rank term; independent inputs
-    (:class:`~gpmultirate.kernels.PerInputKernel`) the sum of each input's
-    term on its own readings; every other kernel (products, inputs coupled,
-    any scikit-learn kernel) the dense term.
-    """
-    if isinstance(kernel, Sum):
-        return SumTerm(
-            kernel, timed_term(kernel.k1, observation, path + "k1__"),
-            timed_term(kernel.k2, observation, path + "k2__"), observation, path,
-        )
-    if isinstance(kernel, Product):
-        split = split_constant(kernel)
-        if split is not None:
-            constant, other, first = split
-            inner = timed_term(other, observation, path + ("k2__" if first else "k1__"))
-            return ScaledTerm(kernel, constant, inner, first, observation, path)
-        return DenseTimedTerm(kernel, observation, path)
-    if isinstance(kernel, ConstantKernel):
-        return LowRankTimedTerm(kernel, observation, path)
-    if isinstance(kernel, PerInputKernel) and kernel.n_inputs == observation.n_inputs:
-        # independent inputs: the sum of each input's readings (input_block), each input's
-        # kernel walked again on its own
-        return kernel.observed(observation, path)
-    if observation.n_inputs == 1:
-        if supports_offsets(kernel) and float(getattr(kernel, "beta", 1.0)) != 0.0:
-            return ShiftScaledTimedTerm(kernel, observation, path)
-        if type(kernel) is PK:
-            return LowRankTimedTerm(kernel, observation, path)
-    return DenseTimedTerm(kernel, observation, path)
 
 
 def on_the_ticks(sample_times, exposure: float, latency: float):
@@ -1183,14 +848,14 @@ def predict_readings(posterior, data, kernel, readings: TimedConvolution):
     """
     if isinstance(data, TimedConvolution):
         joint = TimedConvolution.stack([data, readings])
-        S = timed_term(kernel, joint).covariance()
+        S = observe(kernel, joint).covariance()
         M = data.n_outputs
         cross = S[M:, :M]
         mean = cross @ posterior.alpha
         V = linalg.solve_triangular(posterior.L, cross.T, lower=True, check_finite=False)
         var = np.diag(S[M:, M:]) - np.einsum("ij,ij->j", V, V)
         return mean, np.maximum(var, 0.0)
-    term = timed_term(kernel, readings)
+    term = observe(kernel, readings)
     prior = np.diag(term.covariance())
     with_lags = term.regressor_times_kernel()  # Cov(readings, g(0..P-1))
     K = kernel(data.lags)

@@ -31,8 +31,7 @@ from gpmultirate.plotting.axes import (
     label_marker,
     to_db,
 )
-from gpmultirate.observations.interpolated import InterpolatedConvolution
-from gpmultirate.observations.timed import TimedConvolution, check_sample_times
+from gpmultirate.observations.timed import check_sample_times
 from gpmultirate.responses import ImpulseResponse, OutputPrediction, normal_quantile
 from gpmultirate.study.examples import NonidentifiableExample
 from gpmultirate.validation import (
@@ -397,8 +396,7 @@ def plot_intersample(
 
 def _continuous(model, sample_times, between) -> bool:
     """Whether ``plot_intersample`` draws ``model``'s band between the ticks."""
-    timed = isinstance(getattr(model, "observation_", None),
-                       (TimedConvolution, InterpolatedConvolution))
+    timed = getattr(getattr(model, "observation_", None), "between_ticks", False)
     if sample_times is None and between is None and not timed:
         return False
     # a FIRGaussianProcess: its posterior and the sensor's exposure

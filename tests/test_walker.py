@@ -1,0 +1,133 @@
+"""One walker over the kernel algebra: the observation decides what it asks of each leaf.
+
+On the integer lags a structured kernel answers through ``observed``, for
+readings at their own instants through ``observed_at_instants``; sums and
+constant multiples are the walker's, for both.  Each check compares with the
+dense formula (the kernel at the readings' real lags), not with the route
+under test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.gaussian_process.kernels import RBF, Hyperparameter, Kernel
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+from gpmultirate.kernels import DC, PK, StructuredKernel, TC, observe
+from gpmultirate.kernels.instants import DenseTimedTerm, ShiftScaledTimedTerm
+from gpmultirate.kernels.structure import ProductTerm, ScaledTerm, SumTerm
+from gpmultirate.observations import SampledConvolution, TimedConvolution
+
+RNG = np.random.default_rng(7)
+U = RNG.standard_normal(60)
+TIMES = np.sort(RNG.uniform(10, 59, 15))
+
+
+def dense_readings_covariance(kernel, u, times, order):
+    """Without exposure: reading ``m`` is ``sum_j u[floor(t) - j] g(t - floor(t) + j)``."""
+    rows, lags = [], []
+    for t in times:
+        tick = int(np.floor(t))
+        rows.append([u[tick - j] if tick - j >= 0 else 0.0 for j in range(order)])
+        lags.append(np.arange(order) + (t - tick))
+    rows, lags = np.array(rows), np.array(lags)
+    M = len(times)
+    S = np.empty((M, M))
+    for a in range(M):
+        for b in range(M):
+            S[a, b] = rows[a] @ kernel(lags[a][:, None], lags[b][:, None]) @ rows[b]
+    return S
+
+
+class Exponential(StructuredKernel, Kernel):
+    """``k(t, s) = pole^(t + s)``, rank one, with a timed term of its own (the example's)."""
+
+    def __init__(self, pole=0.8, pole_bounds=(1e-3, 1.0)):
+        self.pole = pole
+        self.pole_bounds = pole_bounds
+
+    @property
+    def hyperparameter_pole(self):
+        return Hyperparameter("pole", "numeric", self.pole_bounds)
+
+    def __call__(self, X, Y=None, eval_gradient=False):
+        x = np.asarray(X, dtype=float)[:, 0]
+        y = x if Y is None else np.asarray(Y, dtype=float)[:, 0]
+        K = self.pole ** np.add.outer(x, y)
+        if eval_gradient:
+            return K, (np.add.outer(x, y) * K)[:, :, None]
+        return K
+
+    def diag(self, X):
+        return np.diag(self(X))
+
+    def is_stationary(self):
+        return False
+
+    asked = []
+
+    def observed_at_instants(self, observation, path=""):
+        Exponential.asked.append(path)
+        return DenseTimedTerm(self, observation, path)
+
+
+def test_a_kernel_answers_for_timed_readings_with_one_method():
+    Exponential.asked.clear()
+    kernel = C(2.0) * Exponential(0.8) + C(0.5) * TC(0.9)
+    timed = TimedConvolution(U, TIMES, order=12)
+    S = timed.covariance(kernel)
+    assert Exponential.asked == ["k1__k2__"]
+    np.testing.assert_allclose(S, dense_readings_covariance(kernel, U, TIMES, 12),
+                               rtol=1e-10, atol=1e-12)
+
+
+def test_the_walker_keeps_sums_and_constants_and_asks_the_leaves():
+    timed = TimedConvolution(U, TIMES, order=12)
+    term = observe(C(2.0) * DC(0.8, 0.6) + RBF(2.0) * TC(0.9), timed)
+    assert isinstance(term, SumTerm)
+    assert isinstance(term.first, ScaledTerm)
+    assert isinstance(term.first.inner, ShiftScaledTimedTerm)
+    assert isinstance(term.second, DenseTimedTerm)  # a product needs a regressor
+    ticks = SampledConvolution(U, np.arange(10, 59, 3), order=12)
+    assert isinstance(observe(RBF(2.0) * TC(0.9), ticks), ProductTerm)
+
+
+def test_a_subclass_of_a_lag_kernel_keeps_its_timed_term():
+    class Mine(DC):
+        pass
+
+    timed = TimedConvolution(U, TIMES, order=12)
+    kernel = Mine(0.8, -0.5)
+    assert isinstance(observe(kernel, timed), ShiftScaledTimedTerm)
+    np.testing.assert_allclose(timed.covariance(kernel),
+                               dense_readings_covariance(kernel, U, TIMES, 12),
+                               rtol=1e-10, atol=1e-12)
+
+
+def test_the_cross_covariance_walks_the_same_terms():
+    lags = np.array([0.25, 3.5, 7.75])
+    kernel = C(1.7) * DC(0.85, 0.5) + PK(0.9, 0.7)
+    # at the instants: Cov(g(l), y_m) = sum_j u[tick_m - j] k(l, j + offset_m)
+    timed = TimedConvolution(U, TIMES, order=12)
+    expected = np.empty((3, TIMES.shape[0]))
+    for m, t in enumerate(TIMES):
+        tick = int(np.floor(t))
+        row = np.array([U[tick - j] if tick >= j else 0.0 for j in range(12)])
+        expected[:, m] = kernel(lags[:, None], (np.arange(12) + t - tick)[:, None]) @ row
+    np.testing.assert_allclose(timed.cross_covariance(kernel, lags), expected, rtol=1e-10,
+                               atol=1e-12 * np.abs(expected).max())
+    # with an exposure, each summand's term adds its own correction at the kink
+    timed = TimedConvolution(U, TIMES, order=12, exposure=0.6)
+    parts = (1.7 * timed.cross_covariance(DC(0.85, 0.5), lags)
+             + timed.cross_covariance(PK(0.9, 0.7), lags))
+    np.testing.assert_allclose(timed.cross_covariance(kernel, lags), parts, rtol=1e-13)
+
+
+def test_the_old_type_check_warns_and_asks_the_kernel():
+    import pytest
+
+    from gpmultirate.kernels import offsets
+
+    with pytest.warns(DeprecationWarning, match="supports_offsets"):
+        supports = offsets.supports_offsets
+    assert supports(DC(0.8, 0.5)) and supports(TC(0.9)) and not supports(PK())
