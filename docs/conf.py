@@ -65,10 +65,17 @@ autosummary_generate = True
 autosummary_generate_overwrite = True
 autosummary_imported_members = False
 autosummary_ignore_module_all = False  # a module's public API is its __all__
-# names that modules re-export from gpmultirate's top level, documented there once
+# names that modules re-export from another module, documented there once
 autosummary_context = {
     "reexported": {
         "gpmultirate.persistence": ["ModelFileError", "load_model", "save_model"],
+        # the covariance layer's names, documented with gpmultirate.covariance
+        "gpmultirate.inference": [
+            "DataSpacePosterior", "GaussianCoefficients", "ParameterSpacePosterior",
+            "PrecisionPosterior", "gaussian_samples", "inverse_from_cholesky", "log_gaussian",
+            "robust_cholesky",
+        ],
+        "gpmultirate.noise": ["AR1Statistics", "dense_log_evidence", "dense_posterior"],
     },
 }
 autodoc_member_order = "bysource"
