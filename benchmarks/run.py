@@ -34,7 +34,7 @@ against
   ``scipy.optimize.minimize(method="L-BFGS-B")`` with finite-difference
   gradients, from the same initial hyperparameters;
 * ``sklearn``: scikit-learn's ``GaussianProcessRegressor`` with
-  ``ObservedKernel(kernel, operator) + WhiteKernel`` on slow-sample indices.
+  ``ObservedKernel(kernel, observation) + WhiteKernel`` on slow-sample indices.
 
 Results go to ``benchmarks/output/results.json``.  ``--scaling`` adds the fit
 time against ``N`` and ``P`` in three regimes (``P = N``; a long record with

@@ -77,10 +77,10 @@ def contiguous_folds(record_sizes, n_folds: int) -> list[np.ndarray]:
     return [np.concatenate(f) for f in folds if sum(len(b) for b in f) > 0]
 
 
-def _held_out(operator, kernel, noise, y, folds, eval_gradient):
+def _held_out(observation, kernel, noise, y, folds, eval_gradient):
     """The dense data covariance (every sample is used), ``Ky^{-1}``, ``Ky^{-1} y``, the blocks."""
-    covariance = DenseCovariance.of_term(observe(kernel, operator), noise,
-                                         noise.remainder(operator), gradient=eval_gradient)
+    covariance = DenseCovariance.of_term(observe(kernel, observation), noise,
+                                         noise.remainder(observation), gradient=eval_gradient)
     return (covariance, *covariance.held_out(y, folds))
 
 
@@ -92,14 +92,14 @@ def _noise_model(noise_level, noise_free: bool = True):
 
 
 def log_predictive_likelihood(
-    operator, kernel, noise_level, y: np.ndarray, folds, eval_gradient: bool = False,
+    observation, kernel, noise_level, y: np.ndarray, folds, eval_gradient: bool = False,
     noise_free: bool = True,
 ):
     """``sum_k log p(y_{B_k} | y_rest)`` and, optionally, its gradient in ``theta``.
 
     Parameters
     ----------
-    operator : Observation
+    observation : Observation
         The observation of all slow samples (not reduced).
     kernel : sklearn Kernel
     noise_level : float or noise model
@@ -141,7 +141,7 @@ def log_predictive_likelihood(
     (6,)
     """
     noise = _noise_model(noise_level, noise_free)
-    covariance, A, alpha, blocks = _held_out(operator, kernel, noise, y, folds, eval_gradient)
+    covariance, A, alpha, blocks = _held_out(observation, kernel, noise, y, folds, eval_gradient)
     value = 0.0
     for block in blocks:
         value += block.log_density(alpha)
@@ -164,7 +164,7 @@ def log_predictive_likelihood(
     return value, grad
 
 
-def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, folds):
+def held_out_predictions(observation, kernel, noise_level: float, y: np.ndarray, folds):
     """The mean and variance of each slow sample predicted from the other folds.
 
     Returns
@@ -176,7 +176,7 @@ def held_out_predictions(operator, kernel, noise_level: float, y: np.ndarray, fo
         disturbance then links the folds.
     """
     noise = _noise_model(noise_level, noise_free=False)
-    _, _, _, blocks = _held_out(operator, kernel, noise, y, folds, False)
+    _, _, _, blocks = _held_out(observation, kernel, noise, y, folds, False)
     mean = np.empty_like(y)
     variance = np.empty_like(y)
     for block in blocks:

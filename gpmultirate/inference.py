@@ -143,23 +143,23 @@ def idle_cores() -> int:
     return max(1, min(cores, cores + 1 - round(load)))
 
 
-def posterior(operator, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
+def posterior(observation, kernel, noise_level: float, y: np.ndarray) -> GaussianCoefficients:
     """The posterior in whichever space is smaller: data (``M <= P``) or parameters.
 
     For ``M > P`` the data are first reduced to the ``P x P`` factor of
     :class:`~gpmultirate.observations.ReducedObservation` (never holding
-    ``Phi``), whose least-squares form gives the same posterior; ``operator``
+    ``Phi``), whose least-squares form gives the same posterior; ``observation``
     may be such a reduction already (``y`` is then its ``z``).  The posterior
     of the reduction is :class:`PrecisionPosterior` where the prior has a
     tridiagonal precision, else :class:`ParameterSpacePosterior`: the route
     of :func:`~gpmultirate.covariance.data_covariance` decides.
     """
-    data, z = reduce_observation(operator, y)
+    data, z = reduce_observation(observation, y)
     return posterior_covariance(kernel, data, WhiteNoise(noise_level)).posterior(z)
 
 
 def log_marginal_likelihood(
-    operator, kernel, noise_level: float, y: np.ndarray, eval_gradient: bool, noise_free: bool
+    observation, kernel, noise_level: float, y: np.ndarray, eval_gradient: bool, noise_free: bool
 ):
     """Log evidence of the slow data and its gradient with respect to ``theta``.
 
@@ -168,12 +168,12 @@ def log_marginal_likelihood(
     """
     noise = WhiteNoise(noise_level, (0.0, np.inf) if noise_free else "fixed")
     if not eval_gradient:
-        return data_covariance(kernel, operator, noise).log_likelihood(y)
-    return data_covariance(kernel, operator, noise, "contraction").log_likelihood_gradient(y)
+        return data_covariance(kernel, observation, noise).log_likelihood(y)
+    return data_covariance(kernel, observation, noise, "contraction").log_likelihood_gradient(y)
 
 
 def log_marginal_likelihood_fisher(
-    operator, kernel, noise_level: float, y: np.ndarray, noise_free: bool
+    observation, kernel, noise_level: float, y: np.ndarray, noise_free: bool
 ):
     """Log evidence, its gradient and its Fisher information in ``theta``.
 
@@ -182,11 +182,11 @@ def log_marginal_likelihood_fisher(
     ``log(noise_level)`` last.
     """
     noise = WhiteNoise(noise_level, (0.0, np.inf) if noise_free else "fixed")
-    return fisher_covariance(kernel, operator, noise).log_likelihood_fisher(y)
+    return fisher_covariance(kernel, observation, noise).log_likelihood_fisher(y)
 
 
 def resonance_grid_log_marginal_likelihood(
-    operator, kernel, term, name: str, noise_level: float, y: np.ndarray, values: np.ndarray
+    observation, kernel, term, name: str, noise_level: float, y: np.ndarray, values: np.ndarray
 ):
     """Log evidence for each value of the hyperparameter ``name`` of one low-rank summand.
 
@@ -197,13 +197,13 @@ def resonance_grid_log_marginal_likelihood(
     :class:`~gpmultirate.covariance.WoodburyCovariance`: ``O(M^2)`` per
     candidate instead of ``O(M^3)``.
     """
-    tree = observe(kernel, operator)
+    tree = observe(kernel, observation)
     S_rest = tree.covariance_without(term)
     found = None if S_rest is None else tree.candidate_factors(term, name, values)
     if found is None:
         return None
     U, weights = found
-    rest = DenseCovariance(tree, WhiteNoise(noise_level), WhiteNoise(noise_level).remainder(operator),
+    rest = DenseCovariance(tree, WhiteNoise(noise_level), WhiteNoise(noise_level).remainder(observation),
                            S_rest, copy=False)
     return np.array([update.log_likelihood(y) for update in rest.plus_low_rank(U, weights)])
 

@@ -1,10 +1,11 @@
-"""A lag kernel seen through the observation operator, as a scikit-learn kernel."""
+"""A lag kernel seen through the observation, as a scikit-learn kernel."""
 
 from __future__ import annotations
 
 import numpy as np
 from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
 
+from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.validation import as_real_array
 from gpmultirate.observations import Observation
 
@@ -25,9 +26,12 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     ----------
     kernel : sklearn Kernel
         Prior covariance of the impulse response over lag.
-    operator : Observation
-        The observation operator built from the training input, e.g. a
+    observation : Observation
+        The observation built from the training input, e.g. a
         :class:`~gpmultirate.DownsampledConvolution`.
+    operator : Observation, optional
+        The former name of ``observation``, deprecated: it warns and is used
+        as ``observation``.
 
     Examples
     --------
@@ -47,13 +51,25 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     True
     """
 
-    def __init__(self, kernel: Kernel, operator: Observation):
+    def __init__(self, kernel: Kernel, observation: Observation | None = None,
+                 operator: Observation | None = None):
+        if operator is not None:
+            warn_deprecated("ObservedKernel(operator=...)", "ObservedKernel(observation=...)")
+            if observation is not None:
+                raise ValueError("give observation, not both observation and operator")
+            observation = operator
         self.kernel = kernel
-        self.operator = operator
+        self.observation = observation
+
+    @property
+    def operator(self) -> Observation:
+        """The former name of :attr:`observation`, deprecated."""
+        warn_deprecated("ObservedKernel.operator", "ObservedKernel.observation")
+        return self.observation
 
     def get_params(self, deep: bool = True) -> dict:
         """Get the parameters, including ``kernel__<name>`` with ``deep=True``."""
-        params = dict(kernel=self.kernel, operator=self.operator)
+        params = dict(kernel=self.kernel, observation=self.observation)
         if deep:
             params.update(
                 ("kernel__" + key, value) for key, value in self.kernel.get_params().items()
@@ -87,13 +103,13 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     def __eq__(self, other) -> bool:
         if type(self) is not type(other):
             return False
-        return self.kernel == other.kernel and self.operator == other.operator
+        return self.kernel == other.kernel and self.observation == other.observation
 
     def _check_parts(self) -> None:
-        if not isinstance(self.operator, Observation):
+        if not isinstance(self.observation, Observation):
             raise ValueError(
-                "operator must be an observation such as DownsampledConvolution; "
-                f"got {type(self.operator).__name__}"
+                "observation must be an observation such as DownsampledConvolution; "
+                f"got {type(self.observation).__name__}"
             )
         if not isinstance(self.kernel, Kernel):
             raise ValueError(f"kernel must be a scikit-learn Kernel; got {type(self.kernel).__name__}")
@@ -101,7 +117,7 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     def _indices(self, X, name: str) -> np.ndarray:
         self._check_parts()
         message = (
-            f"{name} must hold slow-sample indices in 0..{self.operator.n_outputs - 1} "
+            f"{name} must hold slow-sample indices in 0..{self.observation.n_outputs - 1} "
             "with shape (n, 1)"
         )
         try:
@@ -113,7 +129,7 @@ class ObservedKernel(GenericKernelMixin, Kernel):
         if X.ndim != 1 or X.size == 0 or not np.all(np.isfinite(X)):
             raise ValueError(message)
         index = X.astype(int)
-        if not np.array_equal(index, X) or index.min() < 0 or index.max() >= self.operator.n_outputs:
+        if not np.array_equal(index, X) or index.min() < 0 or index.max() >= self.observation.n_outputs:
             raise ValueError(message)
         return index
 
@@ -123,10 +139,10 @@ class ObservedKernel(GenericKernelMixin, Kernel):
         if eval_gradient:
             if Y is not None:
                 raise ValueError("gradient can only be evaluated when Y is None")
-            cov, grad = self.operator.covariance(self.kernel, eval_gradient=True)
+            cov, grad = self.observation.covariance(self.kernel, eval_gradient=True)
             return cov[np.ix_(rows, rows)], grad[np.ix_(rows, rows)]
         cols = rows if Y is None else self._indices(Y, "Y")
-        cov = self.operator.covariance(self.kernel)
+        cov = self.observation.covariance(self.kernel)
         return cov[np.ix_(rows, cols)]
 
     def diag(self, X) -> np.ndarray:
@@ -138,4 +154,4 @@ class ObservedKernel(GenericKernelMixin, Kernel):
         return False
 
     def __repr__(self) -> str:
-        return f"ObservedKernel({self.kernel!r}, {self.operator!r})"
+        return f"ObservedKernel({self.kernel!r}, {self.observation!r})"

@@ -143,8 +143,8 @@ def test_theta_setter_and_params(setup):
     assert ok.kernel.beta == pytest.approx(0.3)
     params = ok.get_params()
     assert params["kernel__alpha"] == pytest.approx(0.5)
-    assert params["operator"] is op
-    assert set(ok.get_params(deep=False)) == {"kernel", "operator"}
+    assert params["observation"] is op
+    assert set(ok.get_params(deep=False)) == {"kernel", "observation"}
     ok.set_params(kernel__alpha=0.7)
     assert ok.kernel.alpha == 0.7
     np.testing.assert_allclose(ok.theta, [np.log(0.7), np.arctanh(0.3)])
@@ -157,7 +157,7 @@ def test_clone_and_clone_with_theta(setup):
     assert cloned == ok
     assert cloned is not ok
     assert cloned.kernel is not ok.kernel
-    assert cloned.operator == op
+    assert cloned.observation == op
     theta = ok.theta.copy()
     new_theta = [np.log(2.0), np.log(0.5), np.arctanh(0.4)]
     other = ok.clone_with_theta(new_theta)
@@ -273,3 +273,14 @@ def test_invalid_indices_raise(setup, bad):
         ok(bad, eval_gradient=True)
     with pytest.raises(ValueError, match="Y must hold slow-sample indices"):
         ok(indices([0, 1]), bad)
+
+
+def test_operator_is_a_deprecated_name_of_observation():
+    op = DownsampledConvolution(np.random.default_rng(0).standard_normal(60), 3, 30)
+    with pytest.warns(DeprecationWarning, match="observation"):
+        old = ObservedKernel(DC(alpha=0.8, beta=0.6), operator=op)
+    assert old == ObservedKernel(DC(alpha=0.8, beta=0.6), op)
+    with pytest.warns(DeprecationWarning, match="ObservedKernel.observation"):
+        assert old.operator is op
+    with pytest.raises(ValueError, match="not both"), pytest.warns(DeprecationWarning):
+        ObservedKernel(DC(), op, operator=op)

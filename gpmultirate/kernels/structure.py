@@ -126,7 +126,7 @@ class ObservedTerm:
     kernel : sklearn Kernel
         Prior covariance over lag.
     observation : Observation or None
-        The observation operator (see :mod:`gpmultirate.observations`);
+        The observation (see :mod:`gpmultirate.observations`);
         None for questions about the hyperparameters only (:meth:`roles`).
     path : str, default=""
         Prefix of this kernel's parameter names within the whole kernel
@@ -680,7 +680,7 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
         Prior covariance over lag: a lag kernel, any scikit-learn kernel,
         or sums and products of them.
     observation : Observation, optional
-        The observation operator; None for questions about roles only.
+        The observation; None for questions about roles only.
     path : str, default=""
         Prefix of the parameter names (used by the recursion).
 

@@ -1,4 +1,4 @@
-"""The observation operator: a downsampled convolution with the input (eq. 8).
+"""The observation: a downsampled convolution with the input (eq. 8).
 
 The slow-rate output of an FIR model ``g`` of order ``P`` driven by the
 fast-rate input ``u`` is

@@ -272,8 +272,8 @@ def nonidentifiable_example(
     rng = check_rng(random_state)
     u = np.zeros(n_samples)
     u[0] = 1.0
-    operator = DownsampledConvolution(u, factor, n_samples)
-    null = scipy.linalg.null_space(operator.matrix)
+    observation = DownsampledConvolution(u, factor, n_samples)
+    null = scipy.linalg.null_space(observation.matrix)
 
     lags = np.arange(n_samples)
     decay = np.exp(-lags / (n_samples / 20.0))
@@ -287,5 +287,5 @@ def nonidentifiable_example(
         models.append(base + null @ (null.T @ extra))
     models = np.array(models)
     y_fast = np.array([np.convolve(u, model)[:n_samples] for model in models])
-    return NonidentifiableExample(u=u, models=models, y_slow=operator.matvec(models[0]),
+    return NonidentifiableExample(u=u, models=models, y_slow=observation.matvec(models[0]),
                                   y_fast=y_fast, factor=factor)
