@@ -425,6 +425,8 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         at every sample, are refused with a ``ValueError`` naming them.
         """
         settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
+        if sample_times is not None:
+            sample_times = units.in_fast_periods(sample_times, settings.sample_time, u)
         sample_indices = between_ticks.readings_of(sample_indices, sample_times,
                                                    settings.exposure, settings.latency)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
@@ -542,8 +544,11 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         As the fitted observation models them (its ``readings_model``)."""
 
         def readings_at(x, posterior, scale):
-            readings = TimedConvolution(x, sample_times, self._order, self.exposure,
-                                        self.latency, self.initial_conditions)
+            readings = TimedConvolution(
+                x, sample_times, self._order,
+                units.duration_in_fast_periods(self.exposure, self.sample_time),
+                units.duration_in_fast_periods(self.latency, self.sample_time),
+                self.initial_conditions)
             kernel = self.kernel_ if scale is None else self._evidence.kernel
             readings = self.observation_.readings_model(readings)
             with blas_threads_for(readings):
@@ -653,7 +658,8 @@ class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         if sample_times is not None:
             if sample_indices is not None:
                 raise ValueError("give sample_indices or sample_times, not both")
-            sample_indices = on_the_ticks(sample_times, 0.0, 0.0)
+            sample_indices = on_the_ticks(units.in_fast_periods(
+                sample_times, check_sample_time(self.sample_time), u), 0.0, 0.0)
             if sample_indices is None:
                 raise ValueError(
                     "LeastSquaresFIR has no model between the integer lags: sample_times must "

@@ -145,7 +145,8 @@ class FIRModelMixin:
             return [self.predict(u_r, return_std, t) for u_r, t in zip(u, sample_times)]
         x = self._check_prediction_input(u)
         if sample_times is not None:
-            return self._predict_readings(x, sample_times, return_std)
+            return self._predict_readings(
+                x, units.in_fast_periods(sample_times, self.sample_time, x), return_std)
         return self._in_data_units(
             x, lambda x, posterior, scale: self._predict_normalized(x, posterior, return_std),
             return_std)
