@@ -54,8 +54,8 @@ them, and ``arrays``, which maps that file's array names to members
 input) is stored once.  Each output's model is loaded as its own file would
 be, under the one BLAS thread it was fitted with.
 
-File format, version 4
-----------------------
+File format, versions 4 and 5
+-----------------------------
 A :class:`~gpmultirate.FIRGaussianProcess` fitted to readings at their own
 instants (``fit(..., sample_times=t)`` with readings between the fast
 ticks, or with an exposure): the layout of version 2 with ``layout``
@@ -67,6 +67,10 @@ and the latency are constructor parameters (``params``).  Loading fits the
 stored readings again at their stamps, at the stored hyperparameters.  A
 :class:`~gpmultirate.MultiOutputFIR` whose outputs include such a model is
 written as version 4 (otherwise as version 3), with the layout of version 3.
+Version 5 is version 4 with the exposure and the latency of ``params`` in
+the units of ``sample_time`` (seconds), as the estimator takes them since
+gpmultirate 0.2.0 (version 4: in fast sample periods; such files load with
+them multiplied by ``sample_time``); the stamps stay in fast sample periods.
 
 A kernel is a JSON tree such as ``{"class": "Sum", "k1": {...}, "k2": {...}}``
 or ``{"class": "DC", "params": {"alpha": 0.9, ...}}`` whose classes must be
@@ -125,6 +129,7 @@ from gpmultirate.observations import (
 )
 from gpmultirate.observations.timed import QUADRATURE_NODES
 from gpmultirate.resonances import Resonance
+from gpmultirate.units import duration_in_fast_periods
 from gpmultirate.validation import check_n_jobs
 
 __all__ = [
@@ -143,7 +148,7 @@ __all__ = [
 PathOrFile = Union[str, os.PathLike, BinaryIO]
 
 FORMAT_NAME = "gpmultirate-model"
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 
 MAX_MODEL_BYTES = 2**31
 """The largest total size of the arrays a model file may declare (2 GiB).
@@ -326,7 +331,7 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
     if isinstance(operator, InterpolatedConvolution):  # the same readings, interpolated
         operator = operator.timed
     if isinstance(operator, TimedConvolution):  # readings at their own instants
-        version = 4
+        version = 5
         fitted = {
             "layout": "timed",
             "n_records": len(operator.records),
@@ -447,8 +452,8 @@ def _multi_output_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         outputs.append({**{key: header[key] for key in _OUTPUT_ENTRIES}, "arrays": members})
     header = {
         "format": FORMAT_NAME,
-        # an output at its readings' own instants needs a reader of version 4
-        "format_version": 4 if any(o["format_version"] == 4 for o in outputs) else 3,
+        # an output at its readings' own instants needs a reader of version 5
+        "format_version": 5 if any(o["format_version"] == 5 for o in outputs) else 3,
         "library_version": __version__,
         "estimator": "MultiOutputFIR",
         "params": {"n_jobs": _encode(model.n_jobs, "parameter 'n_jobs'")},
@@ -737,7 +742,7 @@ def load_model(
         )
     name = header.get("estimator")
     try:
-        if name == "MultiOutputFIR" and header["format_version"] in (3, 4):
+        if name == "MultiOutputFIR" and header["format_version"] in (3, 4, 5):
             return _load_multi_output(header, members, classes)
         return _load_single(header, members, classes)
     except ModelFileError:
@@ -752,7 +757,7 @@ def _load_single(header: dict, members: dict[str, np.ndarray], classes):
     version = header.get("format_version")
     if name not in _ESTIMATORS:
         raise ModelFileError(f"unknown estimator {name!r} in the model file")
-    versions = (1, 2, 4) if name == "FIRGaussianProcess" else (1, 2)
+    versions = (1, 2, 4, 5) if name == "FIRGaussianProcess" else (1, 2)
     if version not in versions:
         raise ModelFileError(
             f"a {name} is stored in format version {' or '.join(map(str, versions))}; "
@@ -763,8 +768,9 @@ def _load_single(header: dict, members: dict[str, np.ndarray], classes):
             f"a {name} file must hold the arrays {sorted(expected)}; got {sorted(members)}"
         )
     arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
-    if version in (2, 4):
-        return _load_records(header, arrays, _ESTIMATORS[name], classes, timed=version == 4)
+    if version in (2, 4, 5):
+        return _load_records(header, arrays, _ESTIMATORS[name], classes,
+                             timed=version in (4, 5), durations_in_periods=version == 4)
     if name == "FIRGaussianProcess":
         return _load_gaussian_process(header, arrays, classes)
     return _load_least_squares(header, arrays)
@@ -981,7 +987,7 @@ def _several(model) -> bool:
 
 def _record_arrays(header: dict, name: str, version: int = 2) -> tuple[str, ...]:
     fitted = _section(header, "fitted")
-    expected_layout = "timed" if version == 4 else "records"
+    expected_layout = "timed" if version in (4, 5) else "records"
     if fitted.get("layout", "records") != expected_layout:
         raise ModelFileError(
             f"header entry 'layout' must be {expected_layout!r} in format version {version}; "
@@ -992,13 +998,14 @@ def _record_arrays(header: dict, name: str, version: int = 2) -> tuple[str, ...]
     if name == "LeastSquaresFIR":
         keys, extra = ("u", "sample_indices"), ("coef_covariance",)
     else:
-        instants = "sample_times" if version == 4 else "sample_indices"
+        instants = "sample_times" if version in (4, 5) else "sample_indices"
         keys, extra = ("u", instants, "y_slow"), ()
     return ("coef", *[f"{key}_{r}" for r in range(n) for key in keys], *extra)
 
 
-def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: bool = False):
-    """Versions 2 and 4: the stored records, fitted again or with the stored estimate.
+def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: bool = False,
+                  durations_in_periods: bool = False):
+    """Versions 2, 4 and 5: the stored records, fitted again or with the stored estimate.
 
     A Gaussian process is conditioned on the stored data at the stored
     hyperparameters (version 4: the readings at their stored stamps, with
@@ -1044,6 +1051,17 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: b
     )
     if timed:
         _check_quadrature_nodes(fitted)
+        # the stored stamps are in fast periods: fitted with the exposure and latency in fast
+        # periods too (version 4 stores them so; version 5 in the units of sample_time)
+        period = float(params.get("sample_time", 1.0))
+        names = ("exposure", "latency")
+        if durations_in_periods:
+            in_periods = {name: params.get(name, 0.0) for name in names}
+            params = dict(params, **{name: in_periods[name] * period for name in names})
+        else:
+            in_periods = {name: duration_in_fast_periods(params.get(name, 0.0), period)
+                          for name in names}
+        arguments.update(sample_time=1.0, **in_periods)
         model = _fit_stored(arguments, fitted, us, ys, sample_times=indices)
     else:
         # readings on the fast ticks are the fast samples of their indices: the exposure (0)

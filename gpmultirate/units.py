@@ -570,7 +570,8 @@ def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sampl
     """Stamps in the units of ``sample_time`` (seconds), in fast sample periods.
 
     ``stamps / sample_time``, a stamp within ``TICK_TOLERANCE`` (relative) of
-    a tick being the tick; with ``sample_time`` 1 the stamps unchanged.  A
+    a tick being the tick (the division's rounding must not take a reading
+    off its tick); a new array, the caller's is never touched.  A
     list of arrays is several records (a list back).  With the input ``u``
     of the records, stamps that cannot be in the units of ``sample_time`` are
     refused with a ``ValueError`` naming the likely mix-up: stamps squeezed
@@ -601,12 +602,10 @@ def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sampl
             out.append(times)  # the observation's checks name what is wrong
             continue
         stamps = raw.astype(float)
-        periods = stamps.copy()
-        if sample_time != 1.0:
-            periods = stamps / sample_time
-            tick = np.round(periods)
-            periods = np.where(np.abs(periods - tick) <= TICK_TOLERANCE * np.maximum(
-                1.0, np.abs(tick)), tick, periods)
+        periods = stamps / sample_time
+        tick = np.round(periods)
+        periods = np.where(np.abs(periods - tick) <= TICK_TOLERANCE * np.maximum(
+            1.0, np.abs(tick)), tick, periods)
         if lengths is not None and np.all(np.isfinite(periods)):
             _check_units(stamps, periods, lengths[r], sample_time, name)
         out.append(periods)
