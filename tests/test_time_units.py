@@ -74,10 +74,11 @@ def test_several_records_and_least_squares_on_the_ticks():
     ticks = np.arange(2, N - 3, F)
     y_ticks = np.convolve(u, 0.7 ** np.arange(P))[:N][ticks]
     a = gm.LeastSquaresFIR(order=P).fit(u, y_ticks, sample_indices=ticks)
-    b = gm.LeastSquaresFIR(order=P, sample_time=T).fit(u, y_ticks, sample_times=ticks * T)
+    logged = np.array([float(f"{k * T:.6g}") for k in ticks])  # as a log file writes them
+    assert np.any(logged / T != ticks)  # the division alone would take some off their tick
+    np.testing.assert_array_equal(in_fast_periods(logged, T), ticks)
+    b = gm.LeastSquaresFIR(order=P, sample_time=T).fit(u, y_ticks, sample_times=logged)
     np.testing.assert_array_equal(a.coef_, b.coef_)
-    assert np.any(ticks * T / T != ticks)  # the division alone would take some off
-    np.testing.assert_array_equal(in_fast_periods(ticks * T, T), ticks)
 
 
 def test_squeezed_stamps_name_the_unit_mix_up():
