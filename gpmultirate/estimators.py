@@ -154,10 +154,11 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
     exposure : float, default=0.0
         For readings at their own instants (``fit(..., sample_times=t)``):
         each reading is the mean output over the ``exposure`` before its
-        instant, in fast sample periods (:doc:`/cameras`).
+        instant, in the units of ``sample_time`` (seconds; fast sample
+        periods when it is 1) (:doc:`/cameras`).
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
-        the output at ``t - latency`` (fast sample periods).
+        the output at ``t - latency`` (in the units of ``sample_time``).
     between_ticks : {"auto", "exact", "interpolated"}, default="auto"
         How readings between the fast ticks are observed.  ``"exact"``: the
         readings as linear functionals of the response over continuous lag
@@ -222,8 +223,10 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         state (the regressor is circular).
     sample_time : float, default=1.0
         Fast sample time ``T`` in seconds, used by :meth:`frequency_response`
-        (frequencies in Hz), the plots and the exports.  Left at 1.0,
-        frequencies are in cycles per sample.
+        (frequencies in Hz), the plots and the exports, and the unit of
+        ``sample_times``, ``exposure`` and ``latency`` (seconds).  Left at
+        1.0, frequencies are in cycles per sample and times in fast sample
+        periods.
     max_resonances : int, default=4
         With ``kernel="auto"``, the most PK terms the search may add.
     normalize : bool, default=True
@@ -389,10 +392,14 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             The fast-sample index of each slow sample, strictly increasing
             in ``0..N-1``; ``factor`` and ``offset`` are then ignored.
         sample_times : array-like of float, or a list of them, optional
-            The stamp of each reading in fast sample periods (real,
-            strictly increasing, in ``[0, N)``), for readings off the fast
-            ticks, with the model's ``exposure`` and ``latency`` (see
-            :doc:`/cameras`); exclusive with ``sample_indices``.
+            The stamp of each reading in the units of ``sample_time``
+            (seconds; fast sample periods when it is 1): real, strictly
+            increasing, in ``[0, N T)``, for readings off the fast ticks,
+            with the model's ``exposure`` and ``latency`` (see
+            :doc:`/cameras`); exclusive with ``sample_indices``.  Stamps
+            that look like the other unit (all in the record's first 5 %
+            with more readings than fast periods there, or past its end
+            while they would fit it in fast periods) raise a ``ValueError``.
 
         Returns
         -------
@@ -632,8 +639,9 @@ class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         sample_indices : array-like of int, or a list of them, optional
             As for :meth:`FIRGaussianProcess.fit`.
         sample_times : array-like, or a list of them, optional
-            Only on the fast ticks (integers): least squares has no model
-            between the integer lags; exclusive with ``sample_indices``.
+            In the units of ``sample_time`` (seconds; fast sample periods
+            when it is 1), only on the fast ticks: least squares has no
+            model between the integer lags; exclusive with ``sample_indices``.
 
         Returns
         -------

@@ -111,8 +111,9 @@ class FIRModelMixin:
             matrix of ``u`` and ``Sigma`` the coefficient covariance).
         sample_times : array-like of float, or a list of them, optional
             Instead of the output at the fast ticks, the sensor's readings
-            stamped at these instants (in fast sample periods, strictly
-            increasing in ``[0, len(u))``), with the model's exposure and
+            stamped at these instants (in the units of ``sample_time``:
+            seconds, fast sample periods when it is 1; strictly increasing
+            in ``[0, len(u) T)``), with the model's exposure and
             latency (:doc:`/cameras`); the standard deviation is that of the
             noise-free reading.
         include_noise : bool, default=False

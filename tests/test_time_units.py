@@ -57,7 +57,8 @@ def test_exposure_latency_and_predictions_in_seconds():
     new = np.array([10.25, 57.5, 123.875, 200.0])
     for a, b in zip(seconds.predict(u, return_std=True, include_noise=True,
                                     sample_times=new * T),
-                    reference.predict(u, return_std=True, include_noise=True, sample_times=new)):
+                    reference.predict(u, return_std=True, include_noise=True,
+                          sample_times=new)):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-13)
     ours = analyze_residuals(seconds, u, y, sample_times=times * T, max_lag=10)
     theirs = analyze_residuals(reference, u, y, sample_times=times, max_lag=10)
@@ -70,7 +71,7 @@ def test_several_records_and_least_squares_on_the_ticks():
     reference = _fixed().fit([u, v], [y, z], sample_times=[times, other])
     seconds = _fixed(sample_time=T).fit([u, v], [y, z], sample_times=[times * T, other * T])
     np.testing.assert_allclose(seconds.coef_, reference.coef_, rtol=1e-10, atol=1e-13)
-    # ticks in seconds stay ticks, whatever the rounding of t / T (some t / T are off by a rounding)
+    # ticks in seconds stay ticks, whatever the rounding of t / T
     ticks = np.arange(2, N - 3, F)
     y_ticks = np.convolve(u, 0.7 ** np.arange(P))[:N][ticks]
     a = gm.LeastSquaresFIR(order=P).fit(u, y_ticks, sample_indices=ticks)
