@@ -55,10 +55,9 @@ def test_exposure_latency_and_predictions_in_seconds():
         u, y, sample_times=times * T)
     np.testing.assert_allclose(seconds.coef_, reference.coef_, rtol=1e-10, atol=1e-13)
     new = np.array([10.25, 57.5, 123.875, 200.0])
-    for a, b in zip(seconds.predict(u, return_std=True, include_noise=True,
-                                    sample_times=new * T),
-                    reference.predict(u, return_std=True, include_noise=True,
-                          sample_times=new)):
+    ours = seconds.predict(u, return_std=True, include_noise=True, sample_times=new * T)
+    theirs = reference.predict(u, return_std=True, include_noise=True, sample_times=new)
+    for a, b in zip(ours, theirs):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-13)
     ours = analyze_residuals(seconds, u, y, sample_times=times * T, max_lag=10)
     theirs = analyze_residuals(reference, u, y, sample_times=times, max_lag=10)
@@ -96,3 +95,27 @@ def test_squeezed_stamps_name_the_unit_mix_up():
     # a few readings early in the record are no mix-up
     early = _fixed().fit(u, y[:3], sample_times=[0.5, 2.5, 4.5])
     assert early.coef_.shape == (P,)
+
+
+def test_plot_intersample_takes_stamps_in_seconds():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from gpmultirate.plotting import plot_intersample
+
+    u, y, times = _camera(5)
+    reference = _fixed(exposure=0.5).fit(u, y, sample_times=times)
+    seconds = _fixed(exposure=0.5 * T, sample_time=T).fit(u, y, sample_times=times * T)
+    window = (30, 60)
+    a = plot_intersample(reference, u, y_slow=y, sample_times=times, window=window,
+                         sample_time=T, between=4)
+    b = plot_intersample(seconds, u, y_slow=y, sample_times=times * T, window=window,
+                         between=4)
+    np.testing.assert_allclose(b.mean_line.get_xdata(), a.mean_line.get_xdata(), rtol=1e-12)
+    np.testing.assert_allclose(b.mean_line.get_ydata(), a.mean_line.get_ydata(), rtol=1e-9,
+                               atol=1e-12)
+    shown = (times >= window[0]) & (times < window[1])
+    np.testing.assert_allclose(b.slow_markers.get_xdata(), times[shown] * T, rtol=1e-12)
+    plt.close("all")
