@@ -119,3 +119,15 @@ def test_plot_intersample_takes_stamps_in_seconds():
     shown = (times >= window[0]) & (times < window[1])
     np.testing.assert_allclose(b.slow_markers.get_xdata(), times[shown] * T, rtol=1e-12)
     plt.close("all")
+
+
+def test_many_outputs_take_the_estimators_units():
+    u, y, times = _camera(6)
+    y2 = 0.5 * y + 0.01
+    reference = gm.MultiOutputFIR(_fixed()).fit(u, np.column_stack([y, y2]), sample_times=times)
+    seconds = gm.MultiOutputFIR(_fixed(sample_time=T)).fit(
+        u, np.column_stack([y, y2]), sample_times=times * T)
+    new = np.array([4.5, 9.2, 100.0])
+    for a, b in zip(seconds.predict(u, return_std=True, sample_times=new * T),
+                    reference.predict(u, return_std=True, sample_times=new)):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-13)
