@@ -147,7 +147,8 @@ class FIRModelMixin:
         x = self._check_prediction_input(u)
         if sample_times is not None:
             return self._predict_readings(
-                x, units.in_fast_periods(sample_times, self.sample_time, x), return_std)
+                x, units.in_fast_periods(sample_times, self.sample_time, x, readings=False),
+                return_std)
         return self._in_data_units(
             x, lambda x, posterior, scale: self._predict_normalized(x, posterior, return_std),
             return_std)

@@ -349,7 +349,7 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, sample_times=Non
         if stamps.shape[0] != y.shape[0] or not np.all(np.isfinite(stamps)):
             raise ValueError(f"sample_times must hold one finite instant per slow sample "
                              f"({y.shape[0]}); got {np.shape(sample_times)}")
-        times = in_fast_periods(stamps, getattr(model, "sample_time", 1.0))
+        times = in_fast_periods(stamps, getattr(model, "sample_time", 1.0), x)
         index = np.floor(times).astype(np.int64)
         factor = max(1, int(round(float(np.median(np.diff(times)))))) if times.size > 1 else 1
     elif sample_indices is None:

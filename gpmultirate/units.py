@@ -566,7 +566,8 @@ def duration_in_fast_periods(value: float, sample_time: float) -> float:
     return value if sample_time == 1.0 else value / sample_time
 
 
-def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sample_times"):
+def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sample_times",
+                    readings: bool = True):
     """Stamps in the units of ``sample_time`` (seconds), in fast sample periods.
 
     ``stamps / sample_time``, a stamp within ``TICK_TOLERANCE`` (relative) of
@@ -576,9 +577,10 @@ def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sampl
     of the records, stamps that cannot be in the units of ``sample_time`` are
     refused with a ``ValueError`` naming the likely mix-up: stamps squeezed
     into the first ``SQUEEZED_SHARE`` of the record with more readings than
-    fast periods there (seconds given with ``sample_time`` 1), or past the
-    record's end while they would fit it in fast periods.  Other checks are
-    the observation's.
+    fast periods there (seconds given with ``sample_time`` 1; only for
+    ``readings``: instants to predict at, ``readings=False``, may be a grid
+    as fine as wanted), or past the record's end while they would fit it in
+    fast periods.  Other checks are the observation's.
 
     Examples
     --------
@@ -607,7 +609,7 @@ def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sampl
         periods = np.where(np.abs(periods - tick) <= TICK_TOLERANCE * np.maximum(
             1.0, np.abs(tick)), tick, periods)
         if lengths is not None and np.all(np.isfinite(periods)):
-            _check_units(stamps, periods, lengths[r], sample_time, name)
+            _check_units(stamps, periods, lengths[r], sample_time, name, readings)
         out.append(periods)
     return out if several else out[0]
 
@@ -628,10 +630,12 @@ def _record_lengths(u, n_records: int):
     return lengths
 
 
-def _check_units(stamps, periods, n_samples: int, sample_time: float, name: str) -> None:
+def _check_units(stamps, periods, n_samples: int, sample_time: float, name: str,
+                 readings: bool) -> None:
     """Refuse stamps that look like the other unit (seconds vs fast sample periods)."""
     last = float(periods.max())
-    if n_samples > 0 and last < SQUEEZED_SHARE * n_samples and periods.size > max(last, 1.0):
+    if (readings and n_samples > 0 and last < SQUEEZED_SHARE * n_samples
+            and periods.size > max(last, 1.0)):
         raise ValueError(
             f"{name}: all {periods.size} stamps lie in [{periods.min():.3g}, {last:.3g}] fast "
             f"sample periods, the first {100 * last / n_samples:.2g} % of the record of "

@@ -131,3 +131,14 @@ def test_many_outputs_take_the_estimators_units():
     for a, b in zip(seconds.predict(u, return_std=True, sample_times=new * T),
                     reference.predict(u, return_std=True, sample_times=new)):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-13)
+
+
+def test_a_fine_grid_at_the_start_is_no_unit_mix_up():
+    # predict takes instants as fine as wanted: only readings are checked for squeezing
+    u, y, times = _camera(7)
+    model = _fixed().fit(u, y, sample_times=times)
+    grid = np.arange(0, 80) / 8  # ten fast periods, eight instants in each
+    mean = model.predict(u, sample_times=grid)
+    np.testing.assert_allclose(mean[::8], model.predict(u)[:10], rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="look like seconds"):
+        analyze_residuals(model, u, y, sample_times=times * T)
