@@ -42,12 +42,13 @@ def main():
     # a frame stamped t is the mean output over [t - L - E, t - L]
     y = frames.held_output(A, B, C, u, stamps - LATENCY, exposure=EXPOSURE)
     y = y + np.sqrt(np.var(y) / 10**4.5) * rng.standard_normal(y.shape[0])
-    model = gm.FIRGaussianProcess(order=ORDER, sample_time=frames.SAMPLE_TIME,
-                                  exposure=EXPOSURE, latency=LATENCY)
-    model.fit(u, y, sample_times=stamps)
+    T = frames.SAMPLE_TIME  # the model's times are in seconds
+    model = gm.FIRGaussianProcess(order=ORDER, sample_time=T,
+                                  exposure=EXPOSURE * T, latency=LATENCY * T)
+    model.fit(u, y, sample_times=stamps * T)
     window = (120, 150)
     fig, ax = plt.subplots(figsize=(8, 3.6))
-    drawn = plot_intersample(model, u, y_slow=y, sample_times=stamps, window=window,
+    drawn = plot_intersample(model, u, y_slow=y, sample_times=stamps * T, window=window,
                              between=8, ax=ax, label="predicted reading (95 % band)")
     grid = np.arange(window[0] * 8, window[1] * 8) / 8
     truth = frames.held_output(A, B, C, u, grid - LATENCY, exposure=EXPOSURE)

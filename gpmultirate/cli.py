@@ -541,7 +541,7 @@ def _predict(parser, args) -> int:
     log = None if args.slow is None else read_slow_log(
         args.slow, args.time, sample_time=getattr(model, "sample_time", None) or 1.0, n_samples=u.shape[0])
     try:
-        table = prediction_csv(model, u, None if log is None else log.sample_times)
+        table = prediction_csv(model, u, None if log is None else log.stamps)
     except ValueError as error:
         parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
     check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))

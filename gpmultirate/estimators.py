@@ -154,10 +154,11 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
     exposure : float, default=0.0
         For readings at their own instants (``fit(..., sample_times=t)``):
         each reading is the mean output over the ``exposure`` before its
-        instant, in fast sample periods (:doc:`/cameras`).
+        instant, in the units of ``sample_time`` (seconds; fast sample
+        periods when it is 1) (:doc:`/cameras`).
     latency : float, default=0.0
         For readings at their own instants: the reading stamped ``t`` shows
-        the output at ``t - latency`` (fast sample periods).
+        the output at ``t - latency`` (in the units of ``sample_time``).
     between_ticks : {"auto", "exact", "interpolated"}, default="auto"
         How readings between the fast ticks are observed.  ``"exact"``: the
         readings as linear functionals of the response over continuous lag
@@ -222,8 +223,10 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         state (the regressor is circular).
     sample_time : float, default=1.0
         Fast sample time ``T`` in seconds, used by :meth:`frequency_response`
-        (frequencies in Hz), the plots and the exports.  Left at 1.0,
-        frequencies are in cycles per sample.
+        (frequencies in Hz), the plots and the exports, and the unit of
+        ``sample_times``, ``exposure`` and ``latency`` (seconds).  Left at
+        1.0, frequencies are in cycles per sample and times in fast sample
+        periods.
     max_resonances : int, default=4
         With ``kernel="auto"``, the most PK terms the search may add.
     normalize : bool, default=True
@@ -271,7 +274,7 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         The units of ``kernel_``, ``noise_level_`` and
         ``noise_level_bounds_`` (see *Units* in :meth:`fit`).
     observation_ : Observation
-        The observation operator of the training data: a
+        The observation of the training data: a
         :class:`~gpmultirate.DownsampledConvolution` in the paper's case, a
         :class:`~gpmultirate.SampledConvolution` or a stack of records
         otherwise.
@@ -389,10 +392,14 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             The fast-sample index of each slow sample, strictly increasing
             in ``0..N-1``; ``factor`` and ``offset`` are then ignored.
         sample_times : array-like of float, or a list of them, optional
-            The stamp of each reading in fast sample periods (real,
-            strictly increasing, in ``[0, N)``), for readings off the fast
-            ticks, with the model's ``exposure`` and ``latency`` (see
-            :doc:`/cameras`); exclusive with ``sample_indices``.
+            The stamp of each reading in the units of ``sample_time``
+            (seconds; fast sample periods when it is 1): real, strictly
+            increasing, in ``[0, N T)``, for readings off the fast ticks,
+            with the model's ``exposure`` and ``latency`` (see
+            :doc:`/cameras`); exclusive with ``sample_indices``.  Stamps
+            that look like the other unit (all in the record's first 5 %
+            with more readings than fast periods there, or past its end
+            while they would fit it in fast periods) raise a ``ValueError``.
 
         Returns
         -------
@@ -425,6 +432,8 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         at every sample, are refused with a ``ValueError`` naming them.
         """
         settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
+        if sample_times is not None:
+            sample_times = units.in_fast_periods(sample_times, settings.sample_time, u)
         sample_indices = between_ticks.readings_of(sample_indices, sample_times,
                                                    settings.exposure, settings.latency)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
@@ -542,8 +551,11 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         As the fitted observation models them (its ``readings_model``)."""
 
         def readings_at(x, posterior, scale):
-            readings = TimedConvolution(x, sample_times, self._order, self.exposure,
-                                        self.latency, self.initial_conditions)
+            readings = TimedConvolution(
+                x, sample_times, self._order,
+                units.duration_in_fast_periods(self.exposure, self.sample_time),
+                units.duration_in_fast_periods(self.latency, self.sample_time),
+                self.initial_conditions)
             kernel = self.kernel_ if scale is None else self._evidence.kernel
             readings = self.observation_.readings_model(readings)
             with blas_threads_for(readings):
@@ -627,8 +639,9 @@ class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         sample_indices : array-like of int, or a list of them, optional
             As for :meth:`FIRGaussianProcess.fit`.
         sample_times : array-like, or a list of them, optional
-            Only on the fast ticks (integers): least squares has no model
-            between the integer lags; exclusive with ``sample_indices``.
+            In the units of ``sample_time`` (seconds; fast sample periods
+            when it is 1), only on the fast ticks: least squares has no
+            model between the integer lags; exclusive with ``sample_indices``.
 
         Returns
         -------
@@ -653,7 +666,8 @@ class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         if sample_times is not None:
             if sample_indices is not None:
                 raise ValueError("give sample_indices or sample_times, not both")
-            sample_indices = on_the_ticks(sample_times, 0.0, 0.0)
+            sample_indices = on_the_ticks(units.in_fast_periods(
+                sample_times, check_sample_time(self.sample_time), u), 0.0, 0.0)
             if sample_indices is None:
                 raise ValueError(
                     "LeastSquaresFIR has no model between the integer lags: sample_times must "
@@ -669,22 +683,22 @@ class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             u, y_slow, sample_indices, factor=self.factor, offset=self.offset,
             order=self.order, initial_conditions=self.initial_conditions,
         )
-        operator, y = experiment.observation, experiment.y
-        M, P = operator.n_outputs, operator.n_coefficients
-        check_fit_memory(M, P, 0, n_inputs=operator.n_inputs)
+        observation, y = experiment.observation, experiment.y
+        M, P = observation.n_outputs, observation.n_coefficients
+        check_fit_memory(M, P, 0, n_inputs=observation.n_inputs)
         if P >= M:
-            inputs = f" x {operator.n_inputs} inputs" if operator.n_inputs > 1 else ""
+            inputs = f" x {observation.n_inputs} inputs" if observation.n_inputs > 1 else ""
             raise IdentifiabilityError(
-                f"order={operator.order}{inputs} is not below the number of used slow samples "
+                f"order={observation.order}{inputs} is not below the number of used slow samples "
                 f"M={M}: the least-squares FIR estimate is not unique (Lemma 1). Use a lower "
                 "order, more data, or FIRGaussianProcess, whose prior makes any order unique."
             )
-        U, s, Vt = linalg.svd(operator.matrix, full_matrices=False, check_finite=False)
+        U, s, Vt = linalg.svd(observation.matrix, full_matrices=False, check_finite=False)
         tolerance = max(M, P) * np.finfo(float).eps * (s[0] if s.size else 0.0)
         rank = int(np.sum(s > tolerance))
         if rank < P:
             hold = any(
-                _is_zero_order_hold(x[:, k], operator.slow_factor)
+                _is_zero_order_hold(x[:, k], observation.slow_factor)
                 for x in record_inputs(experiment) for k in range(x.shape[1])
             )
             hint = (

@@ -29,6 +29,7 @@ import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.exceptions import DataFileError
+from gpmultirate.units import in_fast_periods
 
 __all__ = ["DataFileError", "DataTable", "SlowLog", "SlowSamples", "check_folder",
            "model_slow_samples", "read_columns", "read_record", "read_slow_log",
@@ -687,7 +688,8 @@ class SlowLog:
         The time stamps in seconds, strictly increasing, in ``[0, N T)``.
     sample_times : ndarray of shape (M,)
         The stamps in fast sample periods, ``stamps / T`` (within ``1e-9`` of
-        a tick: the tick), the ``sample_times`` of ``fit`` and ``predict``.
+        a tick: the tick, :func:`gpmultirate.units.in_fast_periods`), as an
+        estimator of ``sample_time=T`` reads the stamps.
     values : ndarray of shape (M,) or None
         The readings (``NaN`` where one is missing); None for stamps alone.
     n_samples : int
@@ -703,7 +705,10 @@ class SlowLog:
     >>> log = SlowLog(np.array([0.0025, 0.0061]), np.array([2.5, 6.1]), np.array([1.0, 2.0]),
     ...               10, 0.001)
     >>> log.indices, log.factor, log.fit_params
-    (array([2, 6]), 4, {'sample_times': array([2.5, 6.1])})
+    (array([2, 6]), 4, {'sample_times': array([0.0025, 0.0061])})
+
+    which fit as ``FIRGaussianProcess(sample_time=log.sample_time,
+    **log.estimator_params).fit(u, log.y_slow, **log.fit_params)``.
     """
 
     stamps: np.ndarray
@@ -739,15 +744,15 @@ class SlowLog:
 
     @property
     def estimator_params(self) -> dict:
-        """Constructor arguments of the estimator: ``exposure`` and ``latency`` in fast
-        sample periods."""
-        return {"exposure": self.exposure / self.sample_time,
-                "latency": self.latency / self.sample_time}
+        """Constructor arguments of the estimator: ``exposure`` and ``latency`` in seconds,
+        the units of its ``sample_time`` (the log's ``sample_time``)."""
+        return {"exposure": self.exposure, "latency": self.latency}
 
     @property
     def fit_params(self) -> dict:
-        """Keyword arguments of ``fit`` beside ``y_slow``: ``sample_times``."""
-        return {"sample_times": self.sample_times.copy()}
+        """Keyword arguments of ``fit`` beside ``y_slow``: ``sample_times``, the stamps in
+        seconds (the estimator's ``sample_time`` carries them into fast periods)."""
+        return {"sample_times": self.stamps.copy()}
 
     @property
     def description(self) -> str:
@@ -841,9 +846,7 @@ def read_slow_log(path, time: str, output: str | None = None, *, sample_time: fl
         raise DataFileError(path, f"column {_short(time)}: stamp {k + 2} ({stamps[k + 1]:g} s) "
                                   f"{what} stamp {k + 1} ({stamps[k]:g} s); the stamps must be "
                                   "strictly increasing")
-    times = stamps / sample_time
-    tick = np.round(times)
-    times = np.where(np.abs(times - tick) <= 1e-9 * np.maximum(1.0, np.abs(tick)), tick, times)
+    times = in_fast_periods(stamps, sample_time)
     outside = np.flatnonzero((times < 0) | (times >= n_samples))
     if outside.size:
         k = outside[0]
@@ -1164,13 +1167,13 @@ def model_slow_samples(model) -> SlowSamples:
     'one sample in 3, from row 1'
     """
     check_is_fitted(model, "observation_")
-    operator = model.observation_
-    if getattr(operator, "sample_times", None) is not None:  # readings at their own instants
+    observation = model.observation_
+    if getattr(observation, "sample_times", None) is not None:  # readings at their own instants
         period = getattr(model, "sample_time", None) or 1.0
-        times = np.asarray(operator.sample_times, dtype=float)
+        times = np.asarray(observation.sample_times, dtype=float)
         return SlowLog(times * period, times, np.asarray(model.y_slow_, dtype=float),
-                       int(operator.n_samples), period, operator.exposure * period,
-                       operator.latency * period)
-    column = np.full(int(operator.n_samples), np.nan)
-    column[np.asarray(operator.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
+                       int(observation.n_samples), period, observation.exposure * period,
+                       observation.latency * period)
+    column = np.full(int(observation.n_samples), np.nan)
+    column[np.asarray(observation.sample_indices)] = np.asarray(model.y_slow_, dtype=float)
     return read_slow_samples(column)

@@ -132,9 +132,10 @@ class MultiOutputFIR(BaseEstimator):
             The fast-sample index of each row of ``y_slow``, as for the
             estimator's ``fit``; shared by every output.
         sample_times : array-like of float, or a list of them, optional
-            The instant of each row of ``y_slow`` in fast sample periods
-            (readings at their own instants, with the estimator's exposure and
-            latency), as for the estimator's ``fit``; shared by every output.
+            The instant of each row of ``y_slow`` in the units of the
+            estimator's ``sample_time`` (readings at their own instants, with
+            its exposure and latency), as for the estimator's ``fit``; shared
+            by every output.
 
         Returns
         -------
@@ -198,8 +199,8 @@ class MultiOutputFIR(BaseEstimator):
             Also return the posterior standard deviation of each output (see
             the estimator's ``predict``).
         sample_times : array-like of float, or a list of them, optional
-            Predict each output's readings at these instants (fast sample
-            periods) instead of the fast samples, as the estimator's
+            Predict each output's readings at these instants (in the units
+            of the estimator's ``sample_time``) instead of the fast samples, as the estimator's
             ``predict`` does; ``n`` is then their number.
         include_noise : bool, default=False
             With ``return_std``, the standard deviation of a new measurement

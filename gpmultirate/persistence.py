@@ -54,8 +54,8 @@ them, and ``arrays``, which maps that file's array names to members
 input) is stored once.  Each output's model is loaded as its own file would
 be, under the one BLAS thread it was fitted with.
 
-File format, version 4
-----------------------
+File format, versions 4 and 5
+-----------------------------
 A :class:`~gpmultirate.FIRGaussianProcess` fitted to readings at their own
 instants (``fit(..., sample_times=t)`` with readings between the fast
 ticks, or with an exposure): the layout of version 2 with ``layout``
@@ -67,6 +67,10 @@ and the latency are constructor parameters (``params``).  Loading fits the
 stored readings again at their stamps, at the stored hyperparameters.  A
 :class:`~gpmultirate.MultiOutputFIR` whose outputs include such a model is
 written as version 4 (otherwise as version 3), with the layout of version 3.
+Version 5 is version 4 with the exposure and the latency of ``params`` in
+the units of ``sample_time`` (seconds), as the estimator takes them since
+gpmultirate 0.2.0 (version 4: in fast sample periods; such files load with
+them multiplied by ``sample_time``); the stamps stay in fast sample periods.
 
 A kernel is a JSON tree such as ``{"class": "Sum", "k1": {...}, "k2": {...}}``
 or ``{"class": "DC", "params": {"alpha": 0.9, ...}}`` whose classes must be
@@ -123,6 +127,7 @@ from gpmultirate.observations import (
 )
 from gpmultirate.observations.timed import QUADRATURE_NODES
 from gpmultirate.resonances import Resonance
+from gpmultirate.units import duration_in_fast_periods
 from gpmultirate.validation import check_n_jobs
 
 __all__ = [
@@ -141,7 +146,7 @@ __all__ = [
 PathOrFile = Union[str, os.PathLike, BinaryIO]
 
 FORMAT_NAME = "gpmultirate-model"
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 
 MAX_MODEL_BYTES = 2**31
 """The largest total size of the arrays a model file may declare (2 GiB).
@@ -320,42 +325,42 @@ def _single_members(model) -> tuple[dict, dict[str, np.ndarray]]:
             f"subclass); got {type(model).__qualname__}"
         )
     check_is_fitted(model, "coef_")
-    operator = model.observation_
-    if operator.file_layout == "timed":  # readings at their own instants (or interpolated)
-        version = 4
+    observation = model.observation_
+    if observation.file_layout == "timed":  # readings at their own instants (or interpolated)
+        version = 5
         fitted = {
             "layout": "timed",
-            "n_records": len(operator.records),
+            "n_records": len(observation.records),
             "several_records": _several(model),
-            "order": int(operator.order),
-            "quadrature_nodes": int(operator.records[0].nodes),
+            "order": int(observation.order),
+            "quadrature_nodes": int(observation.records[0].nodes),
         }
         arrays = {"coef": model.posterior_.coef}
         start = 0
-        for r, record in enumerate(operator.records):
+        for r, record in enumerate(observation.records):
             stop = start + record.n_outputs
             arrays[f"u_{r}"] = record.u
             arrays[f"sample_times_{r}"] = record.sample_times
             arrays[f"y_slow_{r}"] = model.y_slow_[start:stop]
             start = stop
-    elif operator.file_layout == "downsampled":  # the layout of version 1
+    elif observation.file_layout == "downsampled":  # the layout of version 1
         version = 1
         fitted: dict[str, Any] = {
-            "factor": int(operator.factor),
-            "order": int(operator.order),
-            "offset": int(operator.offset),
+            "factor": int(observation.factor),
+            "order": int(observation.order),
+            "offset": int(observation.offset),
         }
-        arrays = {"u": operator.u, "coef": model.coef_}
+        arrays = {"u": observation.u, "coef": model.coef_}
         if isinstance(model, FIRGaussianProcess):
             arrays["y_slow"] = model.y_slow_
     else:
         version = 2
-        records = operator.records
+        records = observation.records
         fitted = {
             "layout": "records",
             "n_records": len(records),
             "several_records": _several(model),
-            "order": int(operator.order),
+            "order": int(observation.order),
         }
         arrays = {"coef": model.posterior_.coef}
         start = 0
@@ -443,8 +448,8 @@ def _multi_output_members(model) -> tuple[dict, dict[str, np.ndarray]]:
         outputs.append({**{key: header[key] for key in _OUTPUT_ENTRIES}, "arrays": members})
     header = {
         "format": FORMAT_NAME,
-        # an output at its readings' own instants needs a reader of version 4
-        "format_version": 4 if any(o["format_version"] == 4 for o in outputs) else 3,
+        # an output at its readings' own instants needs a reader of version 5
+        "format_version": 5 if any(o["format_version"] == 5 for o in outputs) else 3,
         "library_version": __version__,
         "estimator": "MultiOutputFIR",
         "params": {"n_jobs": _encode(model.n_jobs, "parameter 'n_jobs'")},
@@ -733,7 +738,7 @@ def load_model(
         )
     name = header.get("estimator")
     try:
-        if name == "MultiOutputFIR" and header["format_version"] in (3, 4):
+        if name == "MultiOutputFIR" and header["format_version"] in (3, 4, 5):
             return _load_multi_output(header, members, classes)
         return _load_single(header, members, classes)
     except ModelFileError:
@@ -748,7 +753,7 @@ def _load_single(header: dict, members: dict[str, np.ndarray], classes):
     version = header.get("format_version")
     if name not in _ESTIMATORS:
         raise ModelFileError(f"unknown estimator {name!r} in the model file")
-    versions = (1, 2, 4) if name == "FIRGaussianProcess" else (1, 2)
+    versions = (1, 2, 4, 5) if name == "FIRGaussianProcess" else (1, 2)
     if version not in versions:
         raise ModelFileError(
             f"a {name} is stored in format version {' or '.join(map(str, versions))}; "
@@ -759,8 +764,9 @@ def _load_single(header: dict, members: dict[str, np.ndarray], classes):
             f"a {name} file must hold the arrays {sorted(expected)}; got {sorted(members)}"
         )
     arrays = {key: _float_vector_or_matrix(key, value) for key, value in members.items()}
-    if version in (2, 4):
-        return _load_records(header, arrays, _ESTIMATORS[name], classes, timed=version == 4)
+    if version in (2, 4, 5):
+        return _load_records(header, arrays, _ESTIMATORS[name], classes,
+                             timed=version in (4, 5), durations_in_periods=version == 4)
     if name == "FIRGaussianProcess":
         return _load_gaussian_process(header, arrays, classes)
     return _load_least_squares(header, arrays)
@@ -977,7 +983,7 @@ def _several(model) -> bool:
 
 def _record_arrays(header: dict, name: str, version: int = 2) -> tuple[str, ...]:
     fitted = _section(header, "fitted")
-    expected_layout = "timed" if version == 4 else "records"
+    expected_layout = "timed" if version in (4, 5) else "records"
     if fitted.get("layout", "records") != expected_layout:
         raise ModelFileError(
             f"header entry 'layout' must be {expected_layout!r} in format version {version}; "
@@ -988,13 +994,14 @@ def _record_arrays(header: dict, name: str, version: int = 2) -> tuple[str, ...]
     if name == "LeastSquaresFIR":
         keys, extra = ("u", "sample_indices"), ("coef_covariance",)
     else:
-        instants = "sample_times" if version == 4 else "sample_indices"
+        instants = "sample_times" if version in (4, 5) else "sample_indices"
         keys, extra = ("u", instants, "y_slow"), ()
     return ("coef", *[f"{key}_{r}" for r in range(n) for key in keys], *extra)
 
 
-def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: bool = False):
-    """Versions 2 and 4: the stored records, fitted again or with the stored estimate.
+def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: bool = False,
+                  durations_in_periods: bool = False):
+    """Versions 2, 4 and 5: the stored records, fitted again or with the stored estimate.
 
     A Gaussian process is conditioned on the stored data at the stored
     hyperparameters (version 4: the readings at their stored stamps, with
@@ -1040,6 +1047,17 @@ def _load_records(header: dict, arrays: dict, estimator: type, classes, timed: b
     )
     if timed:
         _check_quadrature_nodes(fitted)
+        # the stored stamps are in fast periods: fitted with the exposure and latency in fast
+        # periods too (version 4 stores them so; version 5 in the units of sample_time)
+        period = float(params.get("sample_time", 1.0))
+        names = ("exposure", "latency")
+        if durations_in_periods:
+            in_periods = {name: params.get(name, 0.0) for name in names}
+            params = dict(params, **{name: in_periods[name] * period for name in names})
+        else:
+            in_periods = {name: duration_in_fast_periods(params.get(name, 0.0), period)
+                          for name in names}
+        arguments.update(sample_time=1.0, **in_periods)
         model = _fit_stored(arguments, fitted, us, ys, sample_times=indices)
     else:
         # readings on the fast ticks are the fast samples of their indices: the exposure (0)
@@ -1204,19 +1222,19 @@ def _load_least_squares(header: dict, arrays: dict) -> LeastSquaresFIR:
     params = _decode_params(header, LeastSquaresFIR)
     fitted = _section(header, "fitted")
     model = LeastSquaresFIR(**params)
-    operator = DownsampledConvolution(
+    observation = DownsampledConvolution(
         arrays["u"], _integer(fitted, "factor"), _integer(fitted, "order"),
         _integer(fitted, "offset"),
     )
-    _check_layout(operator, {key: getattr(model, key) for key in ("factor", "order", "offset")})
+    _check_layout(observation, {key: getattr(model, key) for key in ("factor", "order", "offset")})
     coef, covariance = arrays["coef"], arrays["coef_covariance"]
-    P = operator.order
+    P = observation.order
     if coef.shape != (P,) or covariance.shape != (P, P):
         raise ModelFileError(
             f"coef and coef_covariance must have shapes ({P},) and ({P}, {P}); "
             f"got {coef.shape} and {covariance.shape}"
         )
-    model.observation_ = operator
+    model.observation_ = observation
     model.n_inputs_ = 1
     model.coef_ = coef
     model.noise_variance_ = _number(fitted, "noise_variance_")
@@ -1256,12 +1274,12 @@ def _integer(section: dict, key: str) -> int:
     return value
 
 
-def _check_layout(operator: DownsampledConvolution, fitted: dict) -> None:
+def _check_layout(observation: DownsampledConvolution, fitted: dict) -> None:
     for key in ("factor", "order", "offset"):
-        if fitted.get(key) != getattr(operator, key):
+        if fitted.get(key) != getattr(observation, key):
             raise ModelFileError(
                 f"inconsistent model file: {key} is {fitted.get(key)!r} in the header "
-                f"but {getattr(operator, key)} for the stored data"
+                f"but {getattr(observation, key)} for the stored data"
             )
 
 

@@ -111,8 +111,9 @@ class FIRModelMixin:
             matrix of ``u`` and ``Sigma`` the coefficient covariance).
         sample_times : array-like of float, or a list of them, optional
             Instead of the output at the fast ticks, the sensor's readings
-            stamped at these instants (in fast sample periods, strictly
-            increasing in ``[0, len(u))``), with the model's exposure and
+            stamped at these instants (in the units of ``sample_time``:
+            seconds, fast sample periods when it is 1; strictly increasing
+            in ``[0, len(u) T)``), with the model's exposure and
             latency (:doc:`/cameras`); the standard deviation is that of the
             noise-free reading.
         include_noise : bool, default=False
@@ -145,7 +146,9 @@ class FIRModelMixin:
             return [self.predict(u_r, return_std, t) for u_r, t in zip(u, sample_times)]
         x = self._check_prediction_input(u)
         if sample_times is not None:
-            return self._predict_readings(x, sample_times, return_std)
+            return self._predict_readings(
+                x, units.in_fast_periods(sample_times, self.sample_time, x, readings=False),
+                return_std)
         return self._in_data_units(
             x, lambda x, posterior, scale: self._predict_normalized(x, posterior, return_std),
             return_std)

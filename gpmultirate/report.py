@@ -22,6 +22,7 @@ import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate.io import SlowSamples, model_slow_samples
+from gpmultirate.units import in_fast_periods
 
 __all__ = ["FIT_KERNELS", "FitReport", "fit_files", "fit_report", "kernel_option",
            "model_slow_samples", "noise_summary", "prediction_csv", "study_header", "write_study"]
@@ -607,7 +608,7 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
     try:
         # MATLAB's 25 lags, fewer for a short record
         max_lag = min(25, samples.values.shape[0] // 2)
-        times = getattr(samples, "sample_times", None)
+        times = getattr(samples, "stamps", None)  # a slow log: in seconds, as the model reads them
         analysis = analyze_residuals(model, u, samples.values,
                                      None if times is not None else samples.indices,
                                      sample_times=times, max_lag=max(max_lag, 1))
@@ -641,8 +642,8 @@ def prediction_csv(model, u, sample_times=None) -> str:
         ``FIRGaussianProcess``, ``LeastSquaresFIR`` or ``MultiOutputFIR``.
     u : array-like of shape (n_samples,) or (n_samples, n_inputs)
     sample_times : array-like of float, optional
-        Predict the readings at these instants (fast sample periods,
-        ``model.predict(u, sample_times=...)``) instead of the fast samples:
+        Predict the readings at these instants (in the units of the model's
+        ``sample_time``, ``model.predict(u, sample_times=...)``) instead of the fast samples:
         one row per reading, ``index`` its number and ``time`` its instant.
 
     Returns
@@ -683,7 +684,8 @@ def prediction_csv(model, u, sample_times=None) -> str:
     sample_time = float(getattr(models[0], "sample_time", 1.0))
     names = ([f"y_{j},y_std_{j}" for j in range(mean.shape[1])] if several else ["y,y_std"])
     rows = [",".join(["index,time", *names])]
-    instants = np.arange(mean.shape[0]) if sample_times is None else np.asarray(sample_times)
+    instants = (np.arange(mean.shape[0]) if sample_times is None
+                else in_fast_periods(sample_times, sample_time))
     for k, (m, s) in enumerate(zip(mean, std)):
         values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
         rows.append(f"{k},{instants[k] * sample_time:.17g},{values}")

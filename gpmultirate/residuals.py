@@ -52,6 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from gpmultirate.units import in_fast_periods
 from gpmultirate.validation import check_inputs, check_int, check_level, check_sample_indices
 
 __all__ = ["ResidualAnalysis", "analyze_residuals", "residual_correlations"]
@@ -291,7 +292,8 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, sample_times=Non
         Fast-sample index of each slow sample; ``factor`` and ``offset`` are
         then not used.
     sample_times : array-like of float, optional
-        The instant of each slow sample in fast sample periods, as in
+        The instant of each slow sample in the units of the model's
+        ``sample_time`` (seconds; fast sample periods when it is 1), as in
         ``fit(..., sample_times=t)``; not with ``sample_indices``.
     max_lag : int, default=25
         Largest autocorrelation lag, in slow samples (also the number of
@@ -343,10 +345,11 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, sample_times=Non
     if sample_times is not None:
         if sample_indices is not None:
             raise ValueError("give sample_indices or sample_times, not both")
-        times = np.array(sample_times, dtype=float).reshape(-1)
-        if times.shape[0] != y.shape[0] or not np.all(np.isfinite(times)):
+        stamps = np.array(sample_times, dtype=float).reshape(-1)  # in sample_time's units
+        if stamps.shape[0] != y.shape[0] or not np.all(np.isfinite(stamps)):
             raise ValueError(f"sample_times must hold one finite instant per slow sample "
                              f"({y.shape[0]}); got {np.shape(sample_times)}")
+        times = in_fast_periods(stamps, getattr(model, "sample_time", 1.0), x)
         index = np.floor(times).astype(np.int64)
         factor = max(1, int(round(float(np.median(np.diff(times)))))) if times.size > 1 else 1
     elif sample_indices is None:
@@ -370,7 +373,7 @@ def analyze_residuals(model, u, y_slow, sample_indices=None, *, sample_times=Non
             factor = int(np.median(steps))
     inputs = x if x.shape[1] > 1 else x[:, 0]
     if sample_times is not None:
-        residuals = y - np.asarray(model.predict(inputs, sample_times=times), dtype=float)
+        residuals = y - np.asarray(model.predict(inputs, sample_times=stamps), dtype=float)
     else:
         residuals = y - np.asarray(model.predict(inputs), dtype=float)[index]
     if getattr(model, "initial_conditions", "zero") == "discard":

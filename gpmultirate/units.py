@@ -25,6 +25,13 @@ Examples
 (array([ 0.75, -0.25,  0.5 ]), array([2]), 666)
 >>> float(np.ldexp(y_n[1], scale.output_exponent)) == 2e200
 True
+
+Times are the other unit of the user's: with ``sample_time`` given, the
+stamps of readings (``sample_times``), ``exposure`` and ``latency`` are in
+its units (seconds), and :func:`in_fast_periods` and
+:func:`duration_in_fast_periods` carry them into the fast sample periods the
+observations work in (one place for every entry point: ``fit``,
+``predict``, ``analyze_residuals``, the plots and the command line).
 """
 
 from __future__ import annotations
@@ -43,7 +50,8 @@ from gpmultirate.inference import (
     PrecisionPosterior,
 )
 
-__all__ = ["DataScale", "ScaledCoefficients", "normalize"]
+__all__ = ["DataScale", "ScaledCoefficients", "duration_in_fast_periods", "in_fast_periods",
+           "normalize"]
 
 _TINY = np.finfo(float).tiny
 
@@ -536,3 +544,113 @@ def evidence_theta(model, theta):
     elif theta.shape[0] > n_kernel:
         normalized = np.append(normalized, theta[-1] - 2 * scale.output_exponent * math.log(2.0))
     return normalized, scale.log_density_shift(model.y_slow_.shape[0])
+
+
+# ------------------------------------------------------------------ times
+#: a stamp within this relative distance of a tick after the division by
+#: ``sample_time`` is the tick (the division's rounding, as in ``0.003 / 0.001``)
+TICK_TOLERANCE = 1e-9
+#: stamps all inside this share of the record's start, and more readings than
+#: fast periods there, are taken for a unit mix-up
+SQUEEZED_SHARE = 0.05
+
+
+def duration_in_fast_periods(value: float, sample_time: float) -> float:
+    """An ``exposure`` or ``latency`` in the units of ``sample_time``, in fast periods.
+
+    Examples
+    --------
+    >>> duration_in_fast_periods(0.0025, 0.001)
+    2.5
+    """
+    return value if sample_time == 1.0 else value / sample_time
+
+
+def in_fast_periods(sample_times, sample_time: float, u=None, name: str = "sample_times",
+                    readings: bool = True):
+    """Stamps in the units of ``sample_time`` (seconds), in fast sample periods.
+
+    ``stamps / sample_time``, a stamp within ``TICK_TOLERANCE`` (relative) of
+    a tick being the tick (the division's rounding must not take a reading
+    off its tick); a new array, the caller's is never touched.  A
+    list of arrays is several records (a list back).  With the input ``u``
+    of the records, stamps that cannot be in the units of ``sample_time`` are
+    refused with a ``ValueError`` naming the likely mix-up: stamps squeezed
+    into the first ``SQUEEZED_SHARE`` of the record with more readings than
+    fast periods there (seconds given with ``sample_time`` 1; only for
+    ``readings``: instants to predict at, ``readings=False``, may be a grid
+    as fine as wanted), or past the record's end while they would fit it in
+    fast periods.  Other checks are the observation's.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> in_fast_periods([0.0025, 0.003, 0.0061], 0.001)
+    array([2.5, 3. , 6.1])
+    >>> in_fast_periods(np.arange(0, 0.6, 0.003), 1.0, u=np.ones(600))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: sample_times: all 200 stamps lie in [0, 0.597] fast sample periods, ... they look like seconds while sample_time is 1.0; ...
+    """
+    from gpmultirate.observations.experiment import is_record_list
+
+    several = is_record_list(sample_times)
+    records = list(sample_times) if several else [sample_times]
+    lengths = _record_lengths(u, len(records))
+    out = []
+    for r, times in enumerate(records):
+        raw = np.asarray(times)
+        if raw.dtype.kind not in "iuf" or raw.ndim != 1 or raw.size == 0:
+            out.append(times)  # the observation's checks name what is wrong
+            continue
+        stamps = raw.astype(float)
+        periods = stamps / sample_time
+        tick = np.round(periods)
+        periods = np.where(np.abs(periods - tick) <= TICK_TOLERANCE * np.maximum(
+            1.0, np.abs(tick)), tick, periods)
+        if lengths is not None and np.all(np.isfinite(periods)):
+            _check_units(stamps, periods, lengths[r], sample_time, name, readings)
+        out.append(periods)
+    return out if several else out[0]
+
+
+def _record_lengths(u, n_records: int):
+    """The fast samples of each record of ``u``, or None when they cannot be read."""
+    if u is None:
+        return None
+    from gpmultirate.observations.experiment import is_record_list
+
+    records = list(u) if is_record_list(u) else [u]
+    if len(records) != n_records:
+        return None
+    try:
+        lengths = [np.shape(record)[0] for record in records]
+    except (IndexError, TypeError, ValueError):
+        return None
+    return lengths
+
+
+def _check_units(stamps, periods, n_samples: int, sample_time: float, name: str,
+                 readings: bool) -> None:
+    """Refuse stamps that look like the other unit (seconds vs fast sample periods)."""
+    last = float(periods.max())
+    if (readings and n_samples > 0 and last < SQUEEZED_SHARE * n_samples
+            and periods.size > max(last, 1.0)):
+        raise ValueError(
+            f"{name}: all {periods.size} stamps lie in [{periods.min():.3g}, {last:.3g}] fast "
+            f"sample periods, the first {100 * last / n_samples:.2g} % of the record of "
+            f"{n_samples} fast samples: they look like seconds while sample_time is "
+            f"{sample_time!r}; give the fast sample time as sample_time (the stamps are in "
+            "its units), or the stamps in fast sample periods" if sample_time == 1.0 else
+            f"{name}: all {periods.size} stamps lie in [{periods.min():.3g}, {last:.3g}] fast "
+            f"sample periods, the first {100 * last / n_samples:.2g} % of the record of "
+            f"{n_samples} fast samples: they are not in the units of sample_time "
+            f"({sample_time!r} s per fast sample); give them in seconds"
+        )
+    if sample_time != 1.0 and last >= n_samples and float(stamps.max()) < n_samples:
+        raise ValueError(
+            f"{name} are in the units of sample_time ({sample_time!r} s per fast sample): "
+            f"the last stamp, {float(stamps.max()):g} s, lies past the record's end at "
+            f"{n_samples * sample_time:g} s; stamps in fast sample periods are "
+            "multiplied by sample_time to give seconds"
+        )

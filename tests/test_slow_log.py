@@ -41,7 +41,9 @@ def test_read_slow_log(tmp_path):
     assert isinstance(log, SlowLog)
     np.testing.assert_allclose(log.sample_times, times, rtol=1e-12)
     np.testing.assert_array_equal(log.values, y)
-    assert log.estimator_params == pytest.approx({"exposure": 0.5, "latency": 0.2})
+    # exposure, latency and stamps in seconds, the units of the estimator's sample_time
+    assert log.estimator_params == {"exposure": 5e-4, "latency": 2e-4}
+    np.testing.assert_array_equal(log.fit_params["sample_times"], log.stamps)
     assert log.factor == 3 and log.offset is None
     assert "exposure 0.0005 s" in log.description
     np.testing.assert_array_equal(log.indices, np.floor(times))
@@ -90,8 +92,8 @@ def test_fit_and_predict_a_camera_from_the_command_line(tmp_path, capsys):
     # the same fit through the library: the summary's evidence is its evidence
     import json
     summary = json.loads((out / "summary.json").read_text())
-    model = gm.FIRGaussianProcess(order=P, sample_time=T, exposure=0.5, latency=0.2).fit(
-        u, y, sample_times=read_slow_log(slow, "t", sample_time=T, n_samples=N).sample_times)
+    model = gm.FIRGaussianProcess(order=P, sample_time=T, exposure=5e-4, latency=2e-4).fit(
+        u, y, sample_times=read_slow_log(slow, "t", sample_time=T, n_samples=N).stamps)
     assert np.isclose(summary["model"]["log_evidence"], model.log_marginal_likelihood_value_)
     assert "time stamps of their own" in summary["data"]["sampling"]
 
@@ -108,7 +110,7 @@ def test_predict_readings_at_given_instants(tmp_path, capsys):
                  str(slow), "--time", "t", "--out", str(target), "--quiet"]) == 0
     table = np.genfromtxt(target, delimiter=",", names=True)
     loaded = gm.load_model(tmp_path / "model.npz")
-    mean, std = loaded.predict(u, return_std=True, sample_times=times)
+    mean, std = loaded.predict(u, return_std=True, sample_times=times * T)
     np.testing.assert_allclose(table["time"], times * T, rtol=1e-12)
     np.testing.assert_allclose(table["y"], mean, rtol=1e-9)
     np.testing.assert_allclose(table["y_std"], std, rtol=1e-9)

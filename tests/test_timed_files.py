@@ -73,13 +73,14 @@ def _assert_same_predictions(model, loaded, us, stamps):
 def test_records_with_exposure_and_latency_round_trip():
     records = [_record(1), _record(2, n=39)]
     us, ys, stamps = (list(v) for v in zip(*records))
-    model = gm.FIRGaussianProcess(C(1.5) * DC(0.8, 0.5), order=P, exposure=0.5, latency=0.3,
-                                  optimizer=None, noise_level=1e-4, sample_time=0.01)
-    model.fit(us, ys, sample_times=stamps)
+    model = gm.FIRGaussianProcess(C(1.5) * DC(0.8, 0.5), order=P, exposure=0.005,
+                                  latency=0.003, optimizer=None, noise_level=1e-4,
+                                  sample_time=0.01)
+    model.fit(us, ys, sample_times=[s * 0.01 for s in stamps])
     buffer, loaded = _saved_and_loaded(model)
     header, names = _header(buffer)
-    assert header["format_version"] == 4 and header["fitted"]["layout"] == "timed"
-    assert header["params"]["exposure"] == 0.5 and header["params"]["latency"] == 0.3
+    assert header["format_version"] == 5 and header["fitted"]["layout"] == "timed"
+    assert header["params"]["exposure"] == 0.005 and header["params"]["latency"] == 0.003
     assert "sample_times_1" in names and "sample_indices_0" not in names
     # the missing reading is not stored; the stamps of the others are, exactly
     times = model.observation_.records[0].sample_times
@@ -89,8 +90,8 @@ def test_records_with_exposure_and_latency_round_trip():
     assert loaded.observation_ == model.observation_
     assert loaded.get_params() == model.get_params()
     assert loaded.log_marginal_likelihood_value_ == model.log_marginal_likelihood_value_
-    _assert_same_predictions(model, loaded, us, [np.array([5.5, 20.25, 40.7]),
-                                                 np.array([0.2, 7.1, 8.2])])
+    _assert_same_predictions(model, loaded, us, [np.array([5.5, 20.25, 40.7]) * 0.01,
+                                                 np.array([0.2, 7.1, 8.2]) * 0.01])
 
 
 def test_tuned_model_round_trips_with_its_optimizer_result():
@@ -141,8 +142,8 @@ def test_many_outputs_at_their_own_instants_round_trip():
     model = gm.MultiOutputFIR(template).fit(u, np.column_stack([y, y2]), sample_times=stamps)
     buffer, loaded = _saved_and_loaded(model)
     header, _ = _header(buffer)
-    assert header["format_version"] == 4
-    assert [o["format_version"] for o in header["fitted"]["outputs"]] == [4, 4]
+    assert header["format_version"] == 5
+    assert [o["format_version"] for o in header["fitted"]["outputs"]] == [5, 5]
     for a, b in zip(model.predict(u, return_std=True, sample_times=[4.5, 9.2]),
                     loaded.predict(u, return_std=True, sample_times=[4.5, 9.2])):
         np.testing.assert_array_equal(a, b)
@@ -192,6 +193,30 @@ def test_inconsistent_timed_file_refused(edit, match):
         gm.load_model(_forge(buffer, edit))
 
 
+def test_version_4_file_reads_exposure_and_latency_in_fast_periods():
+    # before 0.2.0 the exposure and latency of a model file were in fast periods
+    u, y, stamps = _record(10)
+    T = 0.01
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, exposure=0.5 * T,
+                                  latency=0.25 * T, sample_time=T, optimizer=None,
+                                  noise_level=1e-4).fit(u, y, sample_times=stamps * T)
+    buffer, loaded = _saved_and_loaded(model)
+
+    def old(header, members):
+        header.update(format_version=4)
+        header["params"].update(exposure=0.5, latency=0.25)
+
+    previous = gm.load_model(_forge(buffer, old))
+    assert previous.exposure == pytest.approx(0.5 * T, rel=1e-15)
+    assert previous.latency == pytest.approx(0.25 * T, rel=1e-15)
+    assert previous.log_marginal_likelihood_value_ == model.log_marginal_likelihood_value_
+    instants = np.array([3.5, 17.25, 30.0]) * T
+    for a, b in zip(model.predict(u, return_std=True, sample_times=instants),
+                    previous.predict(u, return_std=True, sample_times=instants)):
+        np.testing.assert_allclose(a, b, rtol=1e-12)
+    assert loaded.exposure == model.exposure and loaded.latency == model.latency
+
+
 def test_other_quadrature_is_reported():
     u, y, stamps = _record(9)
     model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, exposure=0.5,
@@ -228,7 +253,7 @@ def _assert_command_line_readings(model_file, model, u, fast, instants, folder):
     assert main(["predict", str(model_file), str(fast), "--input", "u", "--slow",
                  str(frames), "--time", "t", "--out", str(target), "--quiet"]) == 0
     table = np.genfromtxt(target, delimiter=",", names=True)
-    mean, std = model.predict(u, return_std=True, sample_times=instants)
+    mean, std = model.predict(u, return_std=True, sample_times=instants * T)
     np.testing.assert_allclose(table["time"], instants * T, rtol=1e-12)
     np.testing.assert_allclose(table["y"], mean, rtol=1e-13, atol=1e-15)
     np.testing.assert_allclose(table["y_std"], std, rtol=1e-13)
@@ -249,10 +274,10 @@ def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
     model = gm.load_model(out / "model.npz")
     # the residuals are those of the readings at their instants (exposure and latency applied)
     assert (out / "residuals.png").exists()
-    assert (model.exposure, model.latency, model.sample_time) == (0.5, 0.2, T)
-    # the saved model is the fit of the library on the same data
-    stamps = read_slow_log(slow, "t", sample_time=T, n_samples=u.shape[0]).sample_times
-    direct = gm.FIRGaussianProcess(order=P, sample_time=T, exposure=0.5, latency=0.2).fit(
+    assert (model.exposure, model.latency, model.sample_time) == (5e-4, 2e-4, T)
+    # the saved model is the fit of the library on the same data (times in seconds)
+    stamps = read_slow_log(slow, "t", sample_time=T, n_samples=u.shape[0]).stamps
+    direct = gm.FIRGaussianProcess(order=P, sample_time=T, exposure=5e-4, latency=2e-4).fit(
         u, y, sample_times=stamps)
     summary = json.loads((out / "summary.json").read_text())
     assert np.isclose(summary["model"]["log_evidence"], direct.log_marginal_likelihood_value_,
@@ -269,9 +294,10 @@ def test_camera_fit_writes_a_model_that_predicts_readings(tmp_path, capsys):
 
 def test_predict_readings_of_a_saved_camera_model(tmp_path):
     u, y, stamps, fast, _ = _camera_files(tmp_path, n=120)
-    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, sample_time=T, exposure=0.5,
-                                  latency=0.2, optimizer=None, noise_level=1e-4)
-    gm.save_model(model.fit(u, y, sample_times=stamps), tmp_path / "model.npz")
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, sample_time=T,
+                                  exposure=0.5 * T, latency=0.2 * T, optimizer=None,
+                                  noise_level=1e-4)
+    gm.save_model(model.fit(u, y, sample_times=stamps * T), tmp_path / "model.npz")
     instants = np.array([10.25, 57.5, 100.875])
     _assert_command_line_readings(tmp_path / "model.npz", model, u, fast, instants, tmp_path)
 

@@ -82,7 +82,7 @@ def readings_of(sample_indices, sample_times, exposure: float, latency: float):
         if exposure or latency:
             raise ValueError(
                 "exposure and latency apply to readings at their own instants: give "
-                "sample_times (in fast sample periods)"
+                "sample_times (in the units of sample_time)"
             )
         return sample_indices
     if sample_indices is not None:

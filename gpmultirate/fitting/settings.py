@@ -14,6 +14,7 @@ from gpmultirate.fitting.between_ticks import check_between_ticks
 from gpmultirate.fitting.disturbance import check_noise_kernel
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.observations.timed import check_duration
+from gpmultirate.units import duration_in_fast_periods
 from gpmultirate.validation import (
     check_bounds,
     check_int,
@@ -53,8 +54,8 @@ class Settings:
     factor: int = 1
     offset: int = 0
     initial_conditions: str = "zero"
-    exposure: float = 0.0
-    latency: float = 0.0
+    exposure: float = 0.0  # in fast sample periods (the parameter is in sample_time's units)
+    latency: float = 0.0  # in fast sample periods
     between_ticks: str = "auto"  # the route of readings between the ticks
     #: the kernel and noise level are given in the units of the normalized data
     #: (a model file of ``hyperparameter_units_="normalized"``)
@@ -103,7 +104,7 @@ def check_settings(model, prior_in_normalized_units: bool = False) -> Settings:
         )
     n_restarts = check_int(model.n_restarts_optimizer, "n_restarts_optimizer", low=0)
     check_rng(model.random_state)
-    check_sample_time(model.sample_time)
+    sample_time = check_sample_time(model.sample_time)
     noise = check_positive(model.noise_level, "noise_level")
     if not (isinstance(model.noise_level_bounds, str) and model.noise_level_bounds == "auto"):
         check_bounds(model.noise_level_bounds, "noise_level_bounds")
@@ -119,8 +120,9 @@ def check_settings(model, prior_in_normalized_units: bool = False) -> Settings:
     # normalized units are a start and bounds for tuning: without tuning
     # the kernel and the noise level are used exactly as given
     normalize = bool(model.normalize) and model.optimizer is not None
-    exposure = check_duration(model.exposure, "exposure")
-    latency = check_duration(model.latency, "latency")
+    # given in the units of sample_time, observed in fast sample periods
+    exposure = duration_in_fast_periods(check_duration(model.exposure, "exposure"), sample_time)
+    latency = duration_in_fast_periods(check_duration(model.latency, "latency"), sample_time)
     return Settings(
         criterion, n_folds, candidates, n_restarts, noise, auto, max_resonances, normalize,
         model.optimizer is not None, noise_kernel=noise_kernel, kernel=model.kernel,

@@ -138,7 +138,7 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
         plot_intersample(prediction, ax=zoom, window=(start, start + width),
                          label="prediction (95 % band)")
     else:  # the band between the ticks, the readings at their instants
-        plot_intersample(model, u, y_slow=values, sample_times=instants, ax=zoom,
+        plot_intersample(model, u, y_slow=values, sample_times=samples.stamps, ax=zoom,
                          window=(start, start + width), label="sensor reading (95 % band)")
     zoom.set_title(f"fast samples {start}..{start + width - 1}", fontsize="medium", loc="left")
     for ax in (full, zoom):

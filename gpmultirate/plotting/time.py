@@ -34,6 +34,7 @@ from gpmultirate.plotting.axes import (
 from gpmultirate.observations.timed import check_sample_times
 from gpmultirate.responses import ImpulseResponse, OutputPrediction, normal_quantile
 from gpmultirate.study.examples import NonidentifiableExample
+from gpmultirate.units import in_fast_periods
 from gpmultirate.validation import (
     check_inputs, check_int, check_level, check_positive, check_signal,
 )
@@ -312,7 +313,8 @@ def plot_intersample(
     sample_times : array-like of float, optional
         Only with a fitted :class:`~gpmultirate.FIRGaussianProcess`: the
         instant of each slow sample of ``y_slow`` (frames at their own
-        instants), in fast sample periods; the samples are drawn there.
+        instants), in the units of the model's ``sample_time`` as in
+        ``fit`` (fast sample periods when it is 1); the samples are drawn there.
     between : int, optional
         Only with a fitted :class:`~gpmultirate.FIRGaussianProcess`: draw
         the band continuously, at ``between`` instants per fast period,
@@ -416,8 +418,9 @@ def _plot_between(model, u, y_fast, y_slow, sample_times, sample_time, ax, level
     n = check_inputs(u, "u").shape[0]
     between = check_int(between, "between", low=1)
     level = check_level(level)
+    stamp_unit = getattr(model, "sample_time", None) or 1.0  # the unit of the model's stamps
     if sample_time is None:
-        sample_time = getattr(model, "sample_time", None) or 1.0
+        sample_time = stamp_unit
     sample_time = check_positive(sample_time, "sample_time")
     start, stop = 0, n
     if window is not None:
@@ -429,20 +432,20 @@ def _plot_between(model, u, y_fast, y_slow, sample_times, sample_time, ax, level
     if y_slow is not None:
         if sample_times is None:
             raise ValueError("y_slow between the ticks needs sample_times: the instant of "
-                             "each slow sample, in fast sample periods")
-        times = check_sample_times(sample_times, n)
+                             "each slow sample, in the units of the model's sample_time")
+        times = check_sample_times(in_fast_periods(sample_times, stamp_unit), n)
         y_slow = np.asarray(y_slow, dtype=float).reshape(-1)
         if y_slow.shape != times.shape:
             raise ValueError(f"y_slow must have one sample per instant of sample_times "
                              f"({times.shape[0]}); got {y_slow.shape[0]}")
     elif sample_times is not None:
-        check_sample_times(sample_times, n)
+        check_sample_times(in_fast_periods(sample_times, stamp_unit), n)
     if y_fast is not None:
         y_fast = check_signal(y_fast, "y_fast")
         if y_fast.shape[0] != n:
             raise ValueError(f"y_fast must have len(u) = {n} samples; got {y_fast.shape[0]}")
     grid = np.arange(start * between, stop * between) / between
-    mean, std = model.predict(u, sample_times=grid, return_std=True)
+    mean, std = model.predict(u, sample_times=grid * stamp_unit, return_std=True)
     z = normal_quantile(level)
     ax = axes_or_new(ax)
     time = grid * sample_time
