@@ -711,10 +711,10 @@ class LeastSquaresFIR(StateSpaceMixin, FIRModelMixin, BaseEstimator):
                 "input, a lower order, or FIRGaussianProcess."
             )
         coef = Vt.T @ ((U.T @ y) / s)
-        residual = y - operator.matrix @ coef
+        residual = y - observation.matrix @ coef
         noise_variance = float(residual @ residual / (M - P))
         root = Vt.T / s  # coef covariance = noise_variance * root @ root.T
-        self.observation_ = operator
+        self.observation_ = observation
         self.n_inputs_ = experiment.n_inputs
         self.coef_ = self._shaped(coef)
         self.noise_variance_ = noise_variance

@@ -846,7 +846,7 @@ def observed_kernel_cases():
         f"ObservedKernel({bad!r}, op)(X)", lambda: observed(kernel=bad.value)(X), bad.names))
     return kernel_cases | slot_cases(
         Slot("ObservedKernel(kernel, {})(X)", lambda v: observed(op=v)(X), bad_operators,
-             ("operator",)),
+             ("observation",)),
         Slot("ObservedKernel(kernel, op)(X={})", lambda v: observed()(v), bad_slow_indices(),
              ("X",)),
         Slot("ObservedKernel(kernel, op)(X={}, eval_gradient=True)",
@@ -1273,7 +1273,7 @@ MINIMAL_REPRODUCERS = (
     Case("op.matvec([nan] * 5)", lambda: operator().matvec([NAN] * ORDER), ("coef",)),
     Case("op.rmatvec('abc')", lambda: operator().rmatvec("abc"), ("y",)),
     Case("ObservedKernel(DC(), 'op')(X)",
-         lambda: ObservedKernel(DC(), "op")(np.arange(4)[:, None]), ("operator",)),
+         lambda: ObservedKernel(DC(), "op")(np.arange(4)[:, None]), ("observation",)),
     Case("ObservedKernel('DC', op)(X)",
          lambda: ObservedKernel("DC", operator())(np.arange(4)[:, None]), ("kernel",)),
     Case("ObservedKernel(DC(), op)(X of shape (2, 2))",
