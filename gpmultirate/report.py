@@ -21,13 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
+from gpmultirate.arguments import FIT_KERNELS
 from gpmultirate.io import SlowSamples, model_slow_samples
 
 __all__ = ["FIT_KERNELS", "FitReport", "fit_files", "fit_report", "kernel_option",
-           "model_slow_samples", "noise_summary", "prediction_csv", "study_header", "write_study"]
-
-#: Kernels of ``gpmultirate fit --kernel`` (:func:`kernel_option`).
-FIT_KERNELS = ("dc", "tc", "ss", "auto")
+           "model_slow_samples", "noise_summary", "prediction_csv", "readings_model",
+           "study_header", "write_study"]
 
 
 def kernel_option(name: str):
@@ -199,7 +198,11 @@ class FitReport:
         if noise["model"] != "white":
             line += f", disturbance std {math.sqrt(noise['disturbance_level']):.4g}"
         if self.validation is not None:
-            line += f", validation GoF {self.validation['gof_percent']:.2f} %"
+            if self.validation.get("fit_percent") is not None:
+                line += (f", validation fit {self.validation['fit_percent']:.2f} % (NRMSE; "
+                         f"GoF {self.validation['gof_percent']:.2f} %)")
+            else:
+                line += f", validation GoF {self.validation['gof_percent']:.2f} %"
         return line
 
     def to_json(self) -> str:
@@ -256,7 +259,10 @@ def noise_summary(model, residuals=None) -> dict:
         white variance) and, for a disturbance, ``disturbance_level`` (its
         variance at one sample) and ``time_scale`` (its length scales and
         periods in fast samples); with ``residuals``, ``residuals_white`` and
-        ``ljung_box_p_value``.
+        ``ljung_box_p_value``, and where they are not white
+        ``residuals_explained`` (what is left and what takes it up,
+        :func:`gpmultirate.diagnosis.explain_residuals`) and
+        ``residual_remedies``.
 
     Examples
     --------
@@ -283,8 +289,14 @@ def noise_summary(model, residuals=None) -> dict:
             if name.endswith(("length_scale", "periodicity")) and not name.endswith("_bounds")
         }
     if residuals is not None:
+        from gpmultirate.diagnosis import explain_residuals
+
         found["residuals_white"] = bool(residuals.white)
         found["ljung_box_p_value"] = float(residuals.p_value)
+        if not residuals.white:
+            why = explain_residuals(residuals, model)
+            found["residuals_explained"] = why.text
+            found["residual_remedies"] = list(why.remedies)
     return found
 
 
@@ -305,6 +317,9 @@ def _noise_lines(noise) -> list[str]:
         verdict = "look white" if noise["residuals_white"] else "do not look white"
         lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
                      f"{noise['ljung_box_p_value']:.3g}; residuals.png)")
+        if noise.get("residuals_explained"):
+            reasons = noise["residuals_explained"].split(": ", 1)[-1]
+            lines.append(f"  - what is left: {reasons}")
     return lines
 
 
@@ -347,22 +362,33 @@ def _markdown(summary: dict) -> str:
     selection = summary.get("order_selection")
     if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
         criterion = selection.get("criterion")
-        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
-                else f"{criterion} per slow sample")
-        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
-                  "", "| order | score |", "|---|---|"]
-        lines += [f"| {o} | {_cell_text(v)} |"
-                  for o, v in zip(selection["orders"], selection.get("score", []))]
+        lines += ["", f"## Order selection (fitted order {selection.get('best_order')})", ""]
+        if criterion == "prior_tail":
+            # the score is the lag beyond which the tuned prior is negligible, read up to
+            # the order: equal to the order, it says the prior has not decayed there
+            lines += ["| order fitted | tuned prior negligible beyond lag |", "|---|---|"]
+            lines += [f"| {o} | " + (f"not within the order ({int(v)})" if int(v) >= o
+                                     else f"{int(v)}") + " |"
+                      for o, v in zip(selection["orders"], selection.get("score", []))]
+        else:
+            what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
+                    else f"{criterion} per slow sample")
+            lines += [f"| order | {what} |", "|---|---|"]
+            lines += [f"| {o} | {_cell_text(v)} |"
+                      for o, v in zip(selection["orders"], selection.get("score", []))]
     if "state_space" in summary:
         lines += ["", "## State-space model", "",
                   f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
     if "validation" in summary:
         val = summary["validation"]
-        lines += ["", "## Validation", "",
-                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
-                  f"({val['n_samples']} fast samples)"]
-        if "fit_percent" in val:
-            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
+        lines += ["", "## Validation", "", f"- `{val['file']}`, {val['n_samples']} fast samples"]
+        if val.get("fit_percent") is not None:
+            lines.append(f"- fit: {val['fit_percent']:.4g} % (normalized root-mean-square "
+                         "error, 100 (1 - |y - y_hat| / |y - mean y|), as other toolboxes "
+                         "report it)")
+        lines.append(f"- goodness of fit (paper eq. 20, model.score): "
+                     f"{val['gof_percent']:.4g} % (the squared errors: 100 (1 - |y - y_hat|^2 "
+                     "/ |y - mean y|^2))")
     if summary["notes"]:
         lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
     return "\n".join(lines) + "\n"
@@ -632,7 +658,66 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
     return files, report
 
 
-def prediction_csv(model, u, sample_times=None) -> str:
+def readings_model(model, *, exposure=None, latency=None):
+    """The model with the sensor's exposure and latency of the readings it predicts.
+
+    A model fitted on the ticks predicts readings as the output at their
+    instants; a camera's readings are the mean output over an exposure,
+    shown late by a latency.  The fitted model is not changed: the result
+    is a shallow copy whose ``exposure`` and ``latency`` (fast sample
+    periods) are those given, the others kept.
+
+    Parameters
+    ----------
+    model : fitted FIRGaussianProcess
+    exposure, latency : float, optional
+        In fast sample periods, non-negative; None keeps the model's.
+
+    Returns
+    -------
+    estimator
+        ``model`` itself when nothing changes.
+
+    Raises
+    ------
+    ValueError
+        If a value is negative or not finite, or the model has no readings
+        (no ``exposure`` parameter).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(60)
+    >>> y = np.convolve(u, 0.8 ** np.arange(10))[:60]
+    >>> model = gm.FIRGaussianProcess(order=10, factor=3).fit(u, y[::3])
+    >>> camera = readings_model(model, exposure=0.5)
+    >>> camera.exposure, model.exposure
+    (0.5, 0.0)
+    """
+    import copy
+
+    given = {name: value for name, value in (("exposure", exposure), ("latency", latency))
+             if value is not None}
+    if not given:
+        return model
+    params = model.get_params(deep=False) if hasattr(model, "get_params") else {}
+    for name, value in given.items():
+        if name not in params:
+            raise ValueError(f"{name} applies to a model of readings (FIRGaussianProcess); "
+                             f"{type(model).__name__} has none")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) \
+                or not np.isfinite(value) or value < 0:
+            raise ValueError(f"{name} must be a non-negative number of fast sample periods; "
+                             f"got {value!r}")
+    changed = copy.copy(model)
+    for name, value in given.items():
+        setattr(changed, name, float(value))
+    return changed
+
+
+def prediction_csv(model, u, sample_times=None, *, exposure=None, latency=None) -> str:
     """The fast-rate prediction of a fitted model as CSV text (``gpmultirate predict``).
 
     Parameters
@@ -644,6 +729,9 @@ def prediction_csv(model, u, sample_times=None) -> str:
         Predict the readings at these instants (fast sample periods,
         ``model.predict(u, sample_times=...)``) instead of the fast samples:
         one row per reading, ``index`` its number and ``time`` its instant.
+    exposure, latency : float, optional
+        With ``sample_times``: the sensor's exposure and latency in fast
+        sample periods, in place of the model's (:func:`readings_model`).
 
     Returns
     -------
@@ -671,8 +759,11 @@ def prediction_csv(model, u, sample_times=None) -> str:
     index,time,y,y_std
     """
     if sample_times is None:
+        if exposure is not None or latency is not None:
+            raise ValueError("exposure and latency apply to readings: give sample_times")
         mean, std = model.predict(u, return_std=True)
     else:
+        model = readings_model(model, exposure=exposure, latency=latency)
         mean, std = model.predict(u, return_std=True, sample_times=sample_times)
     if not (np.isfinite(mean).all() and np.isfinite(std).all()):
         raise ValueError("the prediction is not finite (the model or the inputs are out of "
