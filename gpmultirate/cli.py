@@ -518,7 +518,8 @@ def _fit(parser, args) -> int:
     try:
         files, report = fit_files(model, u, samples, file=path, inputs=inputs, output=output,
                                   validation=validation, validation_file=args.validate,
-                                  warnings=messages, kernel_option=args.kernel)
+                                  warnings=messages, kernel_option=args.kernel,
+                                  xscale=args.xscale)
     except ValueError as error:
         parser.error(f"{path}: {error}")
     # the folder appears complete in one step (or not at all), see io.write_folder

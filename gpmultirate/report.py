@@ -539,7 +539,7 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
 
 def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs=None,
               output: str = "y", validation=None, validation_file=None, warnings=(),
-              kernel_option: str | None = None) -> tuple[dict, FitReport]:
+              kernel_option: str | None = None, xscale: str = "auto") -> tuple[dict, FitReport]:
     """Every file ``gpmultirate fit`` writes for a fitted model, as bytes.
 
     Parameters
@@ -550,6 +550,9 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
         The input it was fitted to.
     samples, file, inputs, output, validation, validation_file, warnings, kernel_option
         As for :func:`fit_report`.
+    xscale : {"auto", "linear", "log"}, default="auto"
+        The frequency axis of ``bode.png``
+        (:func:`gpmultirate.plotting.report.fit_figures`).
 
     Returns
     -------
@@ -599,11 +602,11 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
     with threadpool_limits(limits=idle_cores(), user_api="blas"):
         return _fit_files(model, u, samples, file=file, inputs=inputs, output=output,
                           validation=validation, validation_file=validation_file,
-                          warnings=warnings, kernel_option=kernel_option)
+                          warnings=warnings, kernel_option=kernel_option, xscale=xscale)
 
 
 def _fit_files(model, u, samples, *, file, inputs, output, validation, validation_file,
-               warnings, kernel_option):
+               warnings, kernel_option, xscale="auto"):
     import io
 
     from gpmultirate.export import save_state_space
@@ -643,7 +646,7 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
                         validation=validation, validation_file=validation_file,
                         state_space=system, notes=notes, warnings=warnings,
                         kernel_option=kernel_option, residuals=analysis)
-    figures = fit_figures(model, u, samples, inputs)
+    figures = fit_figures(model, u, samples, inputs, xscale=xscale)
     if analysis is not None:
         figure = _figure(figsize=(6.4, 2.4 * (1 + analysis.cross_correlation.shape[0])))
         plot_residuals(analysis, ax=figure.subplots(1 + analysis.cross_correlation.shape[0], 1,
