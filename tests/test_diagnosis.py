@@ -1,0 +1,128 @@
+"""explain_residuals: its level on well-specified fits, its power and reasons on resonant ones."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import signal
+
+import gpmultirate as gm
+from gpmultirate import simulation
+from gpmultirate.diagnosis import _aliases, explain_residuals
+from gpmultirate.residuals import analyze_residuals, residual_correlations
+
+
+def _well_specified(seed, order, n=300, factor=3):
+    """A decaying response, white noise at 20 dB, fitted with the default kernel."""
+    rng = np.random.default_rng([seed, order])
+    u = rng.standard_normal(n)
+    lags = np.arange(60)
+    g = 0.85 ** lags * (1 + 0.5 * rng.standard_normal()) * np.cos((0.3 + 0.2 * rng.random())
+                                                                   * lags)
+    y = np.convolve(u, g)[:n:factor]
+    y = y + 0.1 * np.std(y) * rng.standard_normal(y.shape[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = gm.FIRGaussianProcess(order=order, factor=factor).fit(u, y)
+    return analyze_residuals(model, u, y, max_lag=25)
+
+
+def _false_alarms(n_records, order):
+    return sum(not _well_specified(r, order).white for r in range(n_records))
+
+
+@pytest.mark.parametrize("order", [60, 150])  # fewer and more coefficients than M = 100
+def test_false_alarm_rate_quick(order):
+    # 6 records at the 1 % level: 2 or more false alarms has probability 0.15 %
+    assert _false_alarms(6, order) <= 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [60, 150])
+def test_false_alarm_rate_on_200_records_is_within_the_level_plus_2_points(order):
+    rate = _false_alarms(200, order) / 200
+    assert rate <= 0.01 + 0.02, rate
+
+
+def _resonant(seed, sample_time=0.05, n=900, factor=3):
+    """The paper's two-mass system (modes at 0.43 and 2.3 Hz), fitted with DC."""
+    system = simulation.paper_system(sample_time=sample_time)
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = signal.dlsim((system.A, system.B, system.C, system.D, sample_time), u)[1][:, 0]
+    y = y[::factor] + 0.01 * np.std(y) * rng.standard_normal(n // factor)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = gm.FIRGaussianProcess(order=300, factor=factor,
+                                      sample_time=sample_time).fit(u, y)
+    modes = np.abs(np.angle(np.linalg.eigvals(system.A))) / (2 * np.pi * sample_time)
+    return model, analyze_residuals(model, u, y), np.unique(modes.round(6))
+
+
+def _check_explanation(model, analysis, modes):
+    why = explain_residuals(analysis, model)
+    assert not why.white
+    peaks = [f for f in why.findings if f.kind == "peak"]
+    assert peaks, why.text
+    peak = peaks[0]
+    # the peak is a resonance's alias, within the periodogram's resolution
+    resolution = 1.0 / (analysis.n_residuals * model.factor * model.sample_time)
+    assert any(abs(a - m) <= 1.5 * resolution for a in peak.aliases for m in modes), peak
+    assert peak.remedy == 'kernel="auto"'
+    assert f"{peak.frequency:.4g} Hz" in why.text and 'kernel="auto"' in why.text
+    return why
+
+
+def test_a_missed_resonance_is_named_with_its_frequency_and_kernel_auto():
+    _check_explanation(*_resonant(0))
+
+
+@pytest.mark.slow
+def test_power_on_resonant_records():
+    for seed in range(1, 8):
+        _check_explanation(*_resonant(seed))
+
+
+def test_the_aliases_are_the_fast_frequencies_folding_onto_the_slow_one():
+    # slow rate 1/(3 * 0.1 s), fast Nyquist 5 Hz: the fast frequencies whose cosine has the
+    # same slow samples as one at 0.5 Hz, found on a grid
+    found = _aliases(0.5, 3, 0.1)
+    t = 0.3 * np.arange(40)
+    grid = np.arange(0, 30001) / 6000.0  # 0 .. 5 Hz
+    same = np.all(np.abs(np.cos(2 * np.pi * np.outer(grid, t))
+                         - np.cos(2 * np.pi * 0.5 * t)) < 1e-6, axis=1)
+    np.testing.assert_allclose(found, grid[same], atol=1e-9)
+    assert len(found) == 3
+
+
+def test_white_residuals_have_no_findings_and_a_drift_is_named():
+    rng = np.random.default_rng(5)
+    e = rng.standard_normal(600)
+    analysis = residual_correlations(e, np.arange(0, 1800, 3), rng.standard_normal(1800),
+                                     max_lag=20, input_lags=np.arange(-30, 31),
+                                     confidence=0.99)
+    why = explain_residuals(analysis, sample_time=0.01)
+    assert why.white and why.findings == () and "look white" in why.text
+    drift = np.cumsum(rng.standard_normal(600)) * 0.2 + e
+    analysis = residual_correlations(drift, np.arange(0, 1800, 3), rng.standard_normal(1800),
+                                     max_lag=20, input_lags=np.arange(-30, 31),
+                                     confidence=0.99)
+    why = explain_residuals(analysis, factor=3, sample_time=0.01)
+    assert not why.white and why.findings[0].kind == "drift"
+    assert why.remedies == ('noise_kernel="auto"',)
+
+
+def test_a_peak_the_input_does_not_explain_asks_for_a_disturbance():
+    rng = np.random.default_rng(6)
+    m = np.arange(600)
+    e = rng.standard_normal(600) + 1.5 * np.sin(2 * np.pi * 0.21 * m)  # 0.21 / slow sample
+    analysis = residual_correlations(e, 3 * m, rng.standard_normal(1800), max_lag=20,
+                                     input_lags=np.arange(-30, 31), confidence=0.99)
+    why = explain_residuals(analysis, factor=3, sample_time=1.0)
+    peak = why.findings[0]
+    assert peak.kind == "peak" and peak.remedy == 'noise_kernel="auto"'
+    assert peak.frequency == pytest.approx(0.21 / 3, abs=1 / 1800)
+    # Fisher's statistic, from the periodogram computed here
+    spectrum = np.abs(np.fft.rfft(e - e.mean())) ** 2
+    ordinates = spectrum[1:300]
+    assert peak.p_value == pytest.approx(299 * np.exp(-ordinates.max() / ordinates.mean()))
