@@ -128,8 +128,15 @@ class FitReport:
     state_space : dict or None
         ``order`` of the state-space model written beside the fit.
     validation : dict or None
-        ``file``, ``n_samples``, ``gof_percent`` and ``fit_percent`` on
+        ``file``, ``n_samples``, ``gof_percent`` (eq. 20, ``model.score``)
+        and ``fit_percent`` (normalized root-mean-square error) on
         validation data.
+    modes : dict or None
+        The reduced model's modes with credible intervals and the peaks of
+        the frequency response the data support
+        (:func:`gpmultirate.modes.modal_analysis`): ``n_states``,
+        ``level``, ``n_draws``, ``modes`` and ``peaks`` (lists of dicts),
+        ``consistent`` and ``text``.
 
     Examples
     --------
@@ -157,6 +164,7 @@ class FitReport:
     order_selection: dict | None = None
     state_space: dict | None = None
     validation: dict | None = None
+    modes: dict | None = None
 
     def to_dict(self) -> dict:
         """The report as JSON-compatible plain data (the content of ``summary.json``).
@@ -172,7 +180,7 @@ class FitReport:
                "warnings": list(self.warnings)}
         if self.resonances is not _ABSENT:
             out["resonances"] = self.resonances
-        for name in ("order_selection", "state_space", "validation"):
+        for name in ("order_selection", "state_space", "validation", "modes"):
             if getattr(self, name) is not None:
                 out[name] = getattr(self, name)
         return _plain(out)
@@ -218,7 +226,8 @@ class FitReport:
                    resonances=summary.get("resonances", _ABSENT),
                    order_selection=summary.get("order_selection"),
                    state_space=summary.get("state_space"),
-                   validation=summary.get("validation"))
+                   validation=summary.get("validation"),
+                   modes=summary.get("modes"))
 
     def to_markdown(self) -> str:
         """The report as a Markdown page (the content of ``summary.md``)."""
@@ -242,7 +251,7 @@ def _noise_line(model: dict) -> str:
     return line
 
 
-def noise_summary(model, residuals=None) -> dict:
+def noise_summary(model, residuals=None, explanation=None) -> dict:
     """The fitted noise of a model: white, or the disturbance with its level and time scale.
 
     Parameters
@@ -251,6 +260,9 @@ def noise_summary(model, residuals=None) -> dict:
     residuals : ResidualAnalysis, optional
         :func:`~gpmultirate.residuals.analyze_residuals` of the fit: the
         whiteness verdict of the slow residuals is added.
+    explanation : ResidualExplanation, optional
+        :func:`~gpmultirate.diagnosis.explain_residuals` of ``residuals``
+        (by default made here, with the chi-squared verdict).
 
     Returns
     -------
@@ -258,8 +270,9 @@ def noise_summary(model, residuals=None) -> dict:
         ``model`` (``"white"`` or the noise kernel), ``white_level`` (the
         white variance) and, for a disturbance, ``disturbance_level`` (its
         variance at one sample) and ``time_scale`` (its length scales and
-        periods in fast samples); with ``residuals``, ``residuals_white`` and
-        ``ljung_box_p_value``, and where they are not white
+        periods in fast samples); with ``residuals``, ``residuals_white``,
+        ``ljung_box_p_value`` (chi-squared), ``whiteness_p_value`` (under the
+        fitted model, where the explanation has it), and where they are not white
         ``residuals_explained`` (what is left and what takes it up,
         :func:`gpmultirate.diagnosis.explain_residuals`) and
         ``residual_remedies``.
@@ -291,10 +304,12 @@ def noise_summary(model, residuals=None) -> dict:
     if residuals is not None:
         from gpmultirate.diagnosis import explain_residuals
 
-        found["residuals_white"] = bool(residuals.white)
+        why = explanation if explanation is not None else explain_residuals(residuals, model)
+        found["residuals_white"] = bool(why.white)
         found["ljung_box_p_value"] = float(residuals.p_value)
-        if not residuals.white:
-            why = explain_residuals(residuals, model)
+        if why.calibrated:
+            found["whiteness_p_value"] = float(why.p_value)
+        if not why.white:
             found["residuals_explained"] = why.text
             found["residual_remedies"] = list(why.remedies)
     return found
@@ -315,8 +330,13 @@ def _noise_lines(noise) -> list[str]:
                  f"{white}"]
     if "residuals_white" in noise:
         verdict = "look white" if noise["residuals_white"] else "do not look white"
-        lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
-                     f"{noise['ljung_box_p_value']:.3g}; residuals.png)")
+        if noise.get("whiteness_p_value") is not None:
+            lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
+                         f"{noise['whiteness_p_value']:.3g} under the fitted model, "
+                         f"{noise['ljung_box_p_value']:.3g} against chi-squared; residuals.png)")
+        else:
+            lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
+                         f"{noise['ljung_box_p_value']:.3g}; residuals.png)")
         if noise.get("residuals_explained"):
             reasons = noise["residuals_explained"].split(": ", 1)[-1]
             lines.append(f"  - what is left: {reasons}")
@@ -379,6 +399,8 @@ def _markdown(summary: dict) -> str:
     if "state_space" in summary:
         lines += ["", "## State-space model", "",
                   f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
+    lines += _modes_lines(summary.get("modes"),
+                          (model.get("noise") or {}).get("residuals_white"))
     if "validation" in summary:
         val = summary["validation"]
         lines += ["", "## Validation", "", f"- `{val['file']}`, {val['n_samples']} fast samples"]
@@ -392,6 +414,39 @@ def _markdown(summary: dict) -> str:
     if summary["notes"]:
         lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
     return "\n".join(lines) + "\n"
+
+
+def _interval(low, high) -> str:
+    return "-" if low is None or high is None else f"{low:.4g} .. {high:.4g}"
+
+
+def _modes_lines(modes, noise_white=None) -> list[str]:
+    if not isinstance(modes, dict):
+        return []
+    level = 100 * modes["level"]
+    lines = ["", f"## Modes of the reduced model ({modes['n_states']} states; {level:g} % "
+                 f"credible intervals from {modes['n_draws']} posterior draws)", "",
+             "| frequency [Hz] | interval | damping | interval | gain | interval | in draws |",
+             "|---|---|---|---|---|---|---|"]
+    for m in modes["modes"]:
+        lines.append(f"| {m['frequency']:.4g} | {_interval(*m['frequency_interval'])} | "
+                     f"{m['damping']:.3g} | {_interval(*m['damping_interval'])} | "
+                     f"{m['gain']:.4g} | {_interval(*m['gain_interval'])} | "
+                     f"{100 * m['presence']:.0f} % |")
+    lines += ["", "Peaks of the frequency response (posterior mean), and whether the data "
+                  f"support them (the peak stands above its valleys in at least {level:g} % "
+                  "of the draws):", "",
+              "| frequency [Hz] | magnitude | in draws | supported | mode |", "|---|---|---|---|---|"]
+    for p in modes["peaks"]:
+        mode = "-" if p["mode"] is None else f"{modes['modes'][p['mode']]['frequency']:.4g} Hz"
+        lines.append(f"| {p['frequency']:.4g} | {p['magnitude']:.4g} | "
+                     f"{100 * p['probability']:.0f} % | {'yes' if p['supported'] else 'no'} | "
+                     f"{mode} |")
+    lines += ["", f"- {modes['text']}"]
+    if noise_white is False:
+        lines.append("- the slow residuals are not white: these intervals and the peaks' "
+                     "support are too narrow until the model explains them")
+    return lines
 
 
 def _hyperparameters(kernel) -> dict:
@@ -425,7 +480,7 @@ def _noise_in_data_units(model) -> dict:
 def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,
                output: str = "y", validation=None, validation_file=None, state_space=None,
                notes=(), warnings=(), kernel_option: str | None = None,
-               residuals=None) -> FitReport:
+               residuals=None, residual_explanation=None, modes=None) -> FitReport:
     """The report of a fitted :class:`~gpmultirate.FIRGaussianProcess`.
 
     Parameters
@@ -459,6 +514,11 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
     residuals : ResidualAnalysis, optional
         The residual analysis of the fit: the noise section says whether
         the slow residuals look white (:func:`noise_summary`).
+    residual_explanation : ResidualExplanation, optional
+        Its explanation (:func:`gpmultirate.diagnosis.explain_residuals`).
+    modes : ModalAnalysis, optional
+        The reduced model's modes and the supported peaks
+        (:func:`gpmultirate.modes.modal_analysis`): the report's ``modes``.
 
     Returns
     -------
@@ -504,7 +564,7 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
                     "tuning": model.tuning,
                     "log_evidence": float(model.log_marginal_likelihood_value_)})
     summary.update(_noise_in_data_units(model))
-    summary["noise"] = noise_summary(model, residuals)
+    summary["noise"] = noise_summary(model, residuals, residual_explanation)
     points = getattr(model.observation_, "points", None)
     if points is not None:  # readings between the ticks, interpolated on the integer lags
         summary["between_ticks"] = {"route": "interpolated", "lags": int(points)}
@@ -534,7 +594,10 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
         order_selection=selection,
         state_space=(None if state_space is None
                      else {"order": int(np.asarray(state_space.A).shape[0])}),
-        validation=checked)
+        validation=checked,
+        modes=None if modes is None else _plain({**dataclasses.asdict(modes),
+                                                 "consistent": modes.consistent,
+                                                 "text": modes.text}))
 
 
 def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs=None,
@@ -642,10 +705,28 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
                                      sample_times=times, max_lag=max(max_lag, 1))
     except ValueError as error:
         notes.append(f"residuals.png was not written: {error}")
+    explanation = modes = None
+    if analysis is not None:
+        from gpmultirate.diagnosis import explain_residuals
+
+        explanation = explain_residuals(analysis, model, u=u)
+        if not explanation.white:
+            notes.append(explanation.text)
+    if system is not None and hasattr(model, "sample_state_spaces"):
+        from gpmultirate.modes import modal_analysis
+
+        try:
+            modes = modal_analysis(model, int(np.asarray(system.A).shape[0]))
+        except (ValueError, np.linalg.LinAlgError) as error:
+            notes.append(f"the modes were not analysed: {error}")
+        else:
+            if not modes.consistent:
+                notes.append(modes.text)
     report = fit_report(model, samples, file=file, inputs=inputs, output=output,
                         validation=validation, validation_file=validation_file,
                         state_space=system, notes=notes, warnings=warnings,
-                        kernel_option=kernel_option, residuals=analysis)
+                        kernel_option=kernel_option, residuals=analysis,
+                        residual_explanation=explanation, modes=modes)
     figures = fit_figures(model, u, samples, inputs, xscale=xscale)
     if analysis is not None:
         figure = _figure(figsize=(6.4, 2.4 * (1 + analysis.cross_correlation.shape[0])))
