@@ -497,8 +497,9 @@ def _fit(parser, args) -> int:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
 
-    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} slow "
-               f"samples ({samples.description}), {len(inputs)} input(s) ...")
+    slow = "readings" if args.slow is not None else "slow samples"
+    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} {slow} "
+               f"({samples.description}), {len(inputs)} input(s) ...")
     model = FIRGaussianProcess(
         kernel=kernel_option(args.kernel), order=args.order,
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
