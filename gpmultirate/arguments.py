@@ -19,7 +19,7 @@ import os
 
 __all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "argument_type", "available_cpus", "check_out", "check_slow_log",
            "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
-           "sample_time", "shorten"]
+           "sample_time", "shorten", "without_abbreviations"]
 
 
 #: Kernels of ``gpmultirate fit --kernel`` (:func:`gpmultirate.report.kernel_option`).
@@ -76,6 +76,16 @@ order_or_auto = argument_type(
     lambda value: value == "auto" or value >= 1,
     lambda text, value: f"expected an integer >= 1 or 'auto', got {text!r}",
     "an integer >= 1 or 'auto'")
+
+
+def without_abbreviations(add_parser):
+    """``add_parser`` of a subparsers action whose parsers refuse abbreviated options
+    (``--sample-tim`` is an error, not ``--sample-time``)."""
+    def add(*args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        return add_parser(*args, **kwargs)
+
+    return add
 
 
 class OneLineErrorParser(argparse.ArgumentParser):

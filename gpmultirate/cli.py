@@ -8,14 +8,11 @@ credible bands and a summary to ``--out``, showing the fit's progress on
 stderr (:func:`gpmultirate.progress.show_progress`; none with ``--quiet``).
 ``gpmultirate predict MODEL DATA``
 writes the fast-rate prediction of a saved model with its standard deviation.
-``gpmultirate demo`` runs a reduced version of the Monte Carlo study of the
-paper's Section 5 (``--runs 100 --orders 50 100 ... 600`` is the full one),
-prints the goodness-of-fit table and writes it, with the figures of one run,
-to ``--output``; each finished run is saved at once to ``runs.jsonl`` there,
-so that an interrupted study continues with ``--resume``.  ``gpmultirate
-example1`` draws the non-identifiability example (the paper's Example 1,
-Fig. 2).  Figures are rendered with
-matplotlib's Agg canvas, without pyplot, so the command never opens a window.
+``gpmultirate demo`` runs the Monte Carlo study of the paper's Section 5
+(reduced; ``--resume`` continues an interrupted one), ``gpmultirate
+example1`` draws the paper's Example 1.  Figures are rendered with
+matplotlib's Agg canvas, so the command never opens a window; numpy and the
+other libraries load in the commands, not for ``--help``.
 
 The commands parse their arguments and call the library: the files are read
 by :func:`gpmultirate.io.read_record` and
@@ -45,7 +42,7 @@ from gpmultirate import __version__
 from gpmultirate.arguments import (FIT_KERNELS, JOURNAL_NAME, METHODS, OneLineErrorParser,
                                    available_cpus, check_out, check_slow_log, duration,
                                    finite_float, int_at_least, nonzero_int, one_line,
-                                   order_or_auto, sample_time)
+                                   order_or_auto, sample_time, without_abbreviations)
 
 __all__ = ["build_parser", "main"]
 
@@ -131,13 +128,10 @@ def _add_fit_parser(commands) -> None:
                           "(default: zero)")
     _add_slow_arguments(fit, "the output column (--output) and the time stamps in seconds on "
                              "the clock of DATA, whose row n is at n T")
-    fit.add_argument("--exposure", type=duration, default=0.0, metavar="E",
-                     help="with --slow: each reading is the mean output over the E seconds "
-                          "before its stamp (default: 0)")
-    fit.add_argument("--latency", type=duration, default=0.0, metavar="L",
-                     help="with --slow: a reading stamped t shows the output at t - L "
-                          "(seconds, default: 0)")
-    _add_xscale(fit)
+    _add_sensor(fit, 0.0)
+    fit.add_argument("--xscale", choices=("auto", "linear", "log"), default="auto",
+                     help="frequency axis of bode.png: log, linear, or auto (log when the band "
+                          "spans more than two decades; default: auto)")
     fit.add_argument("--validate", metavar="DATA2", default=None,
                      help="validation file with the same columns and the output measured at "
                           "every row; its goodness of fit goes into the summary")
@@ -165,13 +159,7 @@ def _add_predict_parser(commands) -> None:
                          help="input column(s), as many as the model has inputs")
     _add_slow_arguments(predict, "the time stamps (--time, seconds) of the readings to "
                                  "predict")
-    predict.add_argument("--exposure", type=duration, default=None, metavar="E",
-                         help="with --slow: each reading is the mean output over the E seconds "
-                              "before its stamp (default: the model's own, 0 for a model "
-                              "fitted on the ticks)")
-    predict.add_argument("--latency", type=duration, default=None, metavar="L",
-                         help="with --slow: a reading stamped t shows the output at t - L "
-                              "(seconds; default: the model's own)")
+    _add_sensor(predict, None)
     predict.add_argument("--out", metavar="FILE", default=PREDICT_OUT,
                          help=f"CSV file of the prediction (default: {PREDICT_OUT})")
     predict.add_argument("--force", action="store_true", help="overwrite an existing file")
@@ -180,10 +168,14 @@ def _add_predict_parser(commands) -> None:
     predict.set_defaults(handler=_predict, command_parser=predict)
 
 
-def _add_xscale(parser) -> None:
-    parser.add_argument("--xscale", choices=("auto", "linear", "log"), default="auto",
-                        help="frequency axis of bode.png: log, linear, or auto (log when the "
-                             "band spans more than two decades; default: auto)")
+def _add_sensor(parser, default) -> None:
+    given = "0" if default == 0.0 else "the model's own"
+    parser.add_argument("--exposure", type=duration, default=default, metavar="E",
+                        help="with --slow: each reading is the mean output over the E seconds "
+                             f"before its stamp (default: {given})")
+    parser.add_argument("--latency", type=duration, default=default, metavar="L",
+                        help="with --slow: a reading stamped t shows the output at t - L "
+                             f"(seconds, default: {given})")
 
 
 def _add_slow_arguments(parser, holds: str) -> None:
@@ -222,8 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
                                      parser_class=OneLineErrorParser)
-    # --sample-tim is an error, not --sample-time
-    commands.add_parser = _without_abbreviations(commands.add_parser)
+    commands.add_parser = without_abbreviations(commands.add_parser)
     _add_fit_parser(commands)
     _add_predict_parser(commands)
 
@@ -309,14 +300,6 @@ def build_parser() -> argparse.ArgumentParser:
                           help="no file messages on stderr")
 
     return parser
-
-
-def _without_abbreviations(add_parser):
-    def add(*args, **kwargs):
-        kwargs.setdefault("allow_abbrev", False)
-        return add_parser(*args, **kwargs)
-
-    return add
 
 
 # ---------------------------------------------------------------- commands
@@ -497,9 +480,9 @@ def _fit(parser, args) -> int:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
 
-    slow = "readings" if args.slow is not None else "slow samples"
-    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} {slow} "
-               f"({samples.description}), {len(inputs)} input(s) ...")
+    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} "
+               f"{'readings' if args.slow else 'slow samples'} ({samples.description}), "
+               f"{len(inputs)} input(s) ...")
     model = FIRGaussianProcess(
         kernel=kernel_option(args.kernel), order=args.order,
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
@@ -538,7 +521,7 @@ def _fit(parser, args) -> int:
 def _predict(parser, args) -> int:
     import gpmultirate as gm
     from gpmultirate.io import read_record, read_slow_log, write_file
-    from gpmultirate.report import prediction_csv
+    from gpmultirate.report import prediction_csv, prediction_messages
 
     _check_columns(parser, args.inputs)
     out = Path(args.out)
@@ -565,18 +548,8 @@ def _predict(parser, args) -> int:
     except ValueError as error:
         parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
     check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
-    rows = table.count(chr(10)) - 1
-    if log is None:
-        _say(args, f"wrote {out} ({rows} fast samples)")
-    else:
-        exposure, latency = (sensor.get(name, getattr(model, name, 0.0) or 0.0) * sample
-                             for name in ("exposure", "latency"))
-        _say(args, f"wrote {out} ({rows} readings, exposure {exposure:g} s, latency "
-                   f"{latency:g} s)")
-        if not sensor and not (exposure or latency):
-            _say(args, "note: the readings are the output at their stamps (the model has no "
-                       "exposure or latency); give --exposure/--latency for a sensor that "
-                       "has them")
+    for line in prediction_messages(model, out, table, log is not None, sensor):
+        _say(args, line)
     return 0
 
 

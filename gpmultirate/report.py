@@ -25,7 +25,8 @@ from gpmultirate.arguments import FIT_KERNELS
 from gpmultirate.io import SlowSamples, model_slow_samples
 
 __all__ = ["FIT_KERNELS", "FitReport", "fit_files", "fit_report", "kernel_option",
-           "model_slow_samples", "noise_summary", "prediction_csv", "readings_model",
+           "model_slow_samples", "noise_summary", "prediction_csv", "prediction_messages",
+           "readings_model",
            "study_header", "write_study"]
 
 
@@ -863,6 +864,34 @@ def prediction_csv(model, u, sample_times=None, *, exposure=None, latency=None) 
         values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
         rows.append(f"{k},{instants[k] * sample_time:.17g},{values}")
     return "\n".join(rows) + "\n"
+
+
+def prediction_messages(model, out, table: str, readings: bool, sensor: dict) -> list[str]:
+    r"""The lines ``gpmultirate predict`` says after writing ``table`` to ``out``.
+
+    ``readings`` tells a table of readings at the stamps of a slow log from
+    one of fast samples; ``sensor`` holds the ``exposure`` and ``latency``
+    given for them (fast sample periods), in place of the model's.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> model = SimpleNamespace(sample_time=0.01, exposure=0.0, latency=0.0)
+    >>> prediction_messages(model, "r.csv", "h\n1\n2\n", True, {"exposure": 0.5})
+    ['wrote r.csv (2 readings, exposure 0.005 s, latency 0 s)']
+    """
+    rows = table.count("\n") - 1
+    if not readings:
+        return [f"wrote {out} ({rows} fast samples)"]
+    sample = float(getattr(model, "sample_time", None) or 1.0)
+    exposure, latency = (sensor.get(name, getattr(model, name, 0.0) or 0.0) * sample
+                         for name in ("exposure", "latency"))
+    lines = [f"wrote {out} ({rows} readings, exposure {exposure:g} s, latency {latency:g} s)"]
+    if not sensor and not (exposure or latency):
+        lines.append("note: the readings are the output at their stamps (the model has no "
+                     "exposure or latency); give --exposure/--latency for a sensor that has "
+                     "them")
+    return lines
 
 
 def study_header(result) -> str:
