@@ -76,7 +76,9 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
         the record (``BODE_FREQUENCIES`` log-spaced frequencies from the
         first bin to the Nyquist frequency on a longer record);
         ``impulse.png``: the impulse response per input at four lags per
-        sample (fewer where that would exceed ``IMPULSE_POINTS``) over the
+        sample (fewer where that would exceed ``IMPULSE_POINTS``; at the
+        integer lags only where the curve between them falls back towards
+        0, a prior with little correlation between lags) over the
         first ``max(60, N / 4)`` lags; ``intersample.png``: the fast-rate output
         predicted from the slow samples over the record
         (:func:`~gpmultirate.plotting.overview.plot_overview`: binned beyond
@@ -117,7 +119,7 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
         frf = model.frequency_response(freqs, input=k if n_inputs > 1 else None)
         scale = bode_xscale(frf.freqs) if xscale == "auto" else xscale
         plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean", xscale=scale)
-        axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
+        axes[0, k].set_title(f"input {names[k]}", fontsize="medium", loc="left")
     figures["bode.png"] = fig
 
     # impulse responses at 4 lags per sample, between the integer lags too
@@ -127,6 +129,10 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
     lags = np.linspace(0.0, shown - 1.0, per_sample * (shown - 1) + 1)
     mean, std = model.impulse_response(lags, return_std=True)
     mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
+    if per_sample > 1 and not _smooth_between_lags(mean, per_sample):
+        # a prior with little correlation between neighbouring lags pulls the curve
+        # back to 0 between them: drawn there, the response looks like noise
+        lags, mean, std = lags[::per_sample], mean[:, ::per_sample], std[:, ::per_sample]
     fig = _figure(figsize=(8.5, 2.6 * n_inputs + 0.4))
     axes = fig.subplots(n_inputs, 1, sharex=True, squeeze=False)[:, 0]
     for k, ax in enumerate(axes):
@@ -180,6 +186,23 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
         ax.legend(fontsize="small")
     figures["intersample.png"] = fig
     return figures
+
+
+def _smooth_between_lags(mean, per_sample: int) -> bool:
+    """Whether the curve between the integer lags stays near the straight line between
+    them (within half the response's root mean square), so it is worth drawing.
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 10, 41)
+    >>> _smooth_between_lags(np.sin(t)[None], 4), _smooth_between_lags((t % 1 == 0)[None] * 1.0, 4)
+    (True, False)
+    """
+    integer = mean[:, ::per_sample]
+    grid = np.arange(mean.shape[1]) / per_sample
+    straight = np.stack([np.interp(grid, np.arange(integer.shape[1]), row) for row in integer])
+    scale = np.sqrt(np.mean(integer ** 2)) or 1.0
+    return bool(np.sqrt(np.mean((mean - straight) ** 2)) <= 0.5 * scale)
 
 
 def _bode_frequencies(model):
