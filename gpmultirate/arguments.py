@@ -17,8 +17,8 @@ import argparse
 import math
 import os
 
-__all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "argument_type", "available_cpus", "check_out", "check_slow_log",
-           "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
+__all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "argument_type",
+           "available_cpus", "check_out", "check_slow_log", "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
            "sample_time", "shorten", "without_abbreviations"]
 
 
@@ -27,7 +27,8 @@ FIT_KERNELS = ("dc", "tc", "ss", "auto")
 #: Estimators of ``gpmultirate demo --methods`` (:data:`gpmultirate.study.METHODS`), here
 #: so that the parser is built without loading the study.
 METHODS = ("LS", "DC", "PK")
-#: The study's journal in ``gpmultirate demo --output`` (:data:`gpmultirate.study.journal.JOURNAL_NAME`).
+#: The study's journal in ``gpmultirate demo --output``
+#: (:data:`gpmultirate.study.journal.JOURNAL_NAME`).
 JOURNAL_NAME = "runs.jsonl"
 
 

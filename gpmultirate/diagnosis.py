@@ -31,7 +31,9 @@ has a peak, is a resonance the default kernel misses: ``kernel="auto"``
 searches for it (``--kernel auto``); correlation beyond the order asks for
 a longer ``order``; a peak or a drift that the input does not explain is a
 disturbance: ``noise_kernel="auto"`` (``--noise auto``) keeps one where the
-evidence calls for it, ``"matern12"`` or ``"ar1"`` for a drift.
+evidence calls for it; where the fit's ``"auto"`` already kept white noise,
+a named one, ``"matern32"`` (``"matern12"`` for a drift), which is fitted
+whatever the evidence says.
 """
 
 from __future__ import annotations
@@ -312,6 +314,16 @@ def whiteness_p_value(analysis, model, u, *, n_draws: int = 400, random_state=0)
     return float(stats.chi2.sf(observed / scale, dof))
 
 
+def _disturbance(model, named: str) -> str:
+    """The disturbance remedy: ``noise_kernel="auto"``, or a named disturbance where the
+    fit's automatic choice already kept white noise (the evidence did not call for one)."""
+    params = model.get_params(deep=False) if hasattr(model, "get_params") else {}
+    chosen = getattr(model, "noise_kernel_", None)
+    if params.get("noise_kernel") == "auto" and isinstance(chosen, str) and chosen == "white":
+        return f'noise_kernel="{named}"'
+    return 'noise_kernel="auto"'
+
+
 def explain_residuals(analysis, model=None, *, u=None, factor=None, sample_time=None):
     """The structure left in non-white residuals, and the option that takes it up.
 
@@ -412,12 +424,11 @@ def explain_residuals(analysis, model=None, *, u=None, factor=None, sample_time=
         slow_hz = float(frequencies[k] / (factor * sample_time))
         if peak_p < level:
             if k + 1 <= max(2, M // 100):  # the lowest Fourier frequencies: a drift
-                remedy = "noise_kernel=\"auto\"" if not input_correlated else "kernel=\"auto\""
+                remedy = _disturbance(model, "matern12")
                 text = (f"a slow drift (residual power at {slow_hz:.3g} Hz and below): a "
-                        "disturbance model, noise_kernel=\"auto\" (or \"matern12\", \"ar1\"; "
-                        "--noise)")
+                        f"disturbance model, {remedy} (--noise)")
                 findings.append(ResidualFinding("drift", slow_hz, (), None, None, peak_p,
-                                                "noise_kernel=\"auto\"", text))
+                                                remedy, text))
             else:
                 aliases = _aliases(slow_hz, factor, sample_time)
                 resonant = []
@@ -434,9 +445,8 @@ def explain_residuals(analysis, model=None, *, u=None, factor=None, sample_time=
                     why = (f"dynamics the prior misses ({source}): kernel=\"auto\" searches "
                            "for the resonance (--kernel auto)")
                 else:
-                    remedy = "noise_kernel=\"auto\""
-                    why = ("not explained by the input: a disturbance, noise_kernel=\"auto\" "
-                           "(--noise auto)")
+                    remedy = _disturbance(model, "matern32")
+                    why = f"not explained by the input: a disturbance, {remedy} (--noise)"
                 text = (f"a peak in the residual spectrum at {slow_hz:.4g} Hz (aliased from "
                         f"{alias_text}{more} Hz at the fast rate): {why}")
                 findings.append(ResidualFinding("peak", slow_hz, tuple(aliases), None, None,

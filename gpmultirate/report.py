@@ -437,7 +437,8 @@ def _modes_lines(modes, noise_white=None) -> list[str]:
     lines += ["", "Peaks of the frequency response (posterior mean), and whether the data "
                   f"support them (the peak stands above its valleys in at least {level:g} % "
                   "of the draws):", "",
-              "| frequency [Hz] | magnitude | in draws | supported | mode |", "|---|---|---|---|---|"]
+              "| frequency [Hz] | magnitude | in draws | supported | mode |",
+              "|---|---|---|---|---|"]
     for p in modes["peaks"]:
         mode = "-" if p["mode"] is None else f"{modes['modes'][p['mode']]['frequency']:.4g} Hz"
         lines.append(f"| {p['frequency']:.4g} | {p['magnitude']:.4g} | "

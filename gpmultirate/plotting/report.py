@@ -19,7 +19,8 @@ from gpmultirate.plotting.study import plot_study
 from gpmultirate.plotting.time import plot_impulse_response, plot_intersample
 from gpmultirate.responses import ImpulseResponse, OutputPrediction
 
-__all__ = ["bode_xscale", "example_figures", "fit_figures", "nonidentifiable_figure", "study_figure"]
+__all__ = ["bode_xscale", "example_figures", "fit_figures", "nonidentifiable_figure",
+           "study_figure"]
 
 #: the most frequencies of the Bode figure (beyond it a log-spaced grid, not the DFT bins)
 BODE_FREQUENCIES = 2048
