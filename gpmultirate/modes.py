@@ -14,8 +14,10 @@ system with ``s_i = log(z_i) / T``:
   for a lightly damped mode, the height of its peak.
 
 Their credible intervals come from posterior draws of the impulse response
-(:meth:`~gpmultirate.FIRGaussianProcess.sample_state_spaces`, each reduced
-to the same order): each draw's modes are matched to the mean's (by
+(:meth:`~gpmultirate.FIRGaussianProcess.sample_impulse_responses`), each
+reduced to the same order as in
+:meth:`~gpmultirate.FIRGaussianProcess.sample_state_spaces`
+(:func:`~gpmultirate.realization.leading_era`): each draw's modes are matched to the mean's (by
 frequency on a log scale, :func:`scipy.optimize.linear_sum_assignment`) and
 the intervals are the draws' central quantiles.
 
@@ -46,6 +48,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.signal import find_peaks
 
+from gpmultirate.realization import leading_era
 from gpmultirate.validation import check_int, check_level
 
 __all__ = ["FRFPeak", "ModalAnalysis", "Mode", "modal_analysis", "modes_of"]
@@ -257,8 +260,7 @@ def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
     Parameters
     ----------
     model : fitted FIRGaussianProcess
-        With ``to_state_space``, ``sample_state_spaces`` and
-        ``sample_impulse_responses``.
+        With ``to_state_space`` and ``sample_impulse_responses``.
     n_states : int, optional
         The reduced order; by default that of ``model.to_state_space()``.
     n_draws : int, default=100
@@ -302,12 +304,17 @@ def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
     singular = np.asarray(getattr(model, "hankel_singular_values_", []), dtype=float)
     error_bound = float(2 * singular[order:].sum()) if singular.size else float("nan")
     mean_modes = modes_of(system.A, system.B, system.C, sample_time)
-    systems = model.sample_state_spaces(n_states=order, n_samples=n_draws,
-                                        random_state=random_state)
+    # one set of draws for the modes and the peaks: each reduced as the mean was
+    # (the reduction of sample_state_spaces)
+    coef = np.asarray(model.coef_, dtype=float).reshape(-1, np.shape(model.coef_)[-1])
+    draws = np.asarray(model.sample_impulse_responses(n_samples=n_draws,
+                                                      random_state=random_state))
+    draws = draws.reshape(coef.shape[0], coef.shape[-1], n_draws)
     values = np.full((len(mean_modes), n_draws, 3), np.nan)
     if mean_modes:
         reference = np.log(np.maximum([m[0] for m in mean_modes], 1e-300))
-        for d, drawn in enumerate(systems):
+        for d in range(n_draws):
+            drawn = leading_era(draws[:, :, d].T[:, None, :], order)
             modes = modes_of(drawn.A, drawn.B, drawn.C, sample_time)
             if not modes:
                 continue
@@ -329,13 +336,9 @@ def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
         for i, (f, z, g) in enumerate(mean_modes))
 
     # the peaks of |G| of the posterior mean, and how often the draws keep them
-    coef = np.asarray(model.coef_, dtype=float).reshape(-1, np.shape(model.coef_)[-1])
     nfft = max(4096, 4 * coef.shape[-1])
     freqs = np.fft.rfftfreq(nfft, d=sample_time)
     gain = _frf(coef, nfft)
-    draws = np.asarray(model.sample_impulse_responses(n_samples=n_draws,
-                                                      random_state=random_state))
-    draws = draws.reshape(coef.shape[0], coef.shape[-1], n_draws)
     drawn_gain = np.stack([_frf(draws[:, :, d], nfft) for d in range(n_draws)])
     with np.errstate(divide="ignore"):
         db = 20 * np.log10(np.maximum(gain, np.finfo(float).tiny))

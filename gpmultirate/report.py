@@ -714,7 +714,7 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
         explanation = explain_residuals(analysis, model, u=u)
         if not explanation.white:
             notes.append(explanation.text)
-    if system is not None and hasattr(model, "sample_state_spaces"):
+    if system is not None and hasattr(model, "sample_impulse_responses"):
         from gpmultirate.modes import modal_analysis
 
         try:

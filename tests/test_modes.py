@@ -93,3 +93,14 @@ def test_arguments_are_checked(two_modes):
         modal_analysis(two_modes, n_draws=0)
     with pytest.raises(ValueError, match="level"):
         modal_analysis(two_modes, level=1.5)
+
+
+def test_the_intervals_are_those_of_the_reduced_posterior_draws(two_modes):
+    analysis = modal_analysis(two_modes, 4, n_draws=30, random_state=3)
+    systems = two_modes.sample_state_spaces(4, n_samples=30, random_state=3)
+    for mode in (m for m in analysis.modes if m.resonant):
+        # the nearest mode of each reduced draw, independently of the matching
+        drawn = [min((f for f, _, _ in modes_of(s.A, s.B, s.C, 0.01)),
+                     key=lambda f: abs(np.log(f / mode.frequency))) for s in systems]
+        np.testing.assert_allclose(mode.frequency_interval, np.quantile(drawn, [0.025, 0.975]),
+                                   rtol=1e-6)
