@@ -254,7 +254,7 @@ def _frf(markov, nfft):
 
 
 def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
-                   level: float = 0.95, random_state=0) -> ModalAnalysis:
+                   level: float = 0.95, random_state=0, system=None) -> ModalAnalysis:
     """Modes of a fit's reduced model with credible intervals, and the supported peaks.
 
     Parameters
@@ -269,6 +269,10 @@ def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
         Level of the intervals and of the peaks' support.
     random_state : int or None, default=0
         Seed of the draws.
+    system : state-space model, optional
+        The reduced model of the posterior mean (matrices ``A``, ``B``,
+        ``C``), when it was made already (``model.to_state_space()``); its
+        order is ``n_states``.
 
     Returns
     -------
@@ -299,8 +303,9 @@ def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
     n_draws = check_int(n_draws, "n_draws", low=1)
     level = check_level(level, "level")
     sample_time = float(getattr(model, "sample_time", 1.0) or 1.0)
-    system = model.to_state_space(n_states)
-    order = int(system.A.shape[0])
+    if system is None:
+        system = model.to_state_space(n_states)
+    order = int(np.asarray(system.A).shape[0])
     singular = np.asarray(getattr(model, "hankel_singular_values_", []), dtype=float)
     error_bound = float(2 * singular[order:].sum()) if singular.size else float("nan")
     mean_modes = modes_of(system.A, system.B, system.C, sample_time)

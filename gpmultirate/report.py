@@ -718,7 +718,7 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
         from gpmultirate.modes import modal_analysis
 
         try:
-            modes = modal_analysis(model, int(np.asarray(system.A).shape[0]))
+            modes = modal_analysis(model, system=system)
         except (ValueError, np.linalg.LinAlgError) as error:
             notes.append(f"the modes were not analysed: {error}")
         else:

@@ -478,7 +478,8 @@ def test_fit_example_robot_arm(tmp_path, capsys):
     _write_csv(val, {"u": data.u, "y_slow": data.y})
     assert main(["fit", "--example", "robot-arm", "--order", "300", "--validate", str(val),
                  "--out", str(out)]) == 0
-    assert "validation GoF" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "validation fit" in printed and "(NRMSE; GoF" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert summary["data"]["n_slow_samples"] == 342
     assert summary["validation"]["gof_percent"] > 80
