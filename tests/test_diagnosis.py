@@ -139,3 +139,21 @@ def test_a_peak_the_input_does_not_explain_asks_for_a_disturbance():
     spectrum = np.abs(np.fft.rfft(e - e.mean())) ** 2
     ordinates = spectrum[1:300]
     assert peak.p_value == pytest.approx(299 * np.exp(-ordinates.max() / ordinates.mean()))
+
+
+def test_where_the_automatic_choice_kept_white_noise_a_named_disturbance_is_the_remedy():
+    class Fitted:  # a fit whose noise_kernel="auto" kept white noise
+        factor, sample_time, noise_kernel_ = 3, 1.0, "white"
+        coef_ = 0.5 ** np.arange(20)
+
+        def get_params(self, deep=False):
+            return {"noise_kernel": "auto"}
+
+    rng = np.random.default_rng(6)
+    m = np.arange(600)
+    e = rng.standard_normal(600) + 1.5 * np.sin(2 * np.pi * 0.21 * m)
+    analysis = residual_correlations(e, 3 * m, rng.standard_normal(1800), max_lag=20,
+                                     input_lags=np.arange(-30, 31), confidence=0.99)
+    why = explain_residuals(analysis, Fitted())
+    assert why.findings[0].remedy == 'noise_kernel="matern32"'
+    assert 'noise_kernel="matern32" (--noise)' in why.text
