@@ -199,6 +199,8 @@ def _smooth_between_lags(mean, per_sample: int) -> bool:
     >>> _smooth_between_lags(np.sin(t)[None], 4), _smooth_between_lags((t % 1 == 0)[None] * 1.0, 4)
     (True, False)
     """
+    peak = float(np.max(np.abs(mean))) if mean.size else 0.0
+    mean = mean / (peak if np.isfinite(peak) and peak > 0 else 1.0)  # no overflow near 1e308
     integer = mean[:, ::per_sample]
     grid = np.arange(mean.shape[1]) / per_sample
     straight = np.stack([np.interp(grid, np.arange(integer.shape[1]), row) for row in integer])
