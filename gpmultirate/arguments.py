@@ -17,9 +17,19 @@ import argparse
 import math
 import os
 
-__all__ = ["OneLineErrorParser", "argument_type", "available_cpus", "check_out", "check_slow_log",
-           "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
-           "sample_time", "shorten"]
+__all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "argument_type",
+           "available_cpus", "check_out", "check_slow_log", "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
+           "sample_time", "shorten", "without_abbreviations"]
+
+
+#: Kernels of ``gpmultirate fit --kernel`` (:func:`gpmultirate.report.kernel_option`).
+FIT_KERNELS = ("dc", "tc", "ss", "auto")
+#: Estimators of ``gpmultirate demo --methods`` (:data:`gpmultirate.study.METHODS`), here
+#: so that the parser is built without loading the study.
+METHODS = ("LS", "DC", "PK")
+#: The study's journal in ``gpmultirate demo --output``
+#: (:data:`gpmultirate.study.journal.JOURNAL_NAME`).
+JOURNAL_NAME = "runs.jsonl"
 
 
 def available_cpus() -> int:
@@ -67,6 +77,16 @@ order_or_auto = argument_type(
     lambda value: value == "auto" or value >= 1,
     lambda text, value: f"expected an integer >= 1 or 'auto', got {text!r}",
     "an integer >= 1 or 'auto'")
+
+
+def without_abbreviations(add_parser):
+    """``add_parser`` of a subparsers action whose parsers refuse abbreviated options
+    (``--sample-tim`` is an error, not ``--sample-time``)."""
+    def add(*args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        return add_parser(*args, **kwargs)
+
+    return add
 
 
 class OneLineErrorParser(argparse.ArgumentParser):

@@ -8,14 +8,11 @@ credible bands and a summary to ``--out``, showing the fit's progress on
 stderr (:func:`gpmultirate.progress.show_progress`; none with ``--quiet``).
 ``gpmultirate predict MODEL DATA``
 writes the fast-rate prediction of a saved model with its standard deviation.
-``gpmultirate demo`` runs a reduced version of the Monte Carlo study of the
-paper's Section 5 (``--runs 100 --orders 50 100 ... 600`` is the full one),
-prints the goodness-of-fit table and writes it, with the figures of one run,
-to ``--output``; each finished run is saved at once to ``runs.jsonl`` there,
-so that an interrupted study continues with ``--resume``.  ``gpmultirate
-example1`` draws the non-identifiability example (the paper's Example 1,
-Fig. 2).  Figures are rendered with
-matplotlib's Agg canvas, without pyplot, so the command never opens a window.
+``gpmultirate demo`` runs the Monte Carlo study of the paper's Section 5
+(reduced; ``--resume`` continues an interrupted one), ``gpmultirate
+example1`` draws the paper's Example 1.  Figures are rendered with
+matplotlib's Agg canvas, so the command never opens a window; numpy and the
+other libraries load in the commands, not for ``--help``.
 
 The commands parse their arguments and call the library: the files are read
 by :func:`gpmultirate.io.read_record` and
@@ -39,19 +36,14 @@ import textwrap
 import time
 from pathlib import Path
 
-import joblib
-import numpy as np
-
+# numpy, SciPy, scikit-learn and matplotlib are imported by the commands that use
+# them, so that `gpmultirate --help` and the parser's errors come at once
 from gpmultirate import __version__
-from gpmultirate.arguments import (OneLineErrorParser, available_cpus, check_out, check_slow_log,
-                                   duration, finite_float, int_at_least, nonzero_int, one_line,
-                                   order_or_auto, sample_time)
+from gpmultirate.arguments import (FIT_KERNELS, JOURNAL_NAME, METHODS, OneLineErrorParser,
+                                   available_cpus, check_out, check_slow_log, duration,
+                                   finite_float, int_at_least, nonzero_int, one_line,
+                                   order_or_auto, sample_time, without_abbreviations)
 from gpmultirate.design.command import add_design_parser
-from gpmultirate.progress import show_progress
-from gpmultirate.report import FIT_KERNELS
-from gpmultirate.study import METHODS, paper_example, run_paper_study
-from gpmultirate.study.journal import (JOURNAL_NAME, JournalError, interrupted_message,
-                                       prepare_journal)
 
 __all__ = ["build_parser", "main"]
 
@@ -83,18 +75,12 @@ PREDICT_OUT = "gpmultirate-prediction.csv"
 def _add_fit_parser(commands) -> None:
     fit = commands.add_parser(
         "fit", help="identify a fast-rate FIR model from a data file (CSV, .npz, .mat)",
-        description="Identify a fast-rate FIR model (FIRGaussianProcess) from a data file "
-                    "whose rows are fast samples: a CSV with a header row, an .npz or a "
-                    "MATLAB .mat (v7 or older) file.  Name columns by header or variable "
-                    "name, or NAME:INDEX for a column of a 2-D array.  The output column "
-                    "holds the slow samples, empty or NaN where nothing was measured; the "
-                    "sampling instants are taken from that pattern, so irregular and "
-                    "missing samples need no option.  --factor/--offset instead downsample "
-                    "a fully measured output.  Writes model.npz (gpmultirate.load_model), "
-                    "bode.png, impulse.png and intersample.png with 95 % credible bands, "
-                    "residuals.png (autocorrelation of the slow residuals), "
-                    "summary.json, summary.md and, when the model supports it, "
-                    "state_space.npz to --out.  Errors are one line with exit status 2.",
+        description="Identify a fast-rate FIR model from a data file whose rows are fast "
+                    "samples (CSV with a header row, .npz, or MATLAB .mat).  The output "
+                    "column holds the slow samples, empty or NaN elsewhere; their instants "
+                    "are read from that pattern.  Writes model.npz, bode.png, impulse.png, "
+                    "intersample.png, residuals.png, summary.json, summary.md and "
+                    "state_space.npz to --out.",
     )
     fit.add_argument("data", metavar="DATA", nargs="?",
                      help="data file: .csv (header row, comma-separated, UTF-8), .npz or .mat")
@@ -143,12 +129,10 @@ def _add_fit_parser(commands) -> None:
                           "(default: zero)")
     _add_slow_arguments(fit, "the output column (--output) and the time stamps in seconds on "
                              "the clock of DATA, whose row n is at n T")
-    fit.add_argument("--exposure", type=duration, default=0.0, metavar="E",
-                     help="with --slow: each reading is the mean output over the E seconds "
-                          "before its stamp (default: 0)")
-    fit.add_argument("--latency", type=duration, default=0.0, metavar="L",
-                     help="with --slow: a reading stamped t shows the output at t - L "
-                          "(seconds, default: 0)")
+    _add_sensor(fit, 0.0)
+    fit.add_argument("--xscale", choices=("auto", "linear", "log"), default="auto",
+                     help="frequency axis of bode.png: log, linear, or auto (log when the band "
+                          "spans more than two decades; default: auto)")
     fit.add_argument("--validate", metavar="DATA2", default=None,
                      help="validation file with the same columns and the output measured at "
                           "every row; its goodness of fit goes into the summary")
@@ -175,13 +159,24 @@ def _add_predict_parser(commands) -> None:
     predict.add_argument("--input", nargs="+", metavar="COL", dest="inputs", required=True,
                          help="input column(s), as many as the model has inputs")
     _add_slow_arguments(predict, "the time stamps (--time, seconds) of the readings to "
-                                 "predict, with the model's exposure and latency")
+                                 "predict")
+    _add_sensor(predict, None)
     predict.add_argument("--out", metavar="FILE", default=PREDICT_OUT,
                          help=f"CSV file of the prediction (default: {PREDICT_OUT})")
     predict.add_argument("--force", action="store_true", help="overwrite an existing file")
     predict.add_argument("--quiet", "-q", action="store_true",
                          help="no file messages on stderr")
     predict.set_defaults(handler=_predict, command_parser=predict)
+
+
+def _add_sensor(parser, default) -> None:
+    given = "0" if default == 0.0 else "the model's own"
+    parser.add_argument("--exposure", type=duration, default=default, metavar="E",
+                        help="with --slow: each reading is the mean output over the E seconds "
+                             f"before its stamp (default: {given})")
+    parser.add_argument("--latency", type=duration, default=default, metavar="L",
+                        help="with --slow: a reading stamped t shows the output at t - L "
+                             f"(seconds, default: {given})")
 
 
 def _add_slow_arguments(parser, holds: str) -> None:
@@ -212,14 +207,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser = OneLineErrorParser(
         prog="gpmultirate",
         description=textwrap.fill(
-            "Identify fast-rate FIR models from slow-rate output data with Gaussian-process "
-            "(kernel) priors: the simulation study of van Haren, Smith and Oomen (2025), "
-            "reproduced on a simulated two-mass-spring-damper system; no data needed.", 78),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+            "Identify fast-rate FIR models (impulse responses with Gaussian-process priors) "
+            "from outputs measured at a slow rate.  'gpmultirate COMMAND --help' lists a "
+            "command's options.", 78),
+        formatter_class=argparse.RawDescriptionHelpFormatter, allow_abbrev=False,
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
                                      parser_class=OneLineErrorParser)
+    commands.add_parser = without_abbreviations(commands.add_parser)
     _add_fit_parser(commands)
     _add_predict_parser(commands)
     add_design_parser(commands)
@@ -305,11 +301,6 @@ def build_parser() -> argparse.ArgumentParser:
     example1.add_argument("--quiet", "-q", action="store_true",
                           help="no file messages on stderr")
 
-    # `gpmultirate --help` documents every option of every command
-    parser.epilog = "\n".join(
-        f"----- gpmultirate {name} -----\n{sub.format_help()}"
-        for name, sub in commands.choices.items()
-    )
     return parser
 
 
@@ -333,6 +324,7 @@ def _save(args, fig, path: Path) -> None:
 
 
 def _demo(parser, args) -> int:
+    from gpmultirate.study.journal import interrupted_message, prepare_journal
     from gpmultirate.study.simulation import check_config, check_methods, check_orders
 
     n = args.n_samples  # the library's checks, before anything is written
@@ -361,6 +353,11 @@ def _demo(parser, args) -> int:
 
 
 def _run_demo(parser, args, out: Path, journal: Path, example_order: int) -> int:
+    import joblib
+
+    from gpmultirate.study import paper_example, run_paper_study
+    from gpmultirate.study.journal import JournalError
+
     n = args.n_samples
     config = {"n_samples": n, "factor": args.factor, "sample_time": SAMPLE_TIME,
               "snr_db": tuple(args.snr)}
@@ -443,10 +440,13 @@ def _check_columns(parser, inputs, output=None) -> None:
 def _fit(parser, args) -> int:
     import warnings
 
+    import numpy as np
+
     from gpmultirate import FIRGaussianProcess
     from gpmultirate.io import (
         check_folder, read_record, read_slow_log, read_slow_samples, write_folder,
     )
+    from gpmultirate.progress import show_progress
     from gpmultirate.report import fit_files, kernel_option
 
     path, inputs, output = _fit_source(parser, args)
@@ -482,8 +482,9 @@ def _fit(parser, args) -> int:
             parser.error(f"{args.validate}: output column {output!r} is constant, so the "
                          "goodness of fit is undefined")
 
-    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} slow "
-               f"samples ({samples.description}), {len(inputs)} input(s) ...")
+    _say(args, f"gpmultirate fit: {path}, {n} fast samples, {samples.values.shape[0]} "
+               f"{'readings' if args.slow else 'slow samples'} ({samples.description}), "
+               f"{len(inputs)} input(s) ...")
     model = FIRGaussianProcess(
         kernel=kernel_option(args.kernel), order=args.order,
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
@@ -503,7 +504,8 @@ def _fit(parser, args) -> int:
     try:
         files, report = fit_files(model, u, samples, file=path, inputs=inputs, output=output,
                                   validation=validation, validation_file=args.validate,
-                                  warnings=messages, kernel_option=args.kernel)
+                                  warnings=messages, kernel_option=args.kernel,
+                                  xscale=args.xscale)
     except ValueError as error:
         parser.error(f"{path}: {error}")
     # the folder appears complete in one step (or not at all), see io.write_folder
@@ -521,7 +523,7 @@ def _fit(parser, args) -> int:
 def _predict(parser, args) -> int:
     import gpmultirate as gm
     from gpmultirate.io import read_record, read_slow_log, write_file
-    from gpmultirate.report import prediction_csv
+    from gpmultirate.report import prediction_csv, prediction_messages
 
     _check_columns(parser, args.inputs)
     out = Path(args.out)
@@ -538,14 +540,19 @@ def _predict(parser, args) -> int:
                      f"input(s); got {len(args.inputs)} column(s)")
     check_slow_log(parser, args)
     u, _ = read_record(args.data, args.inputs)
+    sample = getattr(model, "sample_time", None) or 1.0
     log = None if args.slow is None else read_slow_log(
-        args.slow, args.time, sample_time=getattr(model, "sample_time", None) or 1.0, n_samples=u.shape[0])
+        args.slow, args.time, sample_time=sample, n_samples=u.shape[0])
+    # in seconds, the units of the model's sample_time (fast periods of a model without one)
+    sensor = {name: getattr(args, name) for name in ("exposure", "latency")
+              if getattr(args, name) is not None}
     try:
-        table = prediction_csv(model, u, None if log is None else log.stamps)
+        table = prediction_csv(model, u, None if log is None else log.stamps, **sensor)
     except ValueError as error:
         parser.error(f"{args.model}: {error} for {args.data}; nothing was written")
     check_out(parser, lambda: write_file(out, table.encode("utf-8"), overwrite=args.force))
-    _say(args, f"wrote {out} ({table.count(chr(10)) - 1} fast samples)")
+    for line in prediction_messages(model, out, table, log is not None, sensor):
+        _say(args, line)
     return 0
 
 

@@ -20,7 +20,9 @@ files of version 7.3 (HDF5) are refused with a hint to save them with
 from __future__ import annotations
 
 import csv
+import difflib
 import os
+import re
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +46,13 @@ _MAT_HEADER = 128
 def _short(text: str, limit: int = 40) -> str:
     text = repr(text)
     return text if len(text) <= limit else text[: limit - 4] + "...'"
+
+
+def _bare_name(name: str) -> str:
+    """A header name without a trailing unit: ``'u [V]'``, ``'u (V)'``, ``'u / V'`` give ``'u'``.
+    """
+    bare = re.sub(r"\s*(\[[^\]]*\]|\([^)]*\)|\{[^}]*\}|/\s*[^/\s]+)\s*$", "", name.strip())
+    return bare or name.strip()
 
 
 def _split_spec(spec: str) -> tuple[str, int | None]:
@@ -114,9 +123,7 @@ class DataTable:
         else:
             name, index = _split_spec(spec)
             if name not in self.names:
-                known = ", ".join(_short(n, 24) for n in self.names[:12])
-                more = f" and {len(self.names) - 12} more" if len(self.names) > 12 else ""
-                raise self._error(f"no column {_short(spec)} (columns: {known}{more})")
+                name = self._by_bare_name(spec, name)
         values = np.asarray(self._fetch(name))
         if values.ndim == 2 and 1 in values.shape and index is None:
             values = values.reshape(-1)
@@ -143,6 +150,24 @@ class DataTable:
             raise self._error(f"column {_short(spec)} has an infinite value at row "
                               f"{infinite[0]}; mark missing samples with an empty cell or NaN")
         return column
+
+    def _by_bare_name(self, spec: str, name: str) -> str:
+        """The header name whose bare name (its unit dropped) is ``name``, or an error
+        naming the near matches."""
+        bare = [n for n in self.names if _bare_name(n) == name]
+        if len(bare) == 1:
+            return bare[0]
+        if len(bare) > 1:
+            raise self._error(f"column {_short(spec)} is ambiguous: "
+                              + ", ".join(_short(n, 24) for n in bare) + " (name one in full)")
+        near = difflib.get_close_matches(name, list(self.names), n=3, cutoff=0.6)
+        near += [n for n in difflib.get_close_matches(
+            name, [_bare_name(n) for n in self.names], n=3, cutoff=0.6) if n not in near]
+        near = [n for n in self.names if n in near or _bare_name(n) in near][:3]
+        known = ", ".join(_short(n, 24) for n in self.names[:12])
+        more = f" and {len(self.names) - 12} more" if len(self.names) > 12 else ""
+        hint = (f"; did you mean {' or '.join(_short(n, 24) for n in near)}?" if near else "")
+        raise self._error(f"no column {_short(spec)}{hint} (columns: {known}{more})")
 
     def columns(self, specs) -> dict[str, np.ndarray]:
         """Several columns of the same length, by name.
@@ -195,13 +220,22 @@ def _read_csv(path: Path) -> DataTable:
     lines = text.splitlines()
     if not any(line.strip() for line in lines):
         raise DataFileError(path, "is empty")
+    # comment lines ('#') and blank lines before the header are skipped; the messages
+    # still count the file's lines
+    skipped = 0
+    while skipped < len(lines) and (not lines[skipped].strip()
+                                    or lines[skipped].lstrip().startswith("#")):
+        skipped += 1
+    if skipped == len(lines):
+        raise DataFileError(path, "has only comment lines ('#'), no header")
     try:
-        reader = csv.reader(lines, strict=True)
+        reader = csv.reader(lines[skipped:], strict=True)
         header = next(reader)
         rows = []
         for row in reader:
-            if row:  # a blank line is skipped; a row of empty cells is a row of NaN
-                rows.append((reader.line_num, row))
+            if row and not row[0].lstrip().startswith("#"):
+                # a blank or comment line is skipped; a row of empty cells is a row of NaN
+                rows.append((skipped + reader.line_num, row))
     except csv.Error as error:
         raise DataFileError(path, f"is not valid CSV ({error})") from None
     names = [name.strip() for name in header]
@@ -225,8 +259,12 @@ def _read_csv(path: Path) -> DataTable:
         raise DataFileError(path, "has a header but no data rows")
     for line, row in rows:
         if len(row) != len(names):
-            raise DataFileError(path, f"line {line} has {len(row)} fields; the header has "
-                                      f"{len(names)}")
+            hint = ""
+            if line == rows[0][0] and all(len(r) == len(row) for _, r in rows[:20]):
+                hint = (f" (if line {skipped + 1} is not the header, mark it as a comment "
+                        "with '#')")
+            raise DataFileError(path, f"line {line} has {len(row)} fields; the header (line "
+                                      f"{skipped + 1}) has {len(names)}{hint}")
 
     def fetch(name: str) -> np.ndarray:
         k = seen[name]

@@ -21,14 +21,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
+from gpmultirate.arguments import FIT_KERNELS
 from gpmultirate.io import SlowSamples, model_slow_samples
 from gpmultirate.units import in_fast_periods
 
 __all__ = ["FIT_KERNELS", "FitReport", "fit_files", "fit_report", "kernel_option",
-           "model_slow_samples", "noise_summary", "prediction_csv", "study_header", "write_study"]
-
-#: Kernels of ``gpmultirate fit --kernel`` (:func:`kernel_option`).
-FIT_KERNELS = ("dc", "tc", "ss", "auto")
+           "model_slow_samples", "noise_summary", "prediction_csv", "prediction_messages",
+           "readings_model",
+           "study_header", "write_study"]
 
 
 def kernel_option(name: str):
@@ -130,8 +130,15 @@ class FitReport:
     state_space : dict or None
         ``order`` of the state-space model written beside the fit.
     validation : dict or None
-        ``file``, ``n_samples``, ``gof_percent`` and ``fit_percent`` on
+        ``file``, ``n_samples``, ``gof_percent`` (eq. 20, ``model.score``)
+        and ``fit_percent`` (normalized root-mean-square error) on
         validation data.
+    modes : dict or None
+        The reduced model's modes with credible intervals and the peaks of
+        the frequency response the data support
+        (:func:`gpmultirate.modes.modal_analysis`): ``n_states``,
+        ``level``, ``n_draws``, ``modes`` and ``peaks`` (lists of dicts),
+        ``consistent`` and ``text``.
 
     Examples
     --------
@@ -159,6 +166,7 @@ class FitReport:
     order_selection: dict | None = None
     state_space: dict | None = None
     validation: dict | None = None
+    modes: dict | None = None
 
     def to_dict(self) -> dict:
         """The report as JSON-compatible plain data (the content of ``summary.json``).
@@ -174,7 +182,7 @@ class FitReport:
                "warnings": list(self.warnings)}
         if self.resonances is not _ABSENT:
             out["resonances"] = self.resonances
-        for name in ("order_selection", "state_space", "validation"):
+        for name in ("order_selection", "state_space", "validation", "modes"):
             if getattr(self, name) is not None:
                 out[name] = getattr(self, name)
         return _plain(out)
@@ -200,7 +208,11 @@ class FitReport:
         if noise["model"] != "white":
             line += f", disturbance std {math.sqrt(noise['disturbance_level']):.4g}"
         if self.validation is not None:
-            line += f", validation GoF {self.validation['gof_percent']:.2f} %"
+            if self.validation.get("fit_percent") is not None:
+                line += (f", validation fit {self.validation['fit_percent']:.2f} % (NRMSE; "
+                         f"GoF {self.validation['gof_percent']:.2f} %)")
+            else:
+                line += f", validation GoF {self.validation['gof_percent']:.2f} %"
         return line
 
     def to_json(self) -> str:
@@ -216,7 +228,8 @@ class FitReport:
                    resonances=summary.get("resonances", _ABSENT),
                    order_selection=summary.get("order_selection"),
                    state_space=summary.get("state_space"),
-                   validation=summary.get("validation"))
+                   validation=summary.get("validation"),
+                   modes=summary.get("modes"))
 
     def to_markdown(self) -> str:
         """The report as a Markdown page (the content of ``summary.md``)."""
@@ -240,7 +253,7 @@ def _noise_line(model: dict) -> str:
     return line
 
 
-def noise_summary(model, residuals=None) -> dict:
+def noise_summary(model, residuals=None, explanation=None) -> dict:
     """The fitted noise of a model: white, or the disturbance with its level and time scale.
 
     Parameters
@@ -249,6 +262,9 @@ def noise_summary(model, residuals=None) -> dict:
     residuals : ResidualAnalysis, optional
         :func:`~gpmultirate.residuals.analyze_residuals` of the fit: the
         whiteness verdict of the slow residuals is added.
+    explanation : ResidualExplanation, optional
+        :func:`~gpmultirate.diagnosis.explain_residuals` of ``residuals``
+        (by default made here, with the chi-squared verdict).
 
     Returns
     -------
@@ -256,8 +272,12 @@ def noise_summary(model, residuals=None) -> dict:
         ``model`` (``"white"`` or the noise kernel), ``white_level`` (the
         white variance) and, for a disturbance, ``disturbance_level`` (its
         variance at one sample) and ``time_scale`` (its length scales and
-        periods in fast samples); with ``residuals``, ``residuals_white`` and
-        ``ljung_box_p_value``.
+        periods in fast samples); with ``residuals``, ``residuals_white``,
+        ``ljung_box_p_value`` (chi-squared), ``whiteness_p_value`` (under the
+        fitted model, where the explanation has it), and where they are not white
+        ``residuals_explained`` (what is left and what takes it up,
+        :func:`gpmultirate.diagnosis.explain_residuals`) and
+        ``residual_remedies``.
 
     Examples
     --------
@@ -284,8 +304,16 @@ def noise_summary(model, residuals=None) -> dict:
             if name.endswith(("length_scale", "periodicity")) and not name.endswith("_bounds")
         }
     if residuals is not None:
-        found["residuals_white"] = bool(residuals.white)
+        from gpmultirate.diagnosis import explain_residuals
+
+        why = explanation if explanation is not None else explain_residuals(residuals, model)
+        found["residuals_white"] = bool(why.white)
         found["ljung_box_p_value"] = float(residuals.p_value)
+        if why.calibrated:
+            found["whiteness_p_value"] = float(why.p_value)
+        if not why.white:
+            found["residuals_explained"] = why.text
+            found["residual_remedies"] = list(why.remedies)
     return found
 
 
@@ -304,8 +332,16 @@ def _noise_lines(noise) -> list[str]:
                  f"{white}"]
     if "residuals_white" in noise:
         verdict = "look white" if noise["residuals_white"] else "do not look white"
-        lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
-                     f"{noise['ljung_box_p_value']:.3g}; residuals.png)")
+        if noise.get("whiteness_p_value") is not None:
+            lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
+                         f"{noise['whiteness_p_value']:.3g} under the fitted model, "
+                         f"{noise['ljung_box_p_value']:.3g} against chi-squared; residuals.png)")
+        else:
+            lines.append(f"- slow residuals: {verdict} (Ljung-Box p = "
+                         f"{noise['ljung_box_p_value']:.3g}; residuals.png)")
+        if noise.get("residuals_explained"):
+            reasons = noise["residuals_explained"].split(": ", 1)[-1]
+            lines.append(f"  - what is left: {reasons}")
     return lines
 
 
@@ -348,25 +384,72 @@ def _markdown(summary: dict) -> str:
     selection = summary.get("order_selection")
     if isinstance(selection, dict) and isinstance(selection.get("orders"), list):
         criterion = selection.get("criterion")
-        what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
-                else f"{criterion} per slow sample")
-        lines += ["", f"## Order selection ({what}; fitted order {selection.get('best_order')})",
-                  "", "| order | score |", "|---|---|"]
-        lines += [f"| {o} | {_cell_text(v)} |"
-                  for o, v in zip(selection["orders"], selection.get("score", []))]
+        lines += ["", f"## Order selection (fitted order {selection.get('best_order')})", ""]
+        if criterion == "prior_tail":
+            # the score is the lag beyond which the tuned prior is negligible, read up to
+            # the order: equal to the order, it says the prior has not decayed there
+            lines += ["| order fitted | tuned prior negligible beyond lag |", "|---|---|"]
+            lines += [f"| {o} | " + (f"not within the order ({int(v)})" if int(v) >= o
+                                     else f"{int(v)}") + " |"
+                      for o, v in zip(selection["orders"], selection.get("score", []))]
+        else:
+            what = ("held-out fit in percent at the tuned values" if criterion == "held_out_fit"
+                    else f"{criterion} per slow sample")
+            lines += [f"| order | {what} |", "|---|---|"]
+            lines += [f"| {o} | {_cell_text(v)} |"
+                      for o, v in zip(selection["orders"], selection.get("score", []))]
     if "state_space" in summary:
         lines += ["", "## State-space model", "",
                   f"- order {summary['state_space']['order']}, written to `state_space.npz`"]
+    lines += _modes_lines(summary.get("modes"),
+                          (model.get("noise") or {}).get("residuals_white"))
     if "validation" in summary:
         val = summary["validation"]
-        lines += ["", "## Validation", "",
-                  f"- `{val['file']}`: goodness of fit {val['gof_percent']:.4g} % "
-                  f"({val['n_samples']} fast samples)"]
-        if "fit_percent" in val:
-            lines.append(f"- fit (MATLAB compare): {val['fit_percent']:.4g} %")
+        lines += ["", "## Validation", "", f"- `{val['file']}`, {val['n_samples']} fast samples"]
+        if val.get("fit_percent") is not None:
+            lines.append(f"- fit: {val['fit_percent']:.4g} % (normalized root-mean-square "
+                         "error, 100 (1 - |y - y_hat| / |y - mean y|), as other toolboxes "
+                         "report it)")
+        lines.append(f"- goodness of fit (paper eq. 20, model.score): "
+                     f"{val['gof_percent']:.4g} % (the squared errors: 100 (1 - |y - y_hat|^2 "
+                     "/ |y - mean y|^2))")
     if summary["notes"]:
         lines += ["", "## Notes", ""] + [f"- {note}" for note in summary["notes"]]
     return "\n".join(lines) + "\n"
+
+
+def _interval(low, high) -> str:
+    return "-" if low is None or high is None else f"{low:.4g} .. {high:.4g}"
+
+
+def _modes_lines(modes, noise_white=None) -> list[str]:
+    if not isinstance(modes, dict):
+        return []
+    level = 100 * modes["level"]
+    lines = ["", f"## Modes of the reduced model ({modes['n_states']} states; {level:g} % "
+                 f"credible intervals from {modes['n_draws']} posterior draws)", "",
+             "| frequency [Hz] | interval | damping | interval | gain | interval | in draws |",
+             "|---|---|---|---|---|---|---|"]
+    for m in modes["modes"]:
+        lines.append(f"| {m['frequency']:.4g} | {_interval(*m['frequency_interval'])} | "
+                     f"{m['damping']:.3g} | {_interval(*m['damping_interval'])} | "
+                     f"{m['gain']:.4g} | {_interval(*m['gain_interval'])} | "
+                     f"{100 * m['presence']:.0f} % |")
+    lines += ["", "Peaks of the frequency response (posterior mean), and whether the data "
+                  f"support them (the peak stands above its valleys in at least {level:g} % "
+                  "of the draws):", "",
+              "| frequency [Hz] | magnitude | in draws | supported | mode |",
+              "|---|---|---|---|---|"]
+    for p in modes["peaks"]:
+        mode = "-" if p["mode"] is None else f"{modes['modes'][p['mode']]['frequency']:.4g} Hz"
+        lines.append(f"| {p['frequency']:.4g} | {p['magnitude']:.4g} | "
+                     f"{100 * p['probability']:.0f} % | {'yes' if p['supported'] else 'no'} | "
+                     f"{mode} |")
+    lines += ["", f"- {modes['text']}"]
+    if noise_white is False:
+        lines.append("- the slow residuals are not white: these intervals and the peaks' "
+                     "support are too narrow until the model explains them")
+    return lines
 
 
 def _hyperparameters(kernel) -> dict:
@@ -400,7 +483,7 @@ def _noise_in_data_units(model) -> dict:
 def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=None,
                output: str = "y", validation=None, validation_file=None, state_space=None,
                notes=(), warnings=(), kernel_option: str | None = None,
-               residuals=None) -> FitReport:
+               residuals=None, residual_explanation=None, modes=None) -> FitReport:
     """The report of a fitted :class:`~gpmultirate.FIRGaussianProcess`.
 
     Parameters
@@ -434,6 +517,11 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
     residuals : ResidualAnalysis, optional
         The residual analysis of the fit: the noise section says whether
         the slow residuals look white (:func:`noise_summary`).
+    residual_explanation : ResidualExplanation, optional
+        Its explanation (:func:`gpmultirate.diagnosis.explain_residuals`).
+    modes : ModalAnalysis, optional
+        The reduced model's modes and the supported peaks
+        (:func:`gpmultirate.modes.modal_analysis`): the report's ``modes``.
 
     Returns
     -------
@@ -479,7 +567,7 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
                     "tuning": model.tuning,
                     "log_evidence": float(model.log_marginal_likelihood_value_)})
     summary.update(_noise_in_data_units(model))
-    summary["noise"] = noise_summary(model, residuals)
+    summary["noise"] = noise_summary(model, residuals, residual_explanation)
     points = getattr(model.observation_, "points", None)
     if points is not None:  # readings between the ticks, interpolated on the integer lags
         summary["between_ticks"] = {"route": "interpolated", "lags": int(points)}
@@ -509,12 +597,15 @@ def fit_report(model, samples: SlowSamples | None = None, *, file=None, inputs=N
         order_selection=selection,
         state_space=(None if state_space is None
                      else {"order": int(np.asarray(state_space.A).shape[0])}),
-        validation=checked)
+        validation=checked,
+        modes=None if modes is None else _plain({**dataclasses.asdict(modes),
+                                                 "consistent": modes.consistent,
+                                                 "text": modes.text}))
 
 
 def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs=None,
               output: str = "y", validation=None, validation_file=None, warnings=(),
-              kernel_option: str | None = None) -> tuple[dict, FitReport]:
+              kernel_option: str | None = None, xscale: str = "auto") -> tuple[dict, FitReport]:
     """Every file ``gpmultirate fit`` writes for a fitted model, as bytes.
 
     Parameters
@@ -525,6 +616,9 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
         The input it was fitted to.
     samples, file, inputs, output, validation, validation_file, warnings, kernel_option
         As for :func:`fit_report`.
+    xscale : {"auto", "linear", "log"}, default="auto"
+        The frequency axis of ``bode.png``
+        (:func:`gpmultirate.plotting.report.fit_figures`).
 
     Returns
     -------
@@ -574,11 +668,11 @@ def fit_files(model, u, samples: SlowSamples | None = None, *, file=None, inputs
     with threadpool_limits(limits=idle_cores(), user_api="blas"):
         return _fit_files(model, u, samples, file=file, inputs=inputs, output=output,
                           validation=validation, validation_file=validation_file,
-                          warnings=warnings, kernel_option=kernel_option)
+                          warnings=warnings, kernel_option=kernel_option, xscale=xscale)
 
 
 def _fit_files(model, u, samples, *, file, inputs, output, validation, validation_file,
-               warnings, kernel_option):
+               warnings, kernel_option, xscale="auto"):
     import io
 
     from gpmultirate.export import save_state_space
@@ -614,11 +708,29 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
                                      sample_times=times, max_lag=max(max_lag, 1))
     except ValueError as error:
         notes.append(f"residuals.png was not written: {error}")
+    explanation = modes = None
+    if analysis is not None:
+        from gpmultirate.diagnosis import explain_residuals
+
+        explanation = explain_residuals(analysis, model, u=u)
+        if not explanation.white:
+            notes.append(explanation.text)
+    if system is not None and hasattr(model, "sample_impulse_responses"):
+        from gpmultirate.modes import modal_analysis
+
+        try:
+            modes = modal_analysis(model, system=system)
+        except (ValueError, np.linalg.LinAlgError) as error:
+            notes.append(f"the modes were not analysed: {error}")
+        else:
+            if not modes.consistent:
+                notes.append(modes.text)
     report = fit_report(model, samples, file=file, inputs=inputs, output=output,
                         validation=validation, validation_file=validation_file,
                         state_space=system, notes=notes, warnings=warnings,
-                        kernel_option=kernel_option, residuals=analysis)
-    figures = fit_figures(model, u, samples, inputs)
+                        kernel_option=kernel_option, residuals=analysis,
+                        residual_explanation=explanation, modes=modes)
+    figures = fit_figures(model, u, samples, inputs, xscale=xscale)
     if analysis is not None:
         figure = _figure(figsize=(6.4, 2.4 * (1 + analysis.cross_correlation.shape[0])))
         plot_residuals(analysis, ax=figure.subplots(1 + analysis.cross_correlation.shape[0], 1,
@@ -633,7 +745,68 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
     return files, report
 
 
-def prediction_csv(model, u, sample_times=None) -> str:
+def readings_model(model, *, exposure=None, latency=None):
+    """The model with the sensor's exposure and latency of the readings it predicts.
+
+    A model fitted on the ticks predicts readings as the output at their
+    instants; a camera's readings are the mean output over an exposure,
+    shown late by a latency.  The fitted model is not changed: the result
+    is a shallow copy whose ``exposure`` and ``latency`` (in the units of
+    the model's ``sample_time``, fast sample periods without one, as the
+    estimator's parameters) are those given, the others kept.
+
+    Parameters
+    ----------
+    model : fitted FIRGaussianProcess
+    exposure, latency : float, optional
+        In the units of the model's ``sample_time`` (fast sample periods
+        without one), non-negative; None keeps the model's.
+
+    Returns
+    -------
+    estimator
+        ``model`` itself when nothing changes.
+
+    Raises
+    ------
+    ValueError
+        If a value is negative or not finite, or the model has no readings
+        (no ``exposure`` parameter).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gpmultirate as gm
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(60)
+    >>> y = np.convolve(u, 0.8 ** np.arange(10))[:60]
+    >>> model = gm.FIRGaussianProcess(order=10, factor=3).fit(u, y[::3])
+    >>> camera = readings_model(model, exposure=0.5)
+    >>> camera.exposure, model.exposure
+    (0.5, 0.0)
+    """
+    import copy
+
+    given = {name: value for name, value in (("exposure", exposure), ("latency", latency))
+             if value is not None}
+    if not given:
+        return model
+    params = model.get_params(deep=False) if hasattr(model, "get_params") else {}
+    for name, value in given.items():
+        if name not in params:
+            raise ValueError(f"{name} applies to a model of readings (FIRGaussianProcess); "
+                             f"{type(model).__name__} has none")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) \
+                or not np.isfinite(value) or value < 0:
+            raise ValueError(f"{name} must be a non-negative number (in the units of the "
+                             f"model's sample_time); got {value!r}")
+    changed = copy.copy(model)
+    for name, value in given.items():
+        setattr(changed, name, float(value))
+    return changed
+
+
+def prediction_csv(model, u, sample_times=None, *, exposure=None, latency=None) -> str:
     """The fast-rate prediction of a fitted model as CSV text (``gpmultirate predict``).
 
     Parameters
@@ -645,6 +818,10 @@ def prediction_csv(model, u, sample_times=None) -> str:
         Predict the readings at these instants (in the units of the model's
         ``sample_time``, ``model.predict(u, sample_times=...)``) instead of the fast samples:
         one row per reading, ``index`` its number and ``time`` its instant.
+    exposure, latency : float, optional
+        With ``sample_times``: the sensor's exposure and latency in the units
+        of the model's ``sample_time``, in place of the model's
+        (:func:`readings_model`).
 
     Returns
     -------
@@ -672,8 +849,11 @@ def prediction_csv(model, u, sample_times=None) -> str:
     index,time,y,y_std
     """
     if sample_times is None:
+        if exposure is not None or latency is not None:
+            raise ValueError("exposure and latency apply to readings: give sample_times")
         mean, std = model.predict(u, return_std=True)
     else:
+        model = readings_model(model, exposure=exposure, latency=latency)
         mean, std = model.predict(u, return_std=True, sample_times=sample_times)
     if not (np.isfinite(mean).all() and np.isfinite(std).all()):
         raise ValueError("the prediction is not finite (the model or the inputs are out of "
@@ -690,6 +870,34 @@ def prediction_csv(model, u, sample_times=None) -> str:
         values = ",".join(f"{a:.17g},{b:.17g}" for a, b in zip(m, s))
         rows.append(f"{k},{instants[k] * sample_time:.17g},{values}")
     return "\n".join(rows) + "\n"
+
+
+def prediction_messages(model, out, table: str, readings: bool, sensor: dict) -> list[str]:
+    r"""The lines ``gpmultirate predict`` says after writing ``table`` to ``out``.
+
+    ``readings`` tells a table of readings at the stamps of a slow log from
+    one of fast samples; ``sensor`` holds the ``exposure`` and ``latency``
+    given for them (in the units of the model's ``sample_time``, seconds on
+    the command line), in place of the model's.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> model = SimpleNamespace(sample_time=0.01, exposure=0.0, latency=0.0)
+    >>> prediction_messages(model, "r.csv", "h\n1\n2\n", True, {"exposure": 0.005})
+    ['wrote r.csv (2 readings, exposure 0.005 s, latency 0 s)']
+    """
+    rows = table.count("\n") - 1
+    if not readings:
+        return [f"wrote {out} ({rows} fast samples)"]
+    exposure, latency = (sensor.get(name, getattr(model, name, 0.0) or 0.0)
+                         for name in ("exposure", "latency"))
+    lines = [f"wrote {out} ({rows} readings, exposure {exposure:g} s, latency {latency:g} s)"]
+    if not sensor and not (exposure or latency):
+        lines.append("note: the readings are the output at their stamps (the model has no "
+                     "exposure or latency); give --exposure/--latency for a sensor that has "
+                     "them")
+    return lines
 
 
 def study_header(result) -> str:

@@ -66,22 +66,60 @@ def test_example1_writes_the_figure(tmp_path):
     assert (tmp_path / "example1.png").read_bytes()[:8] == PNG
 
 
-def test_help_documents_every_option(capsys):
+def test_help_is_short_and_each_command_documents_its_options(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["--help"])
     assert exit_info.value.code == 0
     text = capsys.readouterr().out
-    for option in DEMO_OPTIONS:
-        assert option in text
-    # and everything any parser declares, found from the parsers themselves
+    assert len(text.splitlines()) < 30
     parser = build_parser()
     commands = parser._subparsers._group_actions[0].choices
     assert set(commands) == {"demo", "design", "example1", "fit", "predict"}
+    for name in commands:
+        assert name in text
+    for option in DEMO_OPTIONS:
+        assert option in commands["demo"].format_help()
+    # each command's help names every option it declares, found from the parser itself
     for name, sub in commands.items():
-        assert f"gpmultirate {name}" in text
+        with pytest.raises(SystemExit):
+            main([name, "--help"])
+        help_text = capsys.readouterr().out
         for action in sub._actions:
             for option in action.option_strings:
-                assert option in text, option
+                assert option in help_text, (name, option)
+
+
+@pytest.mark.parametrize("argv", [["fit", "data.csv", "--input", "u", "--output", "y",
+                                   "--sample-tim", "0.1"],
+                                  ["demo", "--run", "2"], ["fit", "--inp", "u"]])
+def test_option_abbreviations_are_refused(argv, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    assert "unrecognized arguments" in capsys.readouterr().err
+
+
+def test_help_loads_no_heavy_library():
+    import subprocess
+    import sys
+
+    for argv in (["--help"], ["fit", "--help"], ["predict", "--help"]):
+        code = ("import sys; from gpmultirate.__main__ import main\n"
+                "try:\n    main(" + repr(argv) + ")\nexcept SystemExit:\n    pass\n"
+                "print(sorted(m for m in ('numpy', 'scipy', 'sklearn', 'matplotlib', 'joblib') "
+                "if m in sys.modules), file=sys.stderr)")
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              check=True)
+        assert done.stderr.strip().splitlines()[-1] == "[]", (argv, done.stderr)
+
+
+def test_light_constants_of_the_parser_match_the_library():
+    from gpmultirate import arguments, report
+    from gpmultirate.study import METHODS
+    from gpmultirate.study.journal import JOURNAL_NAME
+
+    assert arguments.METHODS == METHODS and arguments.JOURNAL_NAME == JOURNAL_NAME
+    assert report.FIT_KERNELS == arguments.FIT_KERNELS
 
 
 @pytest.mark.parametrize("argv", [
@@ -440,7 +478,8 @@ def test_fit_example_robot_arm(tmp_path, capsys):
     _write_csv(val, {"u": data.u, "y_slow": data.y})
     assert main(["fit", "--example", "robot-arm", "--order", "300", "--validate", str(val),
                  "--out", str(out)]) == 0
-    assert "validation GoF" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "validation fit" in printed and "(NRMSE; GoF" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert summary["data"]["n_slow_samples"] == 342
     assert summary["validation"]["gof_percent"] > 80

@@ -361,3 +361,62 @@ def test_check_folder_and_write_file(tmp_path):
     write_file(path, b"2", overwrite=True)
     assert path.read_bytes() == b"2" and sorted(os.listdir(path.parent)) == ["t.csv"]
     assert os.stat(path).st_mode & 0o777 == 0o666 & ~_umask()
+
+
+def _summary(**extra):
+    base = {"data": {"file": "d.csv", "inputs": ["u"], "output": "y", "n_samples": 90,
+                     "n_slow_samples": 30, "sampling": "one sample in 3, from row 0",
+                     "factor": 3, "offset": 0, "sample_time": 0.01},
+            "model": {"estimator": "FIRGaussianProcess", "order": 30, "n_inputs": 1,
+                      "initial_conditions": "zero", "kernel": "DC()", "hyperparameters": {},
+                      "tuning": "evidence", "log_evidence": 1.0, "noise_level": 0.04},
+            "notes": [], "warnings": []}
+    base.update(extra)
+    return FitReport.from_dict(base)
+
+
+def test_the_summary_reports_the_fit_percent_beside_the_goodness_of_fit():
+    report = _summary(validation={"file": "v.csv", "n_samples": 90, "gof_percent": 99.986,
+                                  "fit_percent": 98.81})
+    assert report.headline().endswith("validation fit 98.81 % (NRMSE; GoF 99.99 %)")
+    page = report.to_markdown()
+    assert "- fit: 98.81 % (normalized root-mean-square error" in page
+    assert "goodness of fit (paper eq. 20, model.score): 99.99 %" in page
+    # the two are one prediction's: fit = 100 (1 - sqrt(1 - GoF / 100))
+    y = np.sin(np.arange(50.0))
+    y_hat = y + 0.05 * np.cos(np.arange(50.0) * 3)
+    gof, fit = gm.goodness_of_fit(y, y_hat), gm.fit_percent(y, y_hat)
+    assert fit == pytest.approx(100 * (1 - np.sqrt(1 - gof / 100)))
+
+
+def test_the_default_order_table_says_where_the_prior_decays_not_the_order_again():
+    report = _summary(order_selection={"criterion": "prior_tail", "orders": [512, 1024],
+                                       "score": [512.0, 300.0], "best_order": 300})
+    page = report.to_markdown()
+    assert "| order fitted | tuned prior negligible beyond lag |" in page
+    assert "| 512 | not within the order (512) |" in page and "| 1024 | 300 |" in page
+
+
+def test_the_summary_says_what_the_residuals_leave_and_the_modes():
+    noise = {"model": "white", "white_level": 0.04, "residuals_white": False,
+             "ljung_box_p_value": 1e-20, "whiteness_p_value": 1e-9,
+             "residuals_explained": "the residuals do not look white (Ljung-Box p = 1e-09): a "
+                                    "peak in the residual spectrum at 2.1 Hz ... kernel=\"auto\"",
+             "residual_remedies": ['kernel="auto"']}
+    modes = {"n_states": 2, "level": 0.95, "n_draws": 100, "consistent": True,
+             "error_bound": 0.5, "text": "1 peak(s) in |G| (2.1 Hz); 1 supported",
+             "modes": [{"frequency": 2.1, "damping": 0.02, "gain": 10.0,
+                        "frequency_interval": [2.09, 2.11], "damping_interval": [0.01, 0.03],
+                        "gain_interval": [9.0, 11.0], "presence": 1.0}],
+             "peaks": [{"frequency": 2.1, "magnitude": 9.5, "prominence": 9.0,
+                        "probability": 1.0, "supported": True, "mode": 0}]}
+    report = _summary(modes=modes)
+    report = FitReport(data=report.data, model={**report.model, "noise": noise},
+                       modes=report.modes)
+    page = report.to_markdown()
+    assert "(Ljung-Box p = 1e-09 under the fitted model, 1e-20 against chi-squared" in page
+    assert "  - what is left: a peak in the residual spectrum at 2.1 Hz" in page
+    assert "| 2.1 | 2.09 .. 2.11 | 0.02 | 0.01 .. 0.03 | 10 | 9 .. 11 | 100 % |" in page
+    assert "| 2.1 | 9.5 | 100 % | yes | 2.1 Hz |" in page
+    assert "too narrow until the model explains them" in page
+    assert FitReport.from_dict(report.to_dict()) == report

@@ -530,3 +530,39 @@ def test_readings_of_damped_sinusoids_by_their_separable_form():
                                    expected, rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(timed.damped_sinusoids(rate, omega, k), expected[:, :2],
                                    rtol=1e-10, atol=1e-12)
+
+
+def test_predict_readings_of_a_tick_model_with_the_cameras_exposure(tmp_path, capsys):
+    """--exposure/--latency give a model fitted on the ticks the sensor of the readings."""
+    u, y, stamps, fast, _ = _camera_files(tmp_path, n=120)
+    model = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=P, factor=F, sample_time=T,
+                                  optimizer=None, noise_level=1e-4)
+    model.fit(u, np.convolve(u, 0.8 ** np.arange(P))[:120:F])
+    gm.save_model(model, tmp_path / "model.npz")
+    frames = tmp_path / "frames.csv"
+    instants = np.array([10.25, 57.5, 100.875])
+    frames.write_text("# frames of the camera\nt\n" + "".join(f"{t * T:.17g}\n" for t in instants))
+    target = tmp_path / "readings.csv"
+    assert main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--slow",
+                 str(frames), "--time", "t", "--exposure", "0.0005", "--latency", "0.0002",
+                 "--out", str(target)]) == 0
+    err = capsys.readouterr().err
+    assert "3 readings, exposure 0.0005 s, latency 0.0002 s" in err and "fast samples" not in err
+    table = np.genfromtxt(target, delimiter=",", names=True)
+    # a reading is the mean of the output over [t - L - E, t - L]: the mean of the model's
+    # output at the instants of a fine midpoint grid over that window
+    offsets = -0.7 + 0.5 * (np.arange(400) + 0.5) / 400
+    mean = np.array([np.mean(model.predict(u, sample_times=t + offsets)) for t in instants])
+    np.testing.assert_allclose(table["y"], mean, rtol=1e-4)
+    assert np.all(table["y_std"] > 0)
+    # the exposure changes the readings, and without it the command says so
+    plain = model.predict(u, sample_times=instants)
+    assert np.max(np.abs(plain - mean)) > 1e-3
+    assert main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--slow",
+                 str(frames), "--time", "t", "--out", str(tmp_path / "plain.csv")]) == 0
+    assert "give --exposure/--latency" in capsys.readouterr().err
+    # and --exposure without a slow log is refused
+    with pytest.raises(SystemExit):
+        main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--exposure",
+              "0.001", "--out", str(tmp_path / "x.csv")])
+    assert "--exposure/--latency" in capsys.readouterr().err

@@ -18,19 +18,31 @@ hyperparameters) therefore answers before any output is measured:
 See :doc:`/design`.
 """
 
-from gpmultirate.design.bands import band_decibels, band_radius
-from gpmultirate.design.confounding import Confounding, alias_frequency, confounded_frequencies
-from gpmultirate.design.predicted import (
-    predicted_frequency_response,
-    predicted_impulse_response,
-    predicted_posterior,
-)
-from gpmultirate.design.criterion import BandCriterion
-from gpmultirate.design.length import RecordLength, required_length
-from gpmultirate.design.multisine import MultisineDesign, design_multisine, flat_multisine
-from gpmultirate.design.prior import DesignPrior, design_prior
-from gpmultirate.design.sampling import SamplingScheme
-from gpmultirate.design.schemes import SamplingComparison, compare_sampling
+from importlib import import_module
+
+# the public names, by the module that defines them (loaded on first use, so that
+# the command line's parser needs none of them)
+_EXPORTS = {
+    "band_decibels": "gpmultirate.design.bands",
+    "band_radius": "gpmultirate.design.bands",
+    "Confounding": "gpmultirate.design.confounding",
+    "alias_frequency": "gpmultirate.design.confounding",
+    "confounded_frequencies": "gpmultirate.design.confounding",
+    "predicted_frequency_response": "gpmultirate.design.predicted",
+    "predicted_impulse_response": "gpmultirate.design.predicted",
+    "predicted_posterior": "gpmultirate.design.predicted",
+    "BandCriterion": "gpmultirate.design.criterion",
+    "RecordLength": "gpmultirate.design.length",
+    "required_length": "gpmultirate.design.length",
+    "MultisineDesign": "gpmultirate.design.multisine",
+    "design_multisine": "gpmultirate.design.multisine",
+    "flat_multisine": "gpmultirate.design.multisine",
+    "DesignPrior": "gpmultirate.design.prior",
+    "design_prior": "gpmultirate.design.prior",
+    "SamplingScheme": "gpmultirate.design.sampling",
+    "SamplingComparison": "gpmultirate.design.schemes",
+    "compare_sampling": "gpmultirate.design.schemes",
+}
 
 __all__ = [
     "BandCriterion",
@@ -53,3 +65,15 @@ __all__ = [
     "predicted_posterior",
     "required_length",
 ]
+
+
+def __getattr__(name):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'gpmultirate.design' has no attribute {name!r}")
+    value = getattr(import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted({*globals(), *_EXPORTS})

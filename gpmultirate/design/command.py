@@ -15,8 +15,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from gpmultirate.arguments import check_out, finite_float, int_at_least
 
 __all__ = ["DESIGN_OUT", "add_design_parser"]
@@ -75,6 +73,8 @@ def _say(args, message: str) -> None:
 
 def run_design(parser, args) -> int:
     """The handler of ``gpmultirate design``."""
+    import numpy as np
+
     import gpmultirate as gm
     from gpmultirate.design.report import DESIGN_FILES, design_files
     from gpmultirate.io import check_folder, read_record, write_folder

@@ -287,19 +287,16 @@ def plot_bode(
                       nyquist_lines=[], nyquist_labels=[], phase_undefined_spans=[])
     if show_band:
         upper = magnitude(frf.magnitude_upper[keep])
-        floor = _magnitude_floor(ax_mag, [magnitude(frf.magnitude[keep]), upper]
-                                 + ([] if true_frf is None
-                                    else [magnitude(np.abs(true_frf[keep]))]), db)
-        # a band that reaches 0 (or nearly) is drawn down to the floor
+        floor = band_floor(frf.magnitude[keep], db)
+        # a band that reaches 0 (or nearly) stops BAND_DEPTH_DB below the magnitude at
+        # that frequency: on a log axis 0 is at minus infinity, and a floor shared by all
+        # frequencies drew a comb of spikes down to the bottom of the axes
         low = frf.magnitude_lower[keep]
-        clipped = ~(magnitude(low) > floor)
+        clipped = ~(magnitude(np.maximum(low, np.finfo(float).tiny)) > floor)
         lower = np.where(clipped, floor, magnitude(np.maximum(low, np.finfo(float).tiny)))
         result.magnitude_band = draw_band(ax_mag, f, lower, upper, color, label=band_label,
                                           edge=True)
         result.magnitude_band.set_gid(_BAND_GID)
-        if np.any(clipped):
-            # autoscaling stops at the floor: the band runs to the bottom of the axes
-            result.magnitude_band.sticky_edges.y.append(floor)
     if true_frf is not None:
         already = any(ln.get_gid() == _TRUE_GID for ln in ax_mag.get_lines())
         (result.true_magnitude_line,) = ax_mag.plot(
@@ -359,22 +356,40 @@ def plot_bode(
     return result
 
 
-def _magnitude_floor(ax: Axes, curves: list, db: bool) -> float:
-    """Where a band that reaches ``|G| = 0`` stops: 20 dB below the curves on ``ax``.
+#: How far below the magnitude a band that reaches 0 is drawn, in dB.
+BAND_DEPTH_DB = 20.0
 
-    The lowest finite (positive) value of ``curves``, 20 dB lower, or the
-    floor of a band drawn earlier on ``ax`` if that is lower (overlaid bands
-    share their floor).
+
+def band_floor(magnitude, db: bool = True) -> np.ndarray:
+    """Where a magnitude band that reaches ``|G| = 0`` stops: ``BAND_DEPTH_DB`` below ``|G|``.
+
+    Parameters
+    ----------
+    magnitude : array-like
+        ``|G|`` at each frequency (not in dB).
+    db : bool, default=True
+        The floor in dB, else as a magnitude.
+
+    Returns
+    -------
+    ndarray
+        The floor at each frequency; where ``|G| = 0`` the lowest floor of
+        the others (or -100 dB).
+
+    Examples
+    --------
+    >>> from gpmultirate.plotting.frequency import band_floor
+    >>> band_floor([1.0, 0.1]).tolist()
+    [-20.0, -40.0]
     """
-    values = np.concatenate([np.ravel(c) for c in curves])
-    values = values[np.isfinite(values) & (True if db else values > 0)]
-    earlier = [y for band in ax.collections if band.get_gid() == _BAND_GID
-               for y in band.sticky_edges.y]
-    if db:
-        lowest = values.min() - 20.0 if values.size else -100.0
-    else:
-        lowest = values.min() / 10.0 if values.size else 1e-5
-    return float(min([lowest] + earlier))
+    mag = np.asarray(magnitude, dtype=float)
+    positive = mag > 0
+    with np.errstate(divide="ignore"):
+        floor_db = np.where(positive, 20 * np.log10(np.where(positive, mag, 1.0)), np.nan)
+    floor_db = floor_db - BAND_DEPTH_DB
+    fill = np.nanmin(floor_db) if np.any(positive) else -100.0
+    floor_db = np.where(positive, floor_db, fill)
+    return floor_db if db else 10 ** (floor_db / 20)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:

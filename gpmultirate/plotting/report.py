@@ -14,11 +14,13 @@ from __future__ import annotations
 import numpy as np
 
 from gpmultirate.plotting.frequency import plot_bode
+from gpmultirate.plotting.overview import plot_overview
 from gpmultirate.plotting.study import plot_study
 from gpmultirate.plotting.time import plot_impulse_response, plot_intersample
 from gpmultirate.responses import ImpulseResponse, OutputPrediction
 
-__all__ = ["example_figures", "fit_figures", "nonidentifiable_figure", "study_figure"]
+__all__ = ["bode_xscale", "example_figures", "fit_figures", "nonidentifiable_figure",
+           "study_figure"]
 
 #: the most frequencies of the Bode figure (beyond it a log-spaced grid, not the DFT bins)
 BODE_FREQUENCIES = 2048
@@ -36,7 +38,21 @@ def _figure(**kwargs):
     return Figure(layout="constrained", **kwargs)
 
 
-def fit_figures(model, u, samples=None, inputs=None) -> dict:
+def bode_xscale(freqs) -> str:
+    """The frequency axis of a Bode figure: ``"log"`` when the positive frequencies span
+    more than two decades, else ``"linear"``.
+
+    Examples
+    --------
+    >>> bode_xscale([0.0, 0.001, 0.5]), bode_xscale([0.0, 0.01, 0.5])
+    ('log', 'linear')
+    """
+    f = np.asarray(freqs, dtype=float)
+    f = f[f > 0]
+    return "log" if f.size > 1 and f.max() / f.min() > 100 else "linear"
+
+
+def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") -> dict:
     """The figures of a fitted model with their 95 % credible bands.
 
     Parameters
@@ -51,6 +67,8 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
         model.
     inputs : sequence of str, optional
         Names of the inputs, for the titles; default ``u0, u1, ...``.
+    xscale : {"auto", "linear", "log"}, default="auto"
+        The frequency axis of ``bode.png``; ``auto`` is :func:`bode_xscale`.
 
     Returns
     -------
@@ -59,10 +77,13 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
         the record (``BODE_FREQUENCIES`` log-spaced frequencies from the
         first bin to the Nyquist frequency on a longer record);
         ``impulse.png``: the impulse response per input at four lags per
-        sample (fewer where that would exceed ``IMPULSE_POINTS``) over the
+        sample (fewer where that would exceed ``IMPULSE_POINTS``; at the
+        integer lags only where the curve between them falls back towards
+        0, a prior with little correlation between lags) over the
         first ``max(60, N / 4)`` lags; ``intersample.png``: the fast-rate output
-        predicted from the slow samples over the record and over 20 slow
-        periods in its middle.
+        predicted from the slow samples over the record
+        (:func:`~gpmultirate.plotting.overview.plot_overview`: binned beyond
+        ``OVERVIEW_POINTS`` samples) and over 20 slow periods in its middle.
 
     Examples
     --------
@@ -91,11 +112,15 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     # Bode: one magnitude and phase pair per input
     fig = _figure(figsize=(4.8 * n_inputs + 1.2, 5.6))
     axes = fig.subplots(2, n_inputs, sharex=True, squeeze=False)
+    from gpmultirate.plotting.axes import check_choice
+
+    xscale = check_choice(xscale, "xscale", ("auto", "linear", "log"))
     freqs = _bode_frequencies(model)
     for k in range(n_inputs):
         frf = model.frequency_response(freqs, input=k if n_inputs > 1 else None)
-        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean")
-        axes[0, k].set_title(f"input {names[k]}", fontsize="medium")
+        scale = bode_xscale(frf.freqs) if xscale == "auto" else xscale
+        plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean", xscale=scale)
+        axes[0, k].set_title(f"input {names[k]}", fontsize="medium", loc="left")
     figures["bode.png"] = fig
 
     # impulse responses at 4 lags per sample, between the integer lags too
@@ -105,12 +130,22 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     lags = np.linspace(0.0, shown - 1.0, per_sample * (shown - 1) + 1)
     mean, std = model.impulse_response(lags, return_std=True)
     mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
+    if per_sample > 1 and not _smooth_between_lags(mean, per_sample):
+        # a prior with little correlation between neighbouring lags pulls the curve
+        # back to 0 between them: drawn there, the response looks like noise
+        lags, mean, std = lags[::per_sample], mean[:, ::per_sample], std[:, ::per_sample]
     fig = _figure(figsize=(8.5, 2.6 * n_inputs + 0.4))
     axes = fig.subplots(n_inputs, 1, sharex=True, squeeze=False)[:, 0]
     for k, ax in enumerate(axes):
         response = ImpulseResponse(lags=lags, mean=mean[k], std=std[k], level=0.95,
                                    continuous=bool(model.continuous_lags))
-        plot_impulse_response(response, ax=ax, label="posterior mean (95 % band)")
+        drawn = plot_impulse_response(response, ax=ax, label="posterior mean (95 % band)")
+        # a band thinner than the line is invisible at the figure's scale: say how wide
+        half = 1.96 * float(np.max(std[k]))
+        span = float(np.ptp(mean[k])) or 1.0
+        if half < 0.01 * span:
+            drawn.mean_line.set_label(f"posterior mean (95 % band within ±{half:.2g}, "
+                                      "thinner than the line)")
         ax.set_title(f"impulse response of input {names[k]}", fontsize="medium", loc="left")
         ax.legend(fontsize="small")
         if ax is not axes[-1]:
@@ -131,9 +166,16 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
     start = max(0, (n - width) // 2)
     fig = _figure(figsize=(8.5, 5.6))
     full, zoom = fig.subplots(2, 1)
-    plot_intersample(prediction, ax=full, label="prediction (95 % band)")
-    full.set_title("fast-rate output predicted from the slow samples", fontsize="medium",
-                   loc="left")
+    if instants is None:
+        overview = plot_overview(prediction, ax=full, label="prediction (95 % band)")
+    else:  # the readings at their stamps
+        overview = plot_overview(prediction, ax=full, label="prediction (95 % band)",
+                                 slow_time=np.asarray(instants) * float(model.sample_time),
+                                 slow_values=values)
+    title = "fast-rate output predicted from the slow samples"
+    if overview.bin_width > 1:
+        title += f" (range per {overview.bin_width} fast samples)"
+    full.set_title(title, fontsize="medium", loc="left")
     if instants is None:
         plot_intersample(prediction, ax=zoom, window=(start, start + width),
                          label="prediction (95 % band)")
@@ -145,6 +187,25 @@ def fit_figures(model, u, samples=None, inputs=None) -> dict:
         ax.legend(fontsize="small")
     figures["intersample.png"] = fig
     return figures
+
+
+def _smooth_between_lags(mean, per_sample: int) -> bool:
+    """Whether the curve between the integer lags stays near the straight line between
+    them (within half the response's root mean square), so it is worth drawing.
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 10, 41)
+    >>> _smooth_between_lags(np.sin(t)[None], 4), _smooth_between_lags((t % 1 == 0)[None] * 1.0, 4)
+    (True, False)
+    """
+    peak = float(np.max(np.abs(mean))) if mean.size else 0.0
+    mean = mean / (peak if np.isfinite(peak) and peak > 0 else 1.0)  # no overflow near 1e308
+    integer = mean[:, ::per_sample]
+    grid = np.arange(mean.shape[1]) / per_sample
+    straight = np.stack([np.interp(grid, np.arange(integer.shape[1]), row) for row in integer])
+    scale = np.sqrt(np.mean(integer ** 2)) or 1.0
+    return bool(np.sqrt(np.mean((mean - straight) ** 2)) <= 0.5 * scale)
 
 
 def _bode_frequencies(model):
