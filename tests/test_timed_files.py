@@ -552,11 +552,11 @@ def test_predict_readings_of_a_tick_model_with_the_cameras_exposure(tmp_path, ca
     # a reading is the mean of the output over [t - L - E, t - L]: the mean of the model's
     # output at the instants of a fine midpoint grid over that window
     offsets = -0.7 + 0.5 * (np.arange(400) + 0.5) / 400
-    mean = np.array([np.mean(model.predict(u, sample_times=t + offsets)) for t in instants])
+    mean = np.array([np.mean(model.predict(u, sample_times=(t + offsets) * T)) for t in instants])
     np.testing.assert_allclose(table["y"], mean, rtol=1e-4)
     assert np.all(table["y_std"] > 0)
     # the exposure changes the readings, and without it the command says so
-    plain = model.predict(u, sample_times=instants)
+    plain = model.predict(u, sample_times=instants * T)
     assert np.max(np.abs(plain - mean)) > 1e-3
     assert main(["predict", str(tmp_path / "model.npz"), str(fast), "--input", "u", "--slow",
                  str(frames), "--time", "t", "--out", str(tmp_path / "plain.csv")]) == 0
