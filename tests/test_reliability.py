@@ -157,3 +157,31 @@ def test_identical_inputs_give_bit_identical_results(experiment):
     first, second = run(), run()
     for a, b in zip(first, second):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.fixture(scope="module")
+def short_record():
+    rng = np.random.default_rng(1)
+    n = 150
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.8 ** np.arange(20))[:n] + 0.05 * rng.standard_normal(n)
+    return u, y[::3]
+
+
+@pytest.mark.parametrize("noise_kernel", [None, "white", "matern32", "ar1"])
+def test_noise_inclusive_std_does_not_overflow_near_the_float_range(short_record, noise_kernel):
+    u, y_slow = short_record
+    params = {} if noise_kernel is None else {"noise_kernel": noise_kernel}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        plain = gm.FIRGaussianProcess(order=20, factor=3, **params).fit(u, y_slow)
+        huge = gm.FIRGaussianProcess(order=20, factor=3, **params).fit(u, y_slow * 1e300)
+    _, std = plain.predict(u, return_std=True, include_noise=True)
+    _, std_huge = huge.predict(u, return_std=True, include_noise=True)
+    assert np.all(np.isfinite(std_huge))
+    np.testing.assert_allclose(std_huge, std * 1e300, rtol=1e-6)
+    # independently: the noise-free band and the noise's std, added in quadrature
+    _, free = plain.predict(u, return_std=True)
+    assert np.all(std > free) and np.all(std < free + np.sqrt(std.max() ** 2))
+    [(_, listed)] = huge.predict([u], return_std=True, include_noise=True)
+    np.testing.assert_array_equal(listed, std_huge)
