@@ -426,7 +426,7 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         """
         settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
         sample_indices = between_ticks.readings_of(sample_indices, sample_times,
-                                                   settings.exposure, settings.latency)
+                                                   settings.exposure, settings.latency, u)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
                      "interpolation_error_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit
