@@ -185,3 +185,14 @@ def test_noise_inclusive_std_does_not_overflow_near_the_float_range(short_record
     assert np.all(std > free) and np.all(std < free + np.sqrt(std.max() ** 2))
     [(_, listed)] = huge.predict([u], return_std=True, include_noise=True)
     np.testing.assert_array_equal(listed, std_huge)
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_resonance_search_on_zero_data_finds_no_term():
+    # nothing to find: no term (the scan's amplitude is zero, so are its bounds)
+    u = np.random.default_rng(0).standard_normal(300)
+    model = gm.FIRGaussianProcess(kernel="auto", factor=3).fit(u, np.zeros(100))
+    assert model.resonances_ == []
+    np.testing.assert_array_equal(model.coef_, 0.0)
+    default = gm.FIRGaussianProcess(factor=3).fit(u, np.zeros(100))
+    np.testing.assert_array_equal(default.coef_, 0.0)
