@@ -74,6 +74,7 @@ def check_noise_kernel(noise_kernel):
     ValueError: noise_kernel must be 'auto', 'white', ... or a scikit-learn kernel; got 'pink'
     """
     if isinstance(noise_kernel, Kernel):
+        _check_one_dimension(noise_kernel)
         return noise_kernel
     if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white", AR1_DISTURBANCE)
                                           or noise_kernel in NAMED_DISTURBANCES):
@@ -82,6 +83,23 @@ def check_noise_kernel(noise_kernel):
                                               AR1_DISTURBANCE))
     raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
                      f"got {noise_kernel!r}")
+
+
+def _check_one_dimension(kernel) -> None:
+    """A noise kernel acts on the readings' instants: one column of times."""
+    instants = np.array([[0.0], [1.0]])
+    try:
+        with np.errstate(all="ignore"):
+            values = np.asarray(kernel(instants), dtype=float)
+        fits = values.shape == (2, 2)
+    except Exception as error:  # a kernel of several dimensions refuses one column
+        fits, reason = False, f" ({' '.join(str(error).split())})"
+    else:
+        reason = f" (it gave shape {values.shape} on two instants)"
+    if not fits:
+        raise ValueError(
+            "noise_kernel must act on one dimension, the instants of the readings (a column "
+            f"of times); got {kernel!r}{reason}")
 
 
 def takes_ar1_route(observation) -> bool:
