@@ -208,7 +208,14 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         the better disturbance only when its cross-validated log predictive
         likelihood exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
         With ``optimizer=None``, where nothing is tuned, ``"auto"`` is
-        white.  See :doc:`/disturbances`.
+        white.  A kernel's variances (a ``WhiteKernel``'s level, a
+        ``ConstantKernel``'s value) and their bounds are read in normalized
+        units, the output divided by its RMS, as ``kernel``'s amplitudes
+        and ``noise_level`` are: the same kernel gives the same fit of the
+        data in any units.  Its time scales are in fast samples, whatever
+        the units.  With ``normalize=False`` or ``optimizer=None`` it is in
+        the data's units.  ``noise_kernel_`` is in the data's units.  See
+        :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.

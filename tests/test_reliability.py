@@ -7,6 +7,7 @@ import pytest
 from scipy import linalg
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import ConstantKernel as C
+from sklearn.gaussian_process.kernels import Matern, WhiteKernel
 
 import gpmultirate as gm
 from gpmultirate import simulation as sim
@@ -168,7 +169,10 @@ def short_record():
     return u, y[::3]
 
 
-@pytest.mark.parametrize("noise_kernel", [None, "white", "matern32", "ar1"])
+@pytest.mark.parametrize("noise_kernel", [
+    None, "white", "matern32", "ar1",
+    WhiteKernel(1e-2, "fixed") + C(0.1, "fixed") * Matern(5.0, "fixed", nu=1.5),
+])
 def test_noise_inclusive_std_does_not_overflow_near_the_float_range(short_record, noise_kernel):
     u, y_slow = short_record
     params = {} if noise_kernel is None else {"noise_kernel": noise_kernel}
