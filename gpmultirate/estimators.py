@@ -429,7 +429,10 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         fit report gives the noise in the data's units).  ``optimizer_result_``
         is the optimizer's run on the normalized data.  Data whose largest
         magnitude is subnormal (below ``2.2e-308``), or an input that is zero
-        at every sample, are refused with a ``ValueError`` naming them.
+        at every sample, are refused with a ``ValueError`` naming them, as
+        are units whose coefficients would be beyond the float range (for
+        instance ``u * 1e-160`` and ``y_slow * 1e160``, coefficients near
+        ``1e320``).
         """
         settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
         sample_indices = between_ticks.readings_of(sample_indices, sample_times,

@@ -200,3 +200,22 @@ def test_resonance_search_on_zero_data_finds_no_term():
     np.testing.assert_array_equal(model.coef_, 0.0)
     default = gm.FIRGaussianProcess(factor=3).fit(u, np.zeros(100))
     np.testing.assert_array_equal(default.coef_, 0.0)
+
+
+@pytest.mark.parametrize("estimator", [
+    lambda: gm.FIRGaussianProcess(order=20, factor=3),
+    lambda: gm.LeastSquaresFIR(order=20, factor=3),
+])
+def test_coefficients_beyond_the_float_range_are_a_clear_error(short_record, estimator):
+    u, y_slow = short_record
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        with pytest.raises(ValueError, match="beyond the float range .*near 1e32"):
+            estimator().fit(u * 1e-160, y_slow * 1e160)
+        # just inside the range: finite coefficients, the scaled ones of the plain fit
+        model = estimator().fit(u * 1e-150, y_slow * 1e150)
+    plain = estimator().fit(u, y_slow)
+    assert np.all(np.isfinite(model.coef_))
+    np.testing.assert_allclose(model.coef_, plain.coef_ * 1e300, rtol=1e-6,
+                               atol=1e-6 * np.abs(plain.coef_).max() * 1e300)
