@@ -44,7 +44,7 @@ import numpy as np
 
 from gpmultirate import __version__
 from gpmultirate.arguments import (OneLineErrorParser, available_cpus, check_out, check_slow_log,
-                                   duration, finite_float, int_at_least, nonzero_int, one_line,
+                                   check_windows, duration, finite_float, int_at_least, nonzero_int, one_line,
                                    order_or_auto, sample_time)
 from gpmultirate.progress import show_progress
 from gpmultirate.report import FIT_KERNELS
@@ -438,19 +438,6 @@ def _check_columns(parser, inputs, output=None) -> None:
         parser.error(f"argument --output: column {output!r} is also an --input column")
 
 
-def _check_windows(parser, args, n: int, sample_times) -> None:
-    """Stop when ``--exposure``/``--latency`` leave no reading inside the record (in seconds)."""
-    record = n * args.sample_time
-    latest = float(np.max(sample_times)) * args.sample_time
-    if args.exposure > record:
-        parser.error(f"argument --exposure: must not exceed the record, {record:g} s ({n} rows "
-                     f"of {args.sample_time:g} s); got {args.exposure:g}")
-    if args.latency > latest:
-        parser.error(f"argument --latency: leaves no reading inside the record: every window "
-                     f"would end before it starts (the latest stamp is {latest:g} s); got "
-                     f"{args.latency:g}")
-
-
 def _fit(parser, args) -> int:
     import warnings
 
@@ -481,7 +468,7 @@ def _fit(parser, args) -> int:
     if args.slow is not None:  # its errors name the slow file
         samples = read_slow_log(args.slow, args.time, output, sample_time=args.sample_time,
                                 n_samples=n, exposure=args.exposure, latency=args.latency)
-        _check_windows(parser, args, n, samples.sample_times)
+        check_windows(parser, args, n, samples.sample_times)
     else:
         try:
             samples = read_slow_samples(y, factor=args.factor, offset=args.offset)
