@@ -707,3 +707,13 @@ def test_integer_sample_times_out_of_range_are_named_with_the_given_values():
         with pytest.raises(ValueError, match="^sample_times must lie in") as error:
             gm.FIRGaussianProcess(order=20).fit(u, y_slow, sample_times=bad)
         assert shown in str(error.value)
+
+
+def test_exposure_windows_beyond_the_memory_are_refused_before_forming_them(monkeypatch):
+    from gpmultirate.exceptions import MemoryLimitError
+
+    u, y_slow, times = _record()
+    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(10**8))
+    # 50 readings of 100 periods: 5050 pieces between ticks, their pairs 0.8 GB
+    with pytest.raises(MemoryLimitError, match="^exposure 100 over 50 readings .* 5050 pieces"):
+        gm.FIRGaussianProcess(order=20, exposure=100.0).fit(u, y_slow, sample_times=times + 0.5)
