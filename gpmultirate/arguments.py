@@ -18,7 +18,8 @@ import math
 import os
 
 __all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "argument_type",
-           "available_cpus", "check_out", "check_slow_log", "duration", "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
+           "available_cpus", "check_out", "check_slow_log", "check_windows", "duration",
+           "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
            "sample_time", "shorten", "without_abbreviations"]
 
 
@@ -120,6 +121,23 @@ def check_slow_log(parser, args) -> None:
     if wrong[1]:
         parser.error(f"argument {wrong[0]}: " + ("not with --slow (the stamps place the "
                      "readings)" if args.slow else "only with a slow log (--slow)"))
+
+
+def check_windows(parser, args, n: int, sample_times) -> None:
+    """Stop when ``--exposure``/``--latency`` leave no reading inside the record (in seconds).
+
+    ``n``: the rows of the fast record; ``sample_times``: the slow log's
+    stamps in fast sample periods.
+    """
+    record = n * args.sample_time
+    latest = max(float(t) for t in sample_times) * args.sample_time
+    if args.exposure > record:
+        parser.error(f"argument --exposure: must not exceed the record, {record:g} s ({n} rows "
+                     f"of {args.sample_time:g} s); got {args.exposure:g}")
+    if args.latency > latest:
+        parser.error(f"argument --latency: leaves no reading inside the record: every window "
+                     f"would end before it starts (the latest stamp is {latest:g} s); got "
+                     f"{args.latency:g}")
 
 
 def shorten(text: str, limit: int = 80) -> str:

@@ -36,12 +36,11 @@ import textwrap
 import time
 from pathlib import Path
 
-# numpy, SciPy, scikit-learn and matplotlib are imported by the commands that use
-# them, so that `gpmultirate --help` and the parser's errors come at once
+# the numerical libraries load in the commands: `--help` and parser errors come at once
 from gpmultirate import __version__
 from gpmultirate.arguments import (FIT_KERNELS, JOURNAL_NAME, METHODS, OneLineErrorParser,
-                                   available_cpus, check_out, check_slow_log, duration,
-                                   finite_float, int_at_least, nonzero_int, one_line,
+                                   available_cpus, check_out, check_slow_log, check_windows,
+                                   duration, finite_float, int_at_least, nonzero_int, one_line,
                                    order_or_auto, sample_time, without_abbreviations)
 from gpmultirate.design.command import add_design_parser
 
@@ -470,6 +469,7 @@ def _fit(parser, args) -> int:
     if args.slow is not None:  # its errors name the slow file
         samples = read_slow_log(args.slow, args.time, output, sample_time=args.sample_time,
                                 n_samples=n, exposure=args.exposure, latency=args.latency)
+        check_windows(parser, args, n, samples.sample_times)
     else:
         try:
             samples = read_slow_samples(y, factor=args.factor, offset=args.offset)

@@ -209,7 +209,14 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         the better disturbance only when its cross-validated log predictive
         likelihood exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
         With ``optimizer=None``, where nothing is tuned, ``"auto"`` is
-        white.  See :doc:`/disturbances`.
+        white.  A kernel's variances (a ``WhiteKernel``'s level, a
+        ``ConstantKernel``'s value) and their bounds are read in normalized
+        units, the output divided by its RMS, as ``kernel``'s amplitudes
+        and ``noise_level`` are: the same kernel gives the same fit of the
+        data in any units.  Its time scales are in fast samples, whatever
+        the units.  With ``normalize=False`` or ``optimizer=None`` it is in
+        the data's units.  ``noise_kernel_`` is in the data's units.  See
+        :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
@@ -429,13 +436,16 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         fit report gives the noise in the data's units).  ``optimizer_result_``
         is the optimizer's run on the normalized data.  Data whose largest
         magnitude is subnormal (below ``2.2e-308``), or an input that is zero
-        at every sample, are refused with a ``ValueError`` naming them.
+        at every sample, are refused with a ``ValueError`` naming them, as
+        are units whose coefficients would be beyond the float range (for
+        instance ``u * 1e-160`` and ``y_slow * 1e160``, coefficients near
+        ``1e320``).
         """
         settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
         if sample_times is not None:
             sample_times = units.in_fast_periods(sample_times, settings.sample_time, u)
         sample_indices = between_ticks.readings_of(sample_indices, sample_times,
-                                                   settings.exposure, settings.latency)
+                                                   settings.exposure, settings.latency, u)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
                      "interpolation_error_"):
             self.__dict__.pop(name, None)  # made by some fits only: none left from a refit

@@ -132,12 +132,15 @@ class FIRModelMixin:
         if include_noise and not return_std:
             raise ValueError("include_noise=True needs return_std=True")
         if include_noise:
-            predicted = self.predict(u, True, sample_times)
-            extra = self._measurement_noise_variance()
+            predicted = self._predict_std_in_fit_units(u, sample_times)
+            noise_std, exponent = self._measurement_noise_std()
+            # combined in the fit's units, then scaled by a power of two: no
+            # square of a data-unit value can overflow near the float range
             if is_record_list(u):
-                return [(m, np.sqrt(s**2 + extra)) for m, s in predicted]
+                return [(np.ldexp(m, exponent), np.ldexp(np.hypot(s, noise_std), exponent))
+                        for m, s in predicted]
             mean, std = predicted
-            return mean, np.sqrt(std**2 + extra)
+            return np.ldexp(mean, exponent), np.ldexp(np.hypot(std, noise_std), exponent)
         if is_record_list(u):
             if sample_times is None:
                 return [self.predict(u_r, return_std) for u_r in u]
@@ -186,18 +189,37 @@ class FIRModelMixin:
                 mean[rows] = A @ posterior.coef
         return (mean, np.sqrt(var)) if return_std else mean
 
-    def _measurement_noise_variance(self) -> float:
-        """The variance of one measured sample's noise (disturbance and white noise)."""
+    def _output_exponent(self) -> int:
+        """``e`` with ``output_scale_ = 2**e``: the fit's units are the data's over ``2**e``."""
+        return int(np.frexp(getattr(self, "output_scale_", 1.0))[1] - 1)
+
+    def _predict_std_in_fit_units(self, u, sample_times):
+        """``predict(u, True, sample_times)`` divided by ``2**_output_exponent()``."""
+        exponent = self._output_exponent()
+        predicted = self.predict(u, True, sample_times)
+        if is_record_list(u):
+            return [(np.ldexp(m, -exponent), np.ldexp(s, -exponent)) for m, s in predicted]
+        return tuple(np.ldexp(v, -exponent) for v in predicted)
+
+    def _measurement_noise_std(self) -> tuple[float, int]:
+        """The standard deviation of one measured sample's noise (disturbance and white noise).
+
+        Returned as ``(std, e)``, the value in the data's units being
+        ``std * 2**e``: a variance in the data's units may overflow where
+        the standard deviation does not (data near ``1e300``).
+        """
         model = getattr(self, "_noise_model", None)
-        exponent = int(np.frexp(getattr(self, "output_scale_", 1.0))[1] - 1)
-        with np.errstate(over="ignore"):
-            if model is not None and not model.white:  # tuned on the normalized data
-                return float(np.ldexp(model.sample_variance(), 2 * exponent))
-            if hasattr(self, "noise_level_"):
-                if getattr(self, "hyperparameter_units_", "data") == "normalized":
-                    return float(np.ldexp(self.noise_level_, 2 * exponent))
-                return float(self.noise_level_)
-        return float(self.noise_variance_)
+        exponent = self._output_exponent()
+        if model is not None and not model.white:  # tuned on the normalized data
+            return float(np.sqrt(model.sample_variance())), exponent
+        if hasattr(self, "noise_level_"):
+            if getattr(self, "hyperparameter_units_", "data") == "normalized":
+                return float(np.sqrt(self.noise_level_)), exponent
+            variance = float(self.noise_level_)
+        else:
+            variance = float(self.noise_variance_)
+        # a variance in the data's units: its square root in the fit's units
+        return float(np.sqrt(np.ldexp(variance, -2 * exponent))), exponent
 
     def _predict_readings(self, x, sample_times, return_std):
         """Readings at ``sample_times``: here only on the fast ticks (no model between them)."""

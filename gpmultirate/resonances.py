@@ -535,6 +535,8 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             if best is None or gain[a, j] > best[0]:
                 best = (gain[a, j], k, alphas[a], omegas[j], sigma[a, j])
         _, k, alpha, omega, sigma = best
+        if not (np.isfinite(sigma) and sigma > 0.0):
+            break  # no signal left to scan (zero data): no term, no zero-width bounds
         trial = model.with_term(k, PK(
             alpha=alpha, omega=omega, sigma1=sigma, sigma2=sigma,
             alpha_bounds=(1e-4, slowest_decay(evidence.data.order)),
@@ -1177,6 +1179,9 @@ class _ResonantModel:
                 return np.inf, np.zeros_like(x)
             return -value, -grad
 
+        if not np.all(np.isfinite(bounds)):  # scipy refuses them: the start, untuned
+            trial.value = -objective(x0)[0]
+            return trial
         best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds)
         x = best.x if np.isfinite(best.fun) and best.fun <= objective(x0)[0] else x0
         trial._unpack(x)

@@ -233,6 +233,21 @@ def normalize(u, y_slow):
     return u_n[0], y_n[0], scale
 
 
+def _coefficients_in_data_units(coef: np.ndarray, exponents: np.ndarray) -> np.ndarray:
+    """``coef * 2**exponents``; a ``ValueError`` where that is beyond the float range."""
+    with np.errstate(over="ignore"):
+        scaled = np.ldexp(coef, exponents)
+    if np.all(np.isfinite(scaled)):
+        return scaled
+    with np.errstate(divide="ignore"):
+        decades = np.log10(np.abs(coef)) + exponents * math.log10(2.0)
+    raise ValueError(
+        "the impulse response in the data's units is beyond the float range (coefficients "
+        f"near 1e{int(np.floor(np.max(decades)))}, the largest float is 1.8e308): the units "
+        "of y_slow per unit of u are too large; give u or y_slow in other units (for "
+        "instance y_slow divided by a power of ten) and fit again")
+
+
 class ScaledCoefficients(GaussianCoefficients):
     """The Gaussian coefficients of a normalized fit, in the data's units.
 
@@ -253,7 +268,8 @@ class ScaledCoefficients(GaussianCoefficients):
         self.normalized = normalized
         self.scale = scale
         self.exponents = scale.coefficient_exponents(order)
-        GaussianCoefficients.__init__(self, np.ldexp(normalized.coef, self.exponents), None, None)
+        GaussianCoefficients.__init__(self, _coefficients_in_data_units(
+            normalized.coef, self.exponents), None, None)
         self.log_marginal_likelihood = getattr(normalized, "log_marginal_likelihood", None)
 
     def _columns(self, A):

@@ -1313,3 +1313,12 @@ def test_generated_tests_checked_at_least_1000_examples():
     short = {key: (RAN[key], BUDGET[key]) for key in BUDGET if RAN[key] < BUDGET[key]}
     assert not short, f"examples checked below budget (ran, budget): {short}"
     assert sum(RAN.values()) >= MIN_TOTAL_EXAMPLES, RAN
+
+
+def test_a_noise_kernel_of_several_dimensions_is_named():
+    from sklearn.gaussian_process.kernels import RBF
+
+    u = np.random.default_rng(0).standard_normal(90)
+    with pytest.raises(ValueError, match="^noise_kernel must act on one dimension") as error:
+        FIRGaussianProcess(order=10, factor=3, noise_kernel=RBF([1.0, 2.0])).fit(u, u[::3])
+    assert "length_scale=[1, 2]" in str(error.value)

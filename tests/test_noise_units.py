@@ -68,16 +68,45 @@ def test_bound_warning_of_a_disturbance_names_the_data_units(drifting):
     from sklearn.exceptions import ConvergenceWarning
 
     u, y_slow = drifting
-    for scale in (1000.0,):
-        hi = 1e-6 * scale**2  # far too small a disturbance for the drift: it ends on the bound
-        kernel = WhiteKernel(1e-4 * scale**2) + C(0.5 * hi, (1e-3 * hi, hi)) * Matern(
-            20.0, (1.0, 1e4), nu=1.5)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            model = gm.FIRGaussianProcess(order=30, factor=3, noise_kernel=kernel).fit(
-                u, scale * y_slow)
-        messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
-        named = [m for m in messages if "noise_kernel__k2__k1__constant_value" in m]
-        assert named, messages
-        assert f"upper bound {hi:.4g}" in named[0]
-        assert model.noise_kernel_.k2.k1.constant_value == pytest.approx(hi, rel=1e-6)
+    scale = 1000.0
+    power = np.mean((scale * y_slow) ** 2)
+    # read in normalized units (the output over its RMS): far too small a
+    # disturbance for the drift, so it ends on the bound
+    hi = 1e-6
+    kernel = WhiteKernel(1e-4) + C(0.5 * hi, (1e-3 * hi, hi)) * Matern(20.0, (1.0, 1e4), nu=1.5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = gm.FIRGaussianProcess(order=30, factor=3, noise_kernel=kernel).fit(
+            u, scale * y_slow)
+    messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
+    named = [m for m in messages if "noise_kernel__k2__k1__constant_value" in m]
+    assert named, messages
+    assert f"upper bound {hi * power:.4g}" in named[0]
+    assert model.noise_kernel_.k2.k1.constant_value == pytest.approx(hi * power, rel=1e-6)
+
+
+@pytest.mark.parametrize("noise_kernel", [
+    lambda: WhiteKernel() + C(1.0) * Matern(5.0, nu=1.5),
+    lambda: WhiteKernel(1e-3, "fixed") + C(0.1, "fixed") * Matern(8.0, "fixed", nu=1.5),
+])
+def test_a_noise_kernel_is_read_in_normalized_units(drifting, noise_kernel):
+    # the same data in three units: the same fit, the same normalized
+    # hyperparameters (the data-unit ones over the output's power)
+    u, y_slow = drifting
+    rng = np.random.default_rng(5)
+    u_val = rng.standard_normal(300)
+    y_val = np.convolve(u_val, 0.8 ** np.arange(30))[:300]
+    fits = {}
+    for scale in (1e-6, 1.0, 1e6):
+        model = gm.FIRGaussianProcess(order=30, factor=3, noise_kernel=noise_kernel()).fit(
+            u, y_slow * scale)
+        power = np.mean((y_slow * scale) ** 2)
+        normalized = scaled_noise_kernel(model.noise_kernel_, 1.0 / power)
+        fits[scale] = (model.score(u_val, y_val * scale), normalized.theta,
+                       model.coef_ / scale)
+    gof, theta, coef = fits[1.0]
+    assert gof > 90.0
+    for scale in (1e-6, 1e6):
+        assert fits[scale][0] == pytest.approx(gof, abs=1e-8)
+        np.testing.assert_allclose(fits[scale][1], theta, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(fits[scale][2], coef, rtol=1e-6, atol=1e-8)

@@ -46,9 +46,16 @@ example database, so every run draws the same problems):
 9   same inputs and ``random_state`` give bit-identical ``coef_``,    12
     tuned hyperparameters, noise level, evidence, optimizer
     result, posterior samples and frequency-response bands
+10  every noise model (white, Matern 1/2 and 3/2, AR(1), a user      25
+    kernel ``WhiteKernel + C * Matern``) on the ticks (random
+    factor and offset) and at the readings' own instants (random
+    stamps, exposure, latency): ``coef_`` = the dense Gaussian
+    conditional with the noise kernel over the instants and the
+    readings as window means of the held input's output; the
+    noise-inclusive ``predict`` std = ``sqrt(std**2 + k(t, t))``
 ==  ===========================================================  ========
 
-9 properties, 504 examples per run (about 25 s; sizes are at most 30 fast
+10 properties, 529 examples per run (about 27 s; sizes are at most 30 fast
 samples).
 """
 
@@ -530,3 +537,95 @@ def test_fits_are_deterministic(problem, seed, kind):
     for name in ("mean", "magnitude_lower", "magnitude_upper", "phase_lower", "phase_upper",
                  "real_std", "imag_std"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+# -------------------------------- 10. every noise model, readings on and off the ticks
+NOISE_MODELS = ["white", "matern12", "matern32", "ar1", "user"]
+
+
+def _noise_choice(name):
+    from sklearn.gaussian_process.kernels import Matern, WhiteKernel
+
+    if name == "user":
+        return WhiteKernel(0.05) + C(0.2) * Matern(3.0, nu=1.5)
+    return name
+
+
+def _reading_functionals(u, times, exposure, latency, order, nodes=48):
+    """Each reading as ``sum_q c_q g(x_q)`` over lags in ``[0, P)``: the output of the held
+    input at ``t - L`` (``E = 0``), or its mean over ``[t - L - E, t - L]`` by Gauss-Legendre
+    on the pieces between ticks."""
+    xi, w = np.polynomial.legendre.leggauss(nodes)
+    out = []
+    for t in times:
+        end = t - latency
+        if exposure == 0.0:
+            instants, weights = np.array([end]), np.array([1.0])
+        else:
+            start = end - exposure
+            edges = np.unique(np.concatenate(
+                [[start, end], np.arange(np.ceil(start), np.ceil(end))]))
+            edges = edges[(edges >= start) & (edges <= end)]
+            instants = np.concatenate([a + (b - a) * (xi + 1) / 2
+                                       for a, b in zip(edges[:-1], edges[1:])])
+            weights = np.concatenate([w * (b - a) / 2 / exposure
+                                      for a, b in zip(edges[:-1], edges[1:])])
+        lags, coefs = [], []
+        for s, weight in zip(instants, weights):
+            for j in range(len(u)):
+                if 0.0 <= s - j < order:
+                    lags.append(s - j)
+                    coefs.append(weight * u[j])
+        out.append((np.array(lags), np.array(coefs)))
+    return out
+
+
+@st.composite
+def noisy_problems(draw):
+    n = draw(st.integers(8, 16))
+    order = draw(st.integers(2, 6))
+    rng = np.random.default_rng(draw(st.integers(0, 2**20)))
+    u = rng.standard_normal(n)
+    if draw(st.booleans()):  # on the ticks
+        factor = draw(st.integers(1, 3))
+        offset = draw(st.integers(0, factor - 1))
+        times = np.arange(offset, n, factor, dtype=float)
+        timing = dict(factor=factor, offset=offset)
+        exposure = latency = 0.0
+    else:  # at their own instants, with exposure and latency
+        m = draw(st.integers(2, 6))
+        times = np.sort(rng.choice(np.arange(1, 4 * n) / 4.0, size=m, replace=False))
+        exposure = draw(st.sampled_from([0.0, 0.5, 1.25]))
+        latency = draw(st.sampled_from([0.0, 0.3, 1.0]))
+        timing = dict(exposure=exposure, latency=latency)
+    y = rng.standard_normal(times.shape[0])
+    return u, y, times, order, timing, exposure, latency
+
+
+@examples(25)
+@given(noisy_problems(), st.sampled_from(NOISE_MODELS), kernel_specs(resonance=False))
+def test_every_noise_model_and_timing_is_the_dense_gaussian_conditional(problem, noise_name,
+                                                                       spec):
+    u, y, times, order, timing, exposure, latency = problem
+    on_ticks = "factor" in timing
+    assume(on_ticks or times.max() - latency >= 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = FIRGaussianProcess(spec.sklearn(), order=order, optimizer=None, noise_level=0.1,
+                                   noise_kernel=_noise_choice(noise_name), **timing)
+        model.fit(u, y) if on_ticks else model.fit(u, y, sample_times=times)
+    # the noise over the readings' instants: only their differences matter
+    X = times[:, None]
+    noise = (0.1 * np.eye(len(y)) if noise_name == "white" else model.noise_kernel_(X))
+    funcs = _reading_functionals(u, times, exposure, latency, order)
+    S = np.array([[ca @ spec.dense(xa, xb) @ cb for xb, cb in funcs] for xa, ca in funcs])
+    lags = np.arange(order, dtype=float)
+    cross = np.column_stack([spec.dense(lags, x) @ c if x.size else np.zeros(order)
+                             for x, c in funcs])
+    dense = cross @ np.linalg.solve(S + noise, y)
+    # quadrature of the kernel's kink inside a window: 1e-4; on the ticks, rounding
+    assert_close(model.coef_, dense, 1e-6 if exposure == 0.0 else 1e-3, "coef_")
+    mean, std = model.predict(u, return_std=True, include_noise=True)
+    _, free = model.predict(u, return_std=True)
+    white = 0.1 if noise_name == "white" else float(model.noise_kernel_.diag(X[:1])[0])
+    np.testing.assert_allclose(std, np.sqrt(free**2 + white), rtol=1e-9)

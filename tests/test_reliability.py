@@ -7,6 +7,7 @@ import pytest
 from scipy import linalg
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import ConstantKernel as C
+from sklearn.gaussian_process.kernels import Matern, WhiteKernel
 
 import gpmultirate as gm
 from gpmultirate import simulation as sim
@@ -157,3 +158,64 @@ def test_identical_inputs_give_bit_identical_results(experiment):
     first, second = run(), run()
     for a, b in zip(first, second):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.fixture(scope="module")
+def short_record():
+    rng = np.random.default_rng(1)
+    n = 150
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.8 ** np.arange(20))[:n] + 0.05 * rng.standard_normal(n)
+    return u, y[::3]
+
+
+@pytest.mark.parametrize("noise_kernel", [
+    None, "white", "matern32", "ar1",
+    WhiteKernel(1e-2, "fixed") + C(0.1, "fixed") * Matern(5.0, "fixed", nu=1.5),
+])
+def test_noise_inclusive_std_does_not_overflow_near_the_float_range(short_record, noise_kernel):
+    u, y_slow = short_record
+    params = {} if noise_kernel is None else {"noise_kernel": noise_kernel}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        plain = gm.FIRGaussianProcess(order=20, factor=3, **params).fit(u, y_slow)
+        huge = gm.FIRGaussianProcess(order=20, factor=3, **params).fit(u, y_slow * 1e300)
+    _, std = plain.predict(u, return_std=True, include_noise=True)
+    _, std_huge = huge.predict(u, return_std=True, include_noise=True)
+    assert np.all(np.isfinite(std_huge))
+    np.testing.assert_allclose(std_huge, std * 1e300, rtol=1e-6)
+    # independently: the noise-free band and the noise's std, added in quadrature
+    _, free = plain.predict(u, return_std=True)
+    assert np.all(std > free) and np.all(std < free + np.sqrt(std.max() ** 2))
+    [(_, listed)] = huge.predict([u], return_std=True, include_noise=True)
+    np.testing.assert_array_equal(listed, std_huge)
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_resonance_search_on_zero_data_finds_no_term():
+    # nothing to find: no term (the scan's amplitude is zero, so are its bounds)
+    u = np.random.default_rng(0).standard_normal(300)
+    model = gm.FIRGaussianProcess(kernel="auto", factor=3).fit(u, np.zeros(100))
+    assert model.resonances_ == []
+    np.testing.assert_array_equal(model.coef_, 0.0)
+    default = gm.FIRGaussianProcess(factor=3).fit(u, np.zeros(100))
+    np.testing.assert_array_equal(default.coef_, 0.0)
+
+
+@pytest.mark.parametrize("estimator", [
+    lambda: gm.FIRGaussianProcess(order=20, factor=3),
+    lambda: gm.LeastSquaresFIR(order=20, factor=3),
+])
+def test_coefficients_beyond_the_float_range_are_a_clear_error(short_record, estimator):
+    u, y_slow = short_record
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        with pytest.raises(ValueError, match="beyond the float range .*near 1e32"):
+            estimator().fit(u * 1e-160, y_slow * 1e160)
+        # just inside the range: finite coefficients, the scaled ones of the plain fit
+        model = estimator().fit(u * 1e-150, y_slow * 1e150)
+    plain = estimator().fit(u, y_slow)
+    assert np.all(np.isfinite(model.coef_))
+    np.testing.assert_allclose(model.coef_, plain.coef_ * 1e300, rtol=1e-6,
+                               atol=1e-6 * np.abs(plain.coef_).max() * 1e300)

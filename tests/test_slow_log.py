@@ -155,3 +155,18 @@ def test_missing_time_column_on_the_command_line(tmp_path, capsys):
               "--time", "stamp", "--sample-time", str(T), "--out", str(tmp_path / "fit")])
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and "no column 'stamp'" in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("option, value", [("--latency", "100"), ("--latency", "0.2"),
+                                           ("--exposure", "100")])
+def test_time_options_beyond_the_record_are_one_line(tmp_path, capsys, option, value):
+    _, _, _, fast, slow = _camera(tmp_path)  # a record of 0.12 s
+    out = tmp_path / "fit"
+    with pytest.raises(SystemExit) as exit_:
+        main(["fit", str(fast), "--input", "u", "--sample-time", str(T), "--slow", str(slow),
+              "--output", "y", "--time", "t", option, value, "--order", str(P),
+              "--out", str(out), "--quiet"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"argument {option}:" in err and " s" in err
+    assert not out.exists() or not any(out.iterdir())

@@ -645,3 +645,75 @@ def test_independent_inputs_over_several_records():
     for d, e in zip(items, dense_items):
         assert np.allclose(d, e, rtol=1e-9, atol=1e-12 * np.abs(e).max())
     assert op.input_block(1).input_block(0) is op.input_block(1)  # one input: itself
+
+
+def _record(n=150):
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.8 ** np.arange(20))[:n] + 0.05 * rng.standard_normal(n)
+    return u, y[::3], np.arange(0.0, n, 3.0)
+
+
+@pytest.mark.parametrize("params, name", [
+    ({"latency": 1000}, "latency"), ({"latency": 1000.5}, "latency"), ({"latency": 148.0}, "latency"),
+    ({"exposure": 0.5, "latency": 160}, "latency"), ({"exposure": 1000}, "exposure"),
+    ({"exposure": 1e12}, "exposure"), ({"exposure": 150.5}, "exposure"),
+    ({"exposure": 1e300, "latency": 1e300}, "exposure"),
+])
+def test_time_parameters_beyond_the_record_are_refused_at_once(params, name):
+    import time
+    import tracemalloc
+
+    u, y_slow, times = _record()
+    tracemalloc.start()
+    started = time.perf_counter()
+    try:
+        with pytest.raises(ValueError, match=f"^{name} must"):
+            gm.FIRGaussianProcess(order=20, **params).fit(u, y_slow, sample_times=times)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert time.perf_counter() - started < 2.0 and peak < 20e6
+    # the readings of a prediction are checked against its record too
+    with pytest.raises(ValueError, match=f"^{name} must"):
+        TimedConvolution(u, times, 20, exposure=params.get("exposure", 0.0),
+                         latency=params.get("latency", 0.0))
+
+
+@pytest.mark.parametrize("value", ["0.5", b"1", True, np.array(0.5), None, [0.5]])
+@pytest.mark.parametrize("name", ["exposure", "latency"])
+def test_time_parameters_must_be_real_numbers(name, value):
+    u, y_slow, times = _record()
+    with pytest.raises(ValueError, match=f"^{name} must be a"):
+        gm.FIRGaussianProcess(order=20, **{name: value}).fit(u, y_slow, sample_times=times)
+
+
+def test_a_latency_that_moves_early_readings_before_the_record_is_a_fit_at_rest():
+    # readings whose instant t - L falls before the record see the output at
+    # rest (zero for any response): the fit of the others alone, on the ticks
+    u, y_slow, times = _record(60)
+    params = dict(kernel=C(1.0) * DC(0.8, 0.5), order=10, optimizer=None, noise_level=1e-2)
+    model = gm.FIRGaussianProcess(latency=5.0, **params).fit(u, y_slow, sample_times=times)
+    late = times >= 5.0
+    reference = gm.FIRGaussianProcess(**params).fit(
+        u, y_slow[late], sample_indices=(times[late] - 5.0).astype(int))
+    np.testing.assert_allclose(model.coef_, reference.coef_, rtol=1e-9, atol=1e-12)
+
+
+def test_integer_sample_times_out_of_range_are_named_with_the_given_values():
+    u, y_slow, times = _record()
+    for bad, shown in ((np.arange(-3, 147, 3), "from -3 to 144"),
+                       (np.append(np.arange(0.0, 147.0, 3.0), 1e20), "from 0 to 1e+20")):
+        with pytest.raises(ValueError, match="^sample_times must lie in") as error:
+            gm.FIRGaussianProcess(order=20).fit(u, y_slow, sample_times=bad)
+        assert shown in str(error.value)
+
+
+def test_exposure_windows_beyond_the_memory_are_refused_before_forming_them(monkeypatch):
+    from gpmultirate.exceptions import MemoryLimitError
+
+    u, y_slow, times = _record()
+    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(10**8))
+    # 50 readings of 100 periods: 5050 pieces between ticks, their pairs 0.8 GB
+    with pytest.raises(MemoryLimitError, match="^exposure 100 over 50 readings .* 5050 pieces"):
+        gm.FIRGaussianProcess(order=20, exposure=100.0).fit(u, y_slow, sample_times=times + 0.5)

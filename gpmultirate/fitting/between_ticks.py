@@ -25,9 +25,11 @@ import numpy as np
 
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.observations import build_experiment
-from gpmultirate.observations.experiment import Experiment
+from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
 from gpmultirate.observations.interpolated import DEFAULT_POINTS, InterpolatedConvolution
-from gpmultirate.observations.timed import build_timed_experiment, on_the_ticks
+from gpmultirate.observations.timed import (
+    build_timed_experiment, check_sample_times, check_windows, on_the_ticks,
+)
 
 __all__ = [
     "BETWEEN_TICKS",
@@ -65,11 +67,15 @@ def check_between_ticks(route) -> str:
     return route
 
 
-def readings_of(sample_indices, sample_times, exposure: float, latency: float):
+def readings_of(sample_indices, sample_times, exposure: float, latency: float, u=None):
     """What a fit observes: the ``sample_indices``, or :class:`TimedSamples`.
 
     Readings on the fast ticks (no exposure, ``t - latency`` integers) are
     the fast samples of those indices, with every fast path of the ticks.
+    With the input(s) ``u``, the ``sample_times`` are checked against each
+    record first, with the exposure and latency
+    (:func:`~gpmultirate.observations.timed.check_windows`): their errors
+    name them, not the fast samples they fall on.
 
     Examples
     --------
@@ -87,10 +93,29 @@ def readings_of(sample_indices, sample_times, exposure: float, latency: float):
         return sample_indices
     if sample_indices is not None:
         raise ValueError("give sample_indices or sample_times, not both")
+    if u is not None:
+        _check_against_records(u, sample_times, exposure, latency)
     ticks = on_the_ticks(sample_times, exposure, latency)
-    if ticks is not None:
+    # a latency may place early readings before the record (the output at
+    # rest there): no fast sample, so they are readings at their own instants
+    if ticks is not None and min(np.min(t) for t in (ticks if is_record_list(ticks) else
+                                                     [ticks])) >= 0:
         return ticks
     return TimedSamples([sample_times])
+
+
+def _check_against_records(u, sample_times, exposure, latency) -> None:
+    """The stamps of each record in its range, and the windows inside it."""
+    inputs, several = check_records(u)
+    if several != is_record_list(sample_times) or (several and len(sample_times) != len(inputs)):
+        return  # the shapes of the lists are refused with the data
+    for r, (x, times) in enumerate(zip(inputs, sample_times if several else [sample_times])):
+        label = f"[{r}]" if several else ""
+        times = check_sample_times(times, x.shape[0], "sample_times" + label)
+        try:
+            check_windows(times, x.shape[0], exposure, latency)
+        except ValueError as error:
+            raise type(error)(f"record {r}: {error}" if several else str(error)) from None
 
 
 def experiment_of(data, order, settings) -> Experiment:

@@ -74,6 +74,7 @@ def check_noise_kernel(noise_kernel):
     ValueError: noise_kernel must be 'auto', 'white', ... or a scikit-learn kernel; got 'pink'
     """
     if isinstance(noise_kernel, Kernel):
+        _check_one_dimension(noise_kernel)
         return noise_kernel
     if isinstance(noise_kernel, str) and (noise_kernel in ("auto", "white", AR1_DISTURBANCE)
                                           or noise_kernel in NAMED_DISTURBANCES):
@@ -82,6 +83,23 @@ def check_noise_kernel(noise_kernel):
                                               AR1_DISTURBANCE))
     raise ValueError(f"noise_kernel must be {names} or a scikit-learn kernel; "
                      f"got {noise_kernel!r}")
+
+
+def _check_one_dimension(kernel) -> None:
+    """A noise kernel acts on the readings' instants: one column of times."""
+    instants = np.array([[0.0], [1.0]])
+    try:
+        with np.errstate(all="ignore"):
+            values = np.asarray(kernel(instants), dtype=float)
+        fits = values.shape == (2, 2)
+    except Exception as error:  # a kernel of several dimensions refuses one column
+        fits, reason = False, f" ({' '.join(str(error).split())})"
+    else:
+        reason = f" (it gave shape {values.shape} on two instants)"
+    if not fits:
+        raise ValueError(
+            "noise_kernel must act on one dimension, the instants of the readings (a column "
+            f"of times); got {kernel!r}{reason}")
 
 
 def takes_ar1_route(observation) -> bool:
@@ -166,12 +184,21 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
     return gain >= AUTO_NOISE_GATE
 
 
-def noise_kernel_in_fit_units(settings):
-    """The noise choice in the units of the normalized data (a kernel is given in the data's)."""
+def noise_kernel_in_fit_units(settings, y):
+    """The noise choice in the units of the data the fit works on (``y``, its slow samples).
+
+    A kernel given with ``normalize=True`` is read as ``kernel`` and
+    ``noise_level`` are, in normalized units (the output divided by its
+    RMS): its variances and their bounds are multiplied by ``mean(y**2)``.
+    Otherwise (no tuning, or ``normalize=False``) it is in the data's units
+    and divided by the output's power of two squared; a model file of
+    normalized hyperparameters gives it in the fit's units already.
+    """
     choice = settings.noise_kernel
-    if (isinstance(choice, str) or settings.scale is None
-            or settings.prior_in_normalized_units):
+    if isinstance(choice, str) or settings.scale is None or settings.prior_in_normalized_units:
         return choice
+    if settings.normalize:
+        return units.scaled_noise_kernel(choice, float(np.mean(y**2)) or 1.0)
     return units.scaled_noise_kernel(choice, settings.scale.variance(1.0, to_data=False))
 
 
@@ -245,7 +272,7 @@ def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, whi
     observation, y = experiment.observation, experiment.y
     # the disturbance is tuned with everything else, from the white fit
     if choice != "auto":
-        choices = [noise_kernel_in_fit_units(settings)]
+        choices = [noise_kernel_in_fit_units(settings, y)]
     elif takes_ar1_route(observation):
         # a long record on one uniform grid: the AR(1) disturbance keeps the
         # long-record cost where the dense Matérn ones need M x M matrices

@@ -60,13 +60,16 @@ square of the nodes (about ``5e-4`` of the covariance with 16 nodes).
 from __future__ import annotations
 
 import copy
+import numbers
 
 import numpy as np
 from scipy import linalg, sparse
 
+from gpmultirate.exceptions import MemoryLimitError
 from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
 from gpmultirate.kernels.offsets import offset_structure
 from gpmultirate.kernels.structure import ObservedTerm, observe
+from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
 from gpmultirate.observations.sampled import check_initial_conditions
@@ -74,7 +77,7 @@ from gpmultirate.validation import as_real_array, check_inputs, check_int
 
 __all__ = [
     "QUADRATURE_NODES", "TimedConvolution", "build_timed_experiment", "check_sample_times",
-    "check_duration", "on_the_ticks", "predict_readings",
+    "check_duration", "check_windows", "on_the_ticks", "predict_readings",
 ]
 
 #: Gauss-Legendre nodes on each piece of an exposure window between two ticks
@@ -105,8 +108,20 @@ def check_sample_times(times, n_samples: int, name: str = "sample_times") -> np.
 
 
 def check_duration(value, name: str) -> float:
-    if isinstance(value, bool) or not np.isscalar(value):
-        raise ValueError(f"{name} must be a non-negative real number; got {value!r}")
+    """``value`` as a non-negative finite float; a string or a bool is not a duration.
+
+    Examples
+    --------
+    >>> check_duration(2, "exposure")
+    2.0
+    >>> check_duration("0.5", "exposure")
+    Traceback (most recent call last):
+    ...
+    ValueError: exposure must be a real number; got '0.5' (a str)
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.number)):
+        raise ValueError(f"{name} must be a real number; got {value!r} "
+                         f"(a {type(value).__name__})")
     try:
         value = float(value)
     except (TypeError, ValueError):
@@ -114,6 +129,52 @@ def check_duration(value, name: str) -> float:
     if not np.isfinite(value) or value < 0:
         raise ValueError(f"{name} must be a non-negative real number; got {value!r}")
     return value
+
+
+def check_windows(times, n_samples: int, exposure: float, latency: float,
+                  nodes: int = QUADRATURE_NODES) -> None:
+    """Refuse an ``exposure`` or ``latency`` that leaves no reading inside the record.
+
+    The window of the reading stamped ``t`` is ``[t - L - E, t - L]``: a
+    window longer than the record (``E > N``) or a latency that puts every
+    window's end before the record starts is a ``ValueError`` naming the
+    parameter.  Checked from the stamps alone, before any array of the
+    windows' points is formed; the pieces of the windows between ticks
+    (whose pairs the exact covariance integrates) are counted against the
+    available memory.
+
+    Examples
+    --------
+    >>> check_windows(np.array([3.0, 6.0]), 8, exposure=0.5, latency=1.0)
+    >>> check_windows(np.array([3.0, 6.0]), 8, exposure=0.0, latency=7.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: latency must leave a reading inside the record: every reading's window ends ...
+    """
+    if exposure > n_samples:
+        raise ValueError(
+            f"exposure must not exceed the record, {n_samples} fast sample periods (a window "
+            f"longer than the record); got {exposure:g}")
+    if latency >= n_samples or times.size == 0 or times.max() - latency < 0:
+        raise ValueError(
+            f"latency must leave a reading inside the record: every reading's window ends "
+            f"before the record starts (the latest stamp is "
+            f"{times.max() if times.size else 0:g}, the record {n_samples} fast sample "
+            f"periods long); got {latency:g}")
+    if exposure == 0.0:
+        return
+    ends = times - latency
+    pieces = float(np.sum(np.ceil(ends) - np.floor(ends - exposure)))
+    # the exact covariance forms a few (pieces x pieces) float arrays and one
+    # point per node of each piece
+    needed = 8.0 * (4.0 * pieces**2 + 8.0 * pieces * nodes)
+    available = available_memory()
+    if needed > available:
+        raise MemoryLimitError(
+            f"exposure {exposure:g} over {times.size} readings cuts their windows into "
+            f"{pieces:.0f} pieces between the fast ticks, whose exact covariance needs about "
+            f"{needed / 1e9:.3g} GB but {available / 1e9:.4g} GB are available: use a shorter "
+            "exposure or fewer readings")
 
 
 def _window_points(times, exposure: float, latency: float, nodes: int):
@@ -216,6 +277,7 @@ class TimedConvolution(Observation):
         self.latency = check_duration(latency, "latency")
         self.nodes = check_int(nodes, "nodes", low=1)
         given = check_sample_times(sample_times, n_samples)
+        check_windows(given, n_samples, self.exposure, self.latency, self.nodes)
         reading, instant, weight, piece, (starts, stops) = _window_points(
             given, self.exposure, self.latency, self.nodes)
         ticks = np.floor(instant).astype(np.int64)
