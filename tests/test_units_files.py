@@ -135,8 +135,9 @@ def test_the_fit_report_gives_the_noise_in_the_data_units():
 def test_the_fit_report_gives_a_noise_std_whose_variance_overflows():
     u, y = _data()
     reference = _quiet(lambda: gm.FIRGaussianProcess(factor=FACTOR, order=ORDER).fit(u, y))
-    # y of size 2**600: the noise variance (near 2**1200 * 1e-4) is no float
-    model = _normalized_model(np.ldexp(u, -600), np.ldexp(y, 600))
+    # y of size 2**600: the noise variance (near 2**1200 * 1e-4) is no float, the
+    # coefficients (near 2**600) are
+    model = _normalized_model(u, np.ldexp(y, 600))
     report = fit_report(model)
     std = report.model["noise_std"]
     assert std == pytest.approx(math.ldexp(math.sqrt(reference.noise_level_), 600), rel=1e-12)
