@@ -10,6 +10,7 @@ from gpmultirate import datasets, holdout, kernels, simulation
 from gpmultirate.version import __version__
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
 from gpmultirate.exceptions import (
+    FeedbackWarning,
     HeldOutWarning,
     IdentifiabilityError,
     ModelFileError,
@@ -38,6 +39,7 @@ __all__ = [
     "ModelFileError",
     "MultiOutputFIR",
     "NumericalWarning",
+    "FeedbackWarning",
     "HeldOutWarning",
     "OrderWarning",
     "ObservedKernel",

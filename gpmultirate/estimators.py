@@ -27,6 +27,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel, Kernel
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import orders, tuning, units
+from gpmultirate.closedloop import check_feedback, loop_input
 from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
 from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.exceptions import (
@@ -917,7 +918,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         self.noise_kernel = noise_kernel
 
     # ------------------------------------------------------------------ fit
-    def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "FIRGaussianProcess":
+    def fit(self, u, y_slow, sample_indices=None, sample_times=None,
+            excitation=None) -> "FIRGaussianProcess":
         """Condition the prior on slow data, tuning hyperparameters if asked.
 
         Parameters
@@ -936,6 +938,15 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             strictly increasing, in ``[0, N)``), for readings off the fast
             ticks, with the model's ``exposure`` and ``latency`` (see
             :doc:`/cameras`); exclusive with ``sample_indices``.
+        excitation : array-like of shape (N,), optional
+            For closed-loop data: the external signal ``r`` added in the
+            loop at the fast rate, independent of the disturbances, with
+            ``u`` (one record, one input) the plant input the loop produced.
+            The fit then runs on the part of ``u`` that ``r`` explains (the
+            two-stage method, :mod:`gpmultirate.closedloop`), kept in
+            ``excitation_model_``; ``excitation=u`` is the plain fit.
+            Without it, a fit whose input depends on past residuals warns
+            with a :class:`~gpmultirate.FeedbackWarning` (:doc:`/closed_loop`).
 
         Returns
         -------
@@ -968,6 +979,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         at every sample, are refused with a ``ValueError`` naming them.
         """
         settings = self._check_params()
+        given_input = u
+        u, self.excitation_model_ = loop_input(u, excitation)
         sample_indices = _timed_samples(self, sample_indices, sample_times)
         timed = isinstance(sample_indices, _TimedSamples)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",
@@ -983,6 +996,8 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
             self._check_interpolation((u, y_slow, sample_indices), settings)
         units.rescale_gaussian_process(
             self, scale, lambda: self._experiment(given, self.observation_.order))
+        if self.excitation_model_ is None:
+            check_feedback(self, given_input, given[1], given[2], sample_times)
         return self
 
     def _fit_normalized(self, data, settings: _Settings, timed: bool) -> None:
