@@ -22,6 +22,7 @@ OUTPUTS = {
     "cd_player_arm.py": ["cd_player_arm.png"],
     "dropped_frames.py": ["dropped_frames.png"],
     "camera_frames.py": ["camera_frames.png"],
+    "closed_loop.py": ["closed_loop.png"],
     "reduced_model.py": ["reduced_model.png"],
     "paper_simulation.py": ["paper_study_gof.png", "paper_example_bode.png", "paper_systems_frf.png",
                             "paper_study.json"],
@@ -37,6 +38,7 @@ KEY_OUTPUT = {
     "cd_player_arm.py": "two-input fit",
     "dropped_frames.py": "dropped frames",
     "camera_frames.py": "own instants, exact (tuned)",
+    "closed_loop.py": "| excitation |",
     "reduced_model.py": "closed loop stable on the true system: True",
     "paper_simulation.py": "| P |",
 }
