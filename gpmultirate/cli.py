@@ -104,10 +104,8 @@ def _add_fit_parser(commands) -> None:
                           "--output)")
     fit.add_argument("--input", nargs="+", metavar="COL", dest="inputs", default=None,
                      help="input column(s); several give a model of several inputs")
-    fit.add_argument("--excitation", metavar="COL", default=None,
-                     help="closed-loop data: the column of the external signal added in the "
-                          "loop at the fast rate (one input); the fit runs on the part of the "
-                          "input it explains")
+    fit.add_argument("--excitation", metavar="COL", default=None, help="closed-loop data: the "
+                     "external signal added in the loop (one input; docs: closed_loop)")
     fit.add_argument("--output", metavar="COL", dest="output_column", default=None,
                      help="output column: the slow samples, empty or NaN elsewhere")
     fit.add_argument("--factor", type=int_at_least(1), default=None, metavar="F",
@@ -459,12 +457,9 @@ def _fit(parser, args) -> int:
     started = time.perf_counter()
     u, y = read_record(path, inputs, None if args.slow else output)
     n = u.shape[0]
-    excitation = None
-    if args.excitation is not None:
-        if args.excitation in inputs or args.excitation == output:
-            parser.error(f"argument --excitation: column {args.excitation!r} is also an "
-                         "--input or the --output column")
-        excitation = read_record(path, [args.excitation])[0]
+    if args.excitation in [*inputs, output]:
+        parser.error(f"argument --excitation: column {args.excitation!r} is an --input or --output")
+    excitation = args.excitation and read_record(path, [args.excitation])[0]
     if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")

@@ -247,3 +247,49 @@ def test_plant_from_process_sensitivity_of_a_fast_loop():
                                                random_state=0)
         assert np.allclose(plant.mean, true, rtol=0.05, atol=0.01)
         assert np.mean(plant.contains(np.abs(true))) > 0.8
+
+
+def test_command_line_fit_with_an_excitation_column(tmp_path):
+    from gpmultirate.cli import main
+
+    loop = _loop(3000, 15)
+    y = np.full(3000, np.nan)
+    y[::F] = loop.y_slow
+    data = tmp_path / "loop.csv"
+    rows = np.column_stack([loop.u, loop.excitation, y])
+    with open(data, "w") as f:
+        f.write("u,r,y\n")
+        for row in rows:
+            f.write(",".join("" if np.isnan(x) else repr(float(x)) for x in row) + "\n")
+    out = tmp_path / "out"
+    assert main(["fit", str(data), "--input", "u", "--excitation", "r",
+                 "--output", "y", "--factor", str(F), "--order", "100", "--quiet",
+                 "--out", str(out)]) == 0
+    assert (out / "model.npz").is_file()
+    with pytest.raises(SystemExit):
+        main(["fit", str(data), "--input", "u", "--excitation", "u", "--output", "y",
+              "--factor", str(F), "--quiet", "--out", str(tmp_path / "again")])
+
+
+@pytest.mark.slow
+def test_first_stage_spread_is_small_against_the_posterior():
+    """Law of total variance: refits on first-stage draws move the FRF little against its band."""
+    from sklearn.base import clone
+
+    loop = _loop(6000, 16)
+    model = gm.FIRGaussianProcess(factor=F, sample_time=T).fit(
+        loop.u, loop.y_slow, excitation=loop.excitation)
+    freqs = np.linspace(0.5, 249.5, 100)
+    frf = model.frequency_response(freqs)
+    posterior = frf.real_std**2 + frf.imag_std**2
+    fixed = gm.FIRGaussianProcess(model.kernel_, factor=F, sample_time=T,
+                                  order=model.coef_.shape[0], optimizer=None,
+                                  noise_level=model.noise_level_, noise_kernel=model.noise_kernel_)
+    means = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for u_r in model.excitation_model_.sample_inputs(loop.excitation, 8, random_state=0):
+            means.append(clone(fixed).fit(u_r, loop.y_slow).frequency_response(freqs).mean)
+    spread = np.var(np.array(means), axis=0, ddof=1)
+    assert np.all(spread > 0)  # the draws differ
+    assert np.median(spread / posterior) < 0.05
