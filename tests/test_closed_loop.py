@@ -26,6 +26,11 @@ def _loop(n, seed, feedback=True, rms=0.05):
     return sim.simulate_camera_loop(plant, r, F, disturbance=v, feedback=feedback)
 
 
+def _quick(order):
+    """A fit at a given order with white noise: quick on records of thousands of samples."""
+    return gm.FIRGaussianProcess(factor=F, order=order, noise_kernel="white")
+
+
 def _regressor(x, order):
     return sliding_window_view(np.concatenate([np.zeros(order - 1), x]), order)[:, ::-1]
 
@@ -66,8 +71,8 @@ def test_controller_refuses_continuous_and_improper_systems():
 # ------------------------------------------------------------------ the two-stage fit
 def test_excitation_equal_to_the_input_is_the_plain_fit():
     loop = _loop(2000, 2, feedback=False)
-    plain = gm.FIRGaussianProcess(factor=F, sample_time=T).fit(loop.u, loop.y_slow)
-    model = gm.FIRGaussianProcess(factor=F, sample_time=T).fit(
+    plain = _quick(120).fit(loop.u, loop.y_slow)
+    model = _quick(120).fit(
         loop.u, loop.y_slow, excitation=loop.u.copy())
     assert np.array_equal(plain.coef_, model.coef_)
     assert plain.log_marginal_likelihood_value_ == model.log_marginal_likelihood_value_
@@ -90,7 +95,7 @@ def test_bad_excitation_is_refused_naming_it(bad, message):
 def test_excitation_is_not_modified():
     loop = _loop(2000, 4)
     r = loop.excitation.copy()
-    gm.FIRGaussianProcess(factor=F, order=100).fit(loop.u, loop.y_slow, excitation=r)
+    _quick(100).fit(loop.u, loop.y_slow, excitation=r)
     assert np.array_equal(r, loop.excitation)
 
 
@@ -157,7 +162,7 @@ def test_kernel_two_stage_fit_is_consistent_where_the_direct_fit_is_biased():
 def test_feedback_warning_fires_on_a_camera_loop_and_names_the_excitation():
     loop = _loop(5000, 8)
     with pytest.warns(gm.FeedbackWarning, match="excitation="):
-        gm.FIRGaussianProcess(factor=F, order=150).fit(loop.u, loop.y_slow)
+        _quick(150).fit(loop.u, loop.y_slow)
 
 
 def test_no_feedback_warning_on_the_same_experiment_in_open_loop_or_with_the_excitation():
@@ -165,9 +170,9 @@ def test_no_feedback_warning_on_the_same_experiment_in_open_loop_or_with_the_exc
         open_loop = _loop(5000, seed, feedback=False)
         with warnings.catch_warnings():
             warnings.simplefilter("error", gm.FeedbackWarning)
-            gm.FIRGaussianProcess(factor=F, order=150).fit(open_loop.u, open_loop.y_slow)
+            _quick(150).fit(open_loop.u, open_loop.y_slow)
             closed = _loop(5000, seed)
-            gm.FIRGaussianProcess(factor=F, order=150).fit(
+            _quick(150).fit(
                 closed.u, closed.y_slow, excitation=closed.excitation)
 
 
@@ -187,12 +192,12 @@ def test_analyze_residuals_reports_feedback():
     loop = _loop(5000, 12)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", gm.FeedbackWarning)
-        model = gm.FIRGaussianProcess(factor=F, order=150).fit(loop.u, loop.y_slow)
+        model = _quick(150).fit(loop.u, loop.y_slow)
     analysis = analyze_residuals(model, loop.u, loop.y_slow)
     assert analysis.closed_loop and analysis.feedback_p_value[0] < 1e-6
     assert np.any(analysis.input_lags < 0)
     open_loop = _loop(5000, 12, feedback=False)
-    model = gm.FIRGaussianProcess(factor=F, order=150).fit(open_loop.u, open_loop.y_slow)
+    model = _quick(150).fit(open_loop.u, open_loop.y_slow)
     assert not analyze_residuals(model, open_loop.u, open_loop.y_slow).closed_loop
 
 
@@ -237,9 +242,10 @@ def test_plant_from_process_sensitivity_of_a_fast_loop():
     r = rng.standard_normal(n)
     # y = P u, u = r - k y  =>  y = P / (1 + k P) r
     y = signal.lfilter(b, np.polyadd(a, k * np.array(b)), r)
-    noise = 1e-3 * rng.standard_normal(n)
-    ps = gm.FIRGaussianProcess(factor=factor, order=60).fit(r, (y + noise)[::factor])
-    sensor = gm.FIRGaussianProcess(order=60).fit(r, y + 1e-3 * rng.standard_normal(n))
+    noise = 1e-3 * rng.standard_normal((2, n))
+    ps = gm.FIRGaussianProcess(factor=factor, order=60, noise_kernel="white").fit(
+        r, (y + noise[0])[::factor])
+    sensor = gm.FIRGaussianProcess(order=60, noise_kernel="white").fit(r, y + noise[1])
     freqs = np.linspace(0.01, 0.45, 40)
     true = signal.freqz(b, a, worN=2 * np.pi * freqs)[1]
     for loop_sensor in (None, sensor):
@@ -249,6 +255,7 @@ def test_plant_from_process_sensitivity_of_a_fast_loop():
         assert np.mean(plant.contains(np.abs(true))) > 0.8
 
 
+@pytest.mark.slow
 def test_command_line_fit_with_an_excitation_column(tmp_path):
     from gpmultirate.cli import main
 
@@ -263,7 +270,7 @@ def test_command_line_fit_with_an_excitation_column(tmp_path):
             f.write(",".join("" if np.isnan(x) else repr(float(x)) for x in row) + "\n")
     out = tmp_path / "out"
     assert main(["fit", str(data), "--input", "u", "--excitation", "r",
-                 "--output", "y", "--factor", str(F), "--order", "100", "--quiet",
+                 "--output", "y", "--factor", str(F), "--order", "100", "--noise", "white", "--quiet",
                  "--out", str(out)]) == 0
     assert (out / "model.npz").is_file()
     with pytest.raises(SystemExit):

@@ -31,7 +31,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import signal, stats
 
 from gpmultirate.exceptions import FeedbackWarning
 
@@ -170,7 +170,11 @@ def check_feedback(model, u, y_slow, sample_indices=None, sample_times=None) -> 
         factor = int(np.median(steps)) if steps.size else 1
     if index.shape != y.shape or factor < 1:
         return
-    residuals = y - np.asarray(model.predict(x), dtype=float)[index]
+    if getattr(model, "initial_conditions", "zero") == "periodic":
+        predicted = np.asarray(model.predict(x), dtype=float)
+    else:  # from rest: one FFT convolution, whatever the order
+        predicted = signal.fftconvolve(x, np.asarray(model.coef_, dtype=float))[: x.shape[0]]
+    residuals = y - predicted[index]
     if getattr(model, "initial_conditions", "zero") == "discard":
         residuals[index < model.coef_.shape[-1] - 1] = np.nan
     test = feedback_test(residuals, index, x, factor)
