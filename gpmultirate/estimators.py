@@ -980,7 +980,7 @@ class FIRGaussianProcess(StateSpaceMixin, _FIRModelMixin, BaseEstimator):
         """
         settings = self._check_params()
         given_input = u
-        u, self.excitation_model_ = loop_input(u, excitation)
+        u, self.excitation_model_ = loop_input(u, excitation, type(self))
         sample_indices = _timed_samples(self, sample_indices, sample_times)
         timed = isinstance(sample_indices, _TimedSamples)
         for name in ("order_selection_", "cv_log_predictive_likelihood_", "resonances_",

@@ -107,7 +107,7 @@ def test_first_stage_recovers_a_known_filter_per_phase():
     u = np.empty(3000)
     u[0::2], u[1::2] = reg[0::2] @ h[0], reg[1::2] @ h[1]
     u += 0.05 * rng.standard_normal(3000)
-    first = fit_excitation_model(u, r, period=2, order=6)
+    first = fit_excitation_model(u, r, gm.FIRGaussianProcess, period=2, order=6)
     assert np.allclose(first.coef[:, :3], h, atol=0.01)
     assert np.allclose(first.coef[:, 3:], 0.0, atol=0.01)
     draws = first.sample_inputs(r, 200, random_state=0)

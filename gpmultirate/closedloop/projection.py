@@ -83,7 +83,8 @@ class ExcitationModel:
     >>> rng = np.random.default_rng(0)
     >>> r = rng.standard_normal(600)
     >>> u = r + 0.5 * np.concatenate([[0.0], r[:-1]]) + 0.1 * rng.standard_normal(600)
-    >>> first = fit_excitation_model(u, r, period=2, order=8)
+    >>> import gpmultirate as gm
+    >>> first = fit_excitation_model(u, r, gm.FIRGaussianProcess, period=2, order=8)
     >>> np.round(first.coef[:, :2], 1)
     array([[1. , 0.5],
            [1. , 0.5]])
@@ -164,7 +165,8 @@ def check_excitation(excitation, u: np.ndarray) -> np.ndarray:
     return r
 
 
-def fit_excitation_model(u, excitation, period: int = 1, order: int | None = None) -> ExcitationModel:
+def fit_excitation_model(u, excitation, estimator, period: int = 1,
+                         order: int | None = None) -> ExcitationModel:
     """Tune and condition the first stage: ``u`` from ``excitation``, one FIR per phase.
 
     Each phase is a :class:`~gpmultirate.FIRGaussianProcess` with the prior
@@ -178,6 +180,9 @@ def fit_excitation_model(u, excitation, period: int = 1, order: int | None = Non
         The plant input the loop produced.
     excitation : array-like of shape (N,)
         The external signal ``r``, independent of the disturbances.
+    estimator : class
+        The kernel estimator of each phase, :class:`~gpmultirate.FIRGaussianProcess`
+        (the estimator passes its own class: this module does not import it).
     period : int, default=1
         Phases of the loop's time variation (up to the frame's length in
         fast samples for a camera's loop); 1: one time-invariant FIR.
@@ -192,8 +197,6 @@ def fit_excitation_model(u, excitation, period: int = 1, order: int | None = Non
     """
     from sklearn.gaussian_process.kernels import ConstantKernel
 
-    from gpmultirate.estimators import FIRGaussianProcess  # the estimator calls this module
-
     u = np.asarray(u, dtype=float).reshape(-1)
     r = check_excitation(excitation, u)
     period = check_int(period, "period", low=1, high=max(1, u.shape[0] // 2))
@@ -207,7 +210,7 @@ def fit_excitation_model(u, excitation, period: int = 1, order: int | None = Non
     lags = np.arange(order)
     coef, covariance, fits = [], [], []
     for p in range(period):
-        stage = FIRGaussianProcess(ConstantKernel(1.0) * TC(0.9), factor=period, offset=p,
+        stage = estimator(ConstantKernel(1.0) * TC(0.9), factor=period, offset=p,
                                    order=order, noise_kernel="white")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the first stage's own order checks: not the user's fit
@@ -228,7 +231,7 @@ def fit_excitation_model(u, excitation, period: int = 1, order: int | None = Non
     return ExcitationModel(**{**model.__dict__, "explained": explained})
 
 
-def project_input(u, excitation, period: int = 1, order: int | None = None):
+def project_input(u, excitation, estimator, period: int = 1, order: int | None = None):
     """The projected input ``u_r`` and the first stage that made it.
 
     The single call :meth:`gpmultirate.FIRGaussianProcess.fit` makes for
@@ -244,19 +247,21 @@ def project_input(u, excitation, period: int = 1, order: int | None = None):
     >>> import numpy as np
     >>> from gpmultirate.closedloop import project_input
     >>> u = np.random.default_rng(1).standard_normal(50)
-    >>> u_r, first = project_input(u, u)  # open loop: the input is the excitation
+    >>> import gpmultirate as gm
+    >>> u_r, first = project_input(u, u, gm.FIRGaussianProcess)  # open loop: r is u
     >>> bool(np.array_equal(u_r, u)), first.identity
     (True, True)
     """
-    model = fit_excitation_model(u, excitation, period=period, order=order)
+    model = fit_excitation_model(u, excitation, estimator, period=period, order=order)
     return model.project(check_excitation(excitation, np.asarray(u, dtype=float).reshape(-1))), model
 
 
-def loop_input(u, excitation):
+def loop_input(u, excitation, estimator):
     """The input a fit runs on, and the first stage: ``(u, None)`` without an excitation.
 
     With an excitation, ``u`` must be one record of one input; the result is
-    ``(u_r, ExcitationModel)`` from :func:`project_input`.
+    ``(u_r, ExcitationModel)`` from :func:`project_input`, whose phases are
+    fitted by ``estimator`` (the calling estimator's class).
     """
     if excitation is None:
         return u, None
@@ -270,7 +275,7 @@ def loop_input(u, excitation):
         raise ValueError(f"excitation is for one input: u must be 1-D; got shape {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("u must be finite (no NaN or inf)")
-    projected, model = project_input(x, excitation)
+    projected, model = project_input(x, excitation, estimator)
     if np.ndim(u) == 2:
         projected = projected[:, None]
     return projected, model
