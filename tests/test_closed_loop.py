@@ -59,6 +59,16 @@ def test_controller_forms_agree(controller):
     assert np.allclose(c.frequency_response([0.0, 10.0], 0.01), 0.5)
 
 
+def test_python_control_system_is_read_as_its_transfer_function():
+    control = pytest.importorskip("control")
+    lag = control.tf([0.5, 0.0], [1.0, -0.5], 0.01)  # 0.5 z / (z - 0.5) = 0.5 / (1 - 0.5 z^-1)
+    c = as_controller(lag)
+    assert np.allclose(c.numerator, [0.5, 0.0]) and np.allclose(c.denominator, [1.0, -0.5])
+    assert np.allclose(c.filter([1.0, 0.0, 0.0]), [0.5, 0.25, 0.125])
+    assert np.allclose(as_controller(control.ss(lag)).frequency_response([3.0], 0.01),
+                       c.frequency_response([3.0], 0.01))
+
+
 def test_controller_refuses_continuous_and_improper_systems():
     with pytest.raises(ValueError, match="discrete"):
         as_controller(signal.lti([1.0], [1.0, 1.0]))
