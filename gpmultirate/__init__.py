@@ -18,6 +18,7 @@ from gpmultirate.version import __version__
 _EXPORTS = {
     "FIRGaussianProcess": "gpmultirate.estimators",
     "LeastSquaresFIR": "gpmultirate.estimators",
+    "FeedbackWarning": "gpmultirate.exceptions",
     "HeldOutWarning": "gpmultirate.exceptions",
     "IdentifiabilityError": "gpmultirate.exceptions",
     "ModelFileError": "gpmultirate.exceptions",

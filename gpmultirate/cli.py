@@ -90,6 +90,8 @@ def _add_fit_parser(commands) -> None:
                           "--output)")
     fit.add_argument("--input", nargs="+", metavar="COL", dest="inputs", default=None,
                      help="input column(s); several give a model of several inputs")
+    fit.add_argument("--excitation", metavar="COL", default=None, help="closed-loop data: the "
+                     "external signal added in the loop (one input; docs: closed_loop)")
     fit.add_argument("--output", metavar="COL", dest="output_column", default=None,
                      help="output column: the slow samples, empty or NaN elsewhere")
     fit.add_argument("--factor", type=int_at_least(1), default=None, metavar="F",
@@ -456,6 +458,9 @@ def _fit(parser, args) -> int:
     started = time.perf_counter()
     u, y = read_record(path, inputs, None if args.slow else output)
     n = u.shape[0]
+    if args.excitation in [*inputs, output]:
+        parser.error(f"argument --excitation: column {args.excitation!r} is an --input or --output")
+    excitation = args.excitation and read_record(path, [args.excitation])[0]
     if isinstance(args.order, int) and args.order > n:
         parser.error(f"argument --order: must lie in 1..N = 1..{n} (the rows of {path}); "
                      f"got {args.order}")
@@ -493,7 +498,8 @@ def _fit(parser, args) -> int:
     with warnings.catch_warnings(record=True) as caught, progress:
         warnings.simplefilter("always")
         try:
-            model.fit(u, samples.y_slow, **samples.fit_params)
+            loop = {} if excitation is None else {"excitation": excitation}
+            model.fit(u, samples.y_slow, **samples.fit_params, **loop)
         except ValueError as error:
             parser.error(f"{path}: the model cannot be fitted: {error}")
     _say(args, f"gpmultirate fit: fitted in {time.perf_counter() - started:.1f} s; predictions, "

@@ -29,6 +29,7 @@ from sklearn.gaussian_process.kernels import Kernel
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import units
+from gpmultirate.closedloop import check_feedback, loop_input
 from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.export import StateSpaceMixin
 from gpmultirate.fitting import between_ticks, order as order_steps
@@ -384,7 +385,8 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         self.noise_kernel = noise_kernel
 
     # ------------------------------------------------------------------ fit
-    def fit(self, u, y_slow, sample_indices=None, sample_times=None) -> "FIRGaussianProcess":
+    def fit(self, u, y_slow, sample_indices=None, sample_times=None,
+            excitation=None) -> "FIRGaussianProcess":
         """Condition the prior on slow data, tuning hyperparameters if asked.
 
         Parameters
@@ -407,6 +409,15 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             that look like the other unit (all in the record's first 5 %
             with more readings than fast periods there, or past its end
             while they would fit it in fast periods) raise a ``ValueError``.
+        excitation : array-like of shape (N,), optional
+            For closed-loop data: the external signal ``r`` added in the
+            loop at the fast rate, independent of the disturbances, with
+            ``u`` (one record, one input) the plant input the loop produced.
+            The fit then runs on the part of ``u`` that ``r`` explains (the
+            two-stage method, :mod:`gpmultirate.closedloop`), kept in
+            ``excitation_model_``; ``excitation=u`` is the plain fit.
+            Without it, a fit whose input depends on past residuals warns
+            with a :class:`~gpmultirate.FeedbackWarning` (:doc:`/closed_loop`).
 
         Returns
         -------
@@ -442,6 +453,8 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         ``1e320``).
         """
         settings = check_settings(self, getattr(self, "_prior_in_normalized_units", False))
+        given_input = u
+        u, self.excitation_model_ = loop_input(u, excitation, type(self))
         if sample_times is not None:
             sample_times = units.in_fast_periods(sample_times, settings.sample_time, u)
         sample_indices = between_ticks.readings_of(sample_indices, sample_times,
@@ -463,6 +476,8 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             self.interpolation_error_ = check.error
         units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
             given, self.observation_.order, settings))
+        if self.excitation_model_ is None:
+            check_feedback(self, given_input, given[1], given[2], sample_times)
         return self
 
     def _adopt(self, fitted: Fit, order_selection=None) -> None:

@@ -14,6 +14,7 @@ from numpy.linalg import LinAlgError
 
 __all__ = [
     "DataFileError",
+    "FeedbackWarning",
     "HeldOutWarning",
     "IdentifiabilityError",
     "JournalError",
@@ -130,6 +131,22 @@ class OrderWarning(UserWarning):
     --------
     >>> from gpmultirate.exceptions import OrderWarning
     >>> issubclass(OrderWarning, UserWarning)
+    True
+    """
+
+
+class FeedbackWarning(UserWarning):
+    """The data look closed-loop: the input depends on past residuals.
+
+    Emitted after a fit without an ``excitation`` when the input in the
+    frames after each slow sample is correlated with that sample's residual
+    (:func:`gpmultirate.closedloop.detection.feedback_test`, at a stated
+    false-alarm level); the message names ``excitation=``.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import FeedbackWarning
+    >>> issubclass(FeedbackWarning, UserWarning)
     True
     """
 

@@ -42,6 +42,13 @@ Conventions (documented once, here):
   least ``1 - confidence`` (0.01 by default).  :attr:`ResidualAnalysis.share_outside`
   gives the share of lags outside the band as a second reading: about
   ``1 - confidence`` of them fall outside by chance.
+* Feedback: the cross-correlations at negative lags read whether the input
+  depends on past residuals (a loop); the joint test of the mean input over
+  the three frames after each sample
+  (:func:`gpmultirate.closedloop.detection.feedback_test`, chi-squared with
+  coloured residuals and inputs allowed) gives ``feedback_p_value`` per
+  input, and :attr:`ResidualAnalysis.closed_loop` calls the data closed-loop
+  when it is below ``1 - confidence``.
 """
 
 from __future__ import annotations
@@ -52,6 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from gpmultirate.closedloop.detection import feedback_test
 from gpmultirate.units import in_fast_periods
 from gpmultirate.validation import check_inputs, check_int, check_level, check_sample_indices
 
@@ -90,6 +98,11 @@ class ResidualAnalysis:
         The Ljung-Box statistic ``Q`` over lags ``1..max_lag``.
     p_value : float
         ``P(chi2(max_lag) >= Q)``.
+    feedback_statistic : ndarray of shape (n_inputs,)
+        Per input, the feedback test's statistic (chi-squared with 3
+        degrees of freedom in open loop); NaN where the record is too short.
+    feedback_p_value : ndarray of shape (n_inputs,)
+        Per input, its p-value: small when the input depends on past residuals.
 
     Examples
     --------
@@ -116,6 +129,8 @@ class ResidualAnalysis:
     confidence: float
     ljung_box: float
     p_value: float
+    feedback_statistic: np.ndarray | None = None
+    feedback_p_value: np.ndarray | None = None
 
     @property
     def n_residuals(self) -> int:
@@ -138,6 +153,17 @@ class ResidualAnalysis:
         """Share of the lags ``1..max_lag`` whose autocorrelation is outside the band."""
         outside = np.abs(self.autocorrelation[1:]) > self.autocorrelation_bound[1:]
         return float(np.mean(outside)) if outside.size else 0.0
+
+    @property
+    def closed_loop(self) -> bool:
+        """Whether an input depends on past residuals at level ``1 - confidence``.
+
+        The data then look closed-loop: fit with ``excitation=`` (:doc:`/closed_loop`).
+        """
+        if self.feedback_p_value is None:
+            return False
+        p = np.asarray(self.feedback_p_value)
+        return bool(np.any(p[np.isfinite(p)] < 1.0 - self.confidence))
 
     @property
     def input_share_outside(self) -> np.ndarray:
@@ -250,6 +276,11 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
         scale = np.where(rms_u > 0, 1.0 / (N * rms_u), 0.0)[:, None]
     cross = cross * scale / rms_e
     cross_bound = z * cross_bound * scale
+    steps = np.diff(index)
+    frame = max(1, int(np.median(steps))) if steps.size else 1
+    tests = [feedback_test(e, index, x[:, j], frame) for j in range(n_inputs)]
+    feedback = np.array([[np.nan, np.nan] if t is None else [t.statistic, t.p_value]
+                         for t in tests])
 
     def frozen(a):
         a = np.array(a)
@@ -261,7 +292,8 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
         autocorrelation=frozen(auto), autocorrelation_bound=frozen(auto_bound),
         input_lags=frozen(input_lags), cross_correlation=frozen(cross),
         cross_correlation_bound=frozen(cross_bound), confidence=confidence,
-        ljung_box=q, p_value=p_value,
+        ljung_box=q, p_value=p_value, feedback_statistic=frozen(feedback[:, 0]),
+        feedback_p_value=frozen(feedback[:, 1]),
     )
 
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from scipy import signal
+
 from gpmultirate.validation import as_real_array, check_int, check_positive, check_signal
 
 __all__ = [
@@ -21,6 +23,8 @@ __all__ = [
     "paper_system", "WAFER_STAGE_MODES", "wafer_stage_surrogate", "multisine",
     "random_binary_sequence", "zero_order_hold", "zoh_input", "add_output_noise",
     "downsample", "SimulatedExperiment", "simulate_experiment",
+    "CAMERA_LOOP_MODES", "camera_loop_plant", "CameraLoopExperiment", "frame_disturbance",
+    "simulate_camera_loop",
 ]
 
 RandomStateLike = int | np.random.Generator | np.random.RandomState | None
@@ -34,6 +38,12 @@ WAFER_STAGE_MODES = (
     (490.0, 0.01, 0.006),  # closely spaced pair of structural chuck modes ...
     (510.0, 0.01, 0.005),  # ... same-sign gains give an anti-resonance in between
     (870.0, 0.015, 0.01),  # higher structural mode, above the slow-rate Nyquist frequency
+)
+
+#: Modes ``(frequency in Hz, damping ratio, static gain)`` of :func:`camera_loop_plant`.
+CAMERA_LOOP_MODES = (
+    (4.0, 0.3, 0.4),  # the low mode the camera's loop acts on
+    (76.0, 0.03, 0.02),  # a structural mode above the 50 Hz Nyquist frequency of a 100 Hz camera
 )
 
 
@@ -505,3 +515,201 @@ def simulate_experiment(system: DiscreteSystem, u, factor: int, snr_db: float | 
     return SimulatedExperiment(u=u, y_fast=y_fast, y_fast_noisy=y_fast_noisy, y_slow=y_slow,
                                factor=int(factor), offset=int(offset), noise_std=noise_std,
                                sample_time=system.sample_time, system=system)
+
+
+def camera_loop_plant(sample_time: float = 1 / 500, modes=CAMERA_LOOP_MODES) -> DiscreteSystem:
+    """A plant with modes near 4 Hz and 76 Hz for a 100 Hz camera's loop (:func:`simulate_camera_loop`).
+
+    The modal sum ``G(s) = sum_i g_i w_i^2 / (s^2 + 2 zeta_i w_i s + w_i^2)``
+    over ``modes`` (by default :data:`CAMERA_LOOP_MODES`), zero-order-hold
+    discretised at ``sample_time``.  At 500 Hz and a camera every fifth
+    sample, the 76 Hz mode lies above the camera's Nyquist frequency.
+
+    Examples
+    --------
+    >>> plant = camera_loop_plant()
+    >>> np.round(plant.natural_frequencies).tolist()
+    [4.0, 76.0]
+    """
+    sample_time = _check_positive(sample_time, "sample_time")
+    modes = [tuple(float(v) for v in mode) for mode in modes]
+    if not modes or any(len(mode) != 3 or min(mode) <= 0 for mode in modes):
+        raise ValueError("modes must be (frequency, damping, gain) triples of positive numbers")
+    n = 2 * len(modes)
+    A, B, C = np.zeros((n, n)), np.zeros((n, 1)), np.zeros((1, n))
+    for i, (frequency, damping, gain) in enumerate(modes):
+        w = 2 * np.pi * frequency
+        A[2 * i:2 * i + 2, 2 * i:2 * i + 2] = [[0.0, 1.0], [-w**2, -2 * damping * w]]
+        B[2 * i + 1, 0] = gain * w**2
+        C[0, 2 * i] = 1.0
+    return _zoh(A, B, C, np.zeros((1, 1)), sample_time)
+
+
+@dataclass
+class CameraLoopExperiment:
+    """A record of a camera in the loop, see :func:`simulate_camera_loop`.
+
+    Attributes
+    ----------
+    excitation : ndarray of shape (N,)
+        ``r``, added to the held controller output at the fast rate.
+    u : ndarray of shape (N,)
+        The plant input ``r + hold(c)``.
+    y_fast : ndarray of shape (N,)
+        The plant output at the fast rate, noise-free.
+    y_slow : ndarray of shape (M,)
+        The frames: ``y_fast[offset + m factor]`` plus the disturbance.
+    disturbance : ndarray of shape (M,)
+        What was added to the frames (coloured vibration plus white noise).
+    controller_output : ndarray of shape (M,)
+        ``c[m]``, the controller's output computed from frame ``m``.
+    factor, offset, delay : int
+    sample_time : float
+    feedback : bool
+        Whether the loop was closed (False: ``u = r``, an open-loop experiment).
+    system : DiscreteSystem
+    """
+
+    excitation: np.ndarray
+    u: np.ndarray
+    y_fast: np.ndarray
+    y_slow: np.ndarray
+    disturbance: np.ndarray
+    controller_output: np.ndarray
+    factor: int
+    offset: int
+    delay: int
+    sample_time: float
+    feedback: bool
+    system: DiscreteSystem
+
+    @property
+    def sample_indices(self) -> np.ndarray:
+        """The fast index of each frame."""
+        return self.offset + self.factor * np.arange(self.y_slow.shape[0])
+
+
+def frame_disturbance(n_frames: int, frame_time: float, band=(8.0, 14.0), rms: float = 0.05,
+                      noise_std: float = 0.005,
+                      random_state: RandomStateLike = None) -> np.ndarray:
+    """A band-limited vibration plus white noise, one value per frame.
+
+    Gaussian white noise through a fourth-order Butterworth band-pass over
+    ``band`` (Hz, at the frame rate ``1 / frame_time``), scaled to ``rms``,
+    plus white noise of standard deviation ``noise_std``; ``band=None``: the
+    white noise alone.
+
+    Examples
+    --------
+    >>> v = frame_disturbance(1000, 0.01, rms=0.1, noise_std=0.0, random_state=0)
+    >>> round(float(np.sqrt(np.mean(v**2))), 6)
+    0.1
+    """
+    n_frames = _check_positive_int(n_frames, "n_frames")
+    frame_time = _check_positive(frame_time, "frame_time")
+    noise_std = check_positive(noise_std, "noise_std", allow_zero=True)
+    rng = _check_random_state(random_state)
+    v = np.zeros(n_frames)
+    if band is not None:
+        low, high = (float(b) for b in band)
+        if not 0 < low < high < 0.5 / frame_time:
+            raise ValueError(f"band must be (low, high) with 0 < low < high < the frame rate's "
+                             f"Nyquist frequency {0.5 / frame_time:g} Hz; got {band!r}")
+        rms = check_positive(rms, "rms", allow_zero=True)
+        sos = signal.butter(4, [low, high], btype="bandpass", fs=1.0 / frame_time, output="sos")
+        burn_in = int(np.ceil(20.0 / (low * frame_time)))  # the filter's start forgotten
+        vibration = signal.sosfilt(sos, rng.standard_normal(n_frames + burn_in))[burn_in:]
+        v = rms * vibration / np.sqrt(np.mean(vibration**2))
+    return v + noise_std * rng.standard_normal(n_frames)
+
+
+def simulate_camera_loop(system: DiscreteSystem, excitation, factor: int, controller=1.5,
+                         delay: int = 1, disturbance=None, offset: int = 0,
+                         feedback: bool = True,
+                         random_state: RandomStateLike = None) -> CameraLoopExperiment:
+    """A camera closing a loop around a fast-rate plant, excited at the fast rate.
+
+    Frame ``m`` is ``y_slow[m] = y(n_m) + v[m]`` at ``n_m = offset + m factor``;
+    a controller at the frame rate reads the error ``-y_slow`` (regulation to
+    zero) and its output ``c[m]`` is held over frame ``m + delay`` (a
+    zero-order hold from ``n_{m+delay}`` to ``n_{m+delay+1} - 1``); the
+    plant input is ``u = r + hold(c)``.  The disturbance ``v`` on the frames
+    (vibration, drift, measurement noise) enters the input through the
+    loop: ``u`` depends on past disturbance, and a fit that takes ``u`` as
+    given is biased where the loop acts.  The excitation ``r`` is
+    independent of ``v``.
+
+    Parameters
+    ----------
+    system : DiscreteSystem
+        The plant at the fast rate (e.g. :func:`camera_loop_plant`).
+    excitation : array-like of shape (N,)
+        ``r`` at the fast rate.
+    factor : int
+        Fast samples per frame.
+    controller : float, array-like, scipy.signal.dlti or python-control system, default=1.5
+        The controller at the frame rate (:func:`gpmultirate.closedloop.as_controller`).
+    delay : int, default=1
+        Frames between a frame and the hold of the output computed from it (at least 1).
+    disturbance : array-like of shape (M,), optional
+        ``v``; by default :func:`frame_disturbance` (an 8-14 Hz vibration of
+        rms 0.05 plus white noise of 0.005) at the frame time ``factor T``.
+    offset : int, default=0
+        Fast index of the first frame.
+    feedback : bool, default=True
+        False: the same experiment with the loop open (``u = r``).
+    random_state : int, Generator or None
+        For the default disturbance.
+
+    Returns
+    -------
+    CameraLoopExperiment
+
+    Examples
+    --------
+    >>> plant = camera_loop_plant()
+    >>> r = np.random.default_rng(0).standard_normal(2000)
+    >>> loop = simulate_camera_loop(plant, r, factor=5, random_state=1)
+    >>> loop.u.shape, loop.y_slow.shape
+    ((2000,), (400,))
+    >>> bool(np.allclose(loop.u[5:10], r[5:10] + loop.controller_output[0]))
+    True
+    """
+    from gpmultirate.closedloop.controller import as_controller
+
+    if not isinstance(system, DiscreteSystem):
+        raise ValueError(f"system must be a DiscreteSystem; got {type(system).__name__}")
+    r = _check_signal(excitation, "excitation")
+    factor = _check_positive_int(factor, "factor")
+    delay = _check_positive_int(delay, "delay")
+    offset = check_int(offset, "offset", low=0, high=factor - 1)
+    control = as_controller(controller).stepper()
+    N = r.shape[0]
+    n_frames = len(range(offset, N, factor))
+    if disturbance is None:
+        v = frame_disturbance(n_frames, factor * system.sample_time, random_state=random_state)
+    else:
+        v = _check_signal(disturbance, "disturbance")
+        if v.shape[0] != n_frames:
+            raise ValueError(f"disturbance must have one value per frame ({n_frames}); "
+                             f"got {v.shape[0]}")
+    a, b, c_row, d = system.A, system.B[:, 0], system.C[0], system.D[0, 0]
+    x = np.zeros(system.order)
+    u, y = np.empty(N), np.empty(N)
+    y_slow, c = np.empty(n_frames), np.zeros(n_frames)
+    held = 0.0
+    for n in range(N):
+        frame, phase = divmod(n - offset, factor)
+        if n >= offset and phase == 0:
+            held = c[frame - delay] if (feedback and frame >= delay) else 0.0
+        u[n] = r[n] + held
+        y[n] = c_row @ x + d * u[n]
+        if n >= offset and phase == 0:
+            y_slow[frame] = y[n] + v[frame]
+            c[frame] = control(-y_slow[frame])
+        x = a @ x + b * u[n]
+    return CameraLoopExperiment(
+        excitation=r, u=u, y_fast=y, y_slow=y_slow, disturbance=v.copy(),
+        controller_output=c if feedback else np.zeros(n_frames), factor=factor,
+        offset=offset, delay=delay, sample_time=system.sample_time, feedback=bool(feedback),
+        system=system)

@@ -23,6 +23,7 @@ OUTPUTS = {
     "dropped_frames.py": ["dropped_frames.png"],
     "camera_frames.py": ["camera_frames.png"],
     "experiment_design.py": ["experiment_design.png"],
+    "closed_loop.py": ["closed_loop.png"],
     "reduced_model.py": ["reduced_model.png"],
     "paper_simulation.py": ["paper_study_gof.png", "paper_example_bode.png", "paper_systems_frf.png",
                             "paper_study.json"],
@@ -39,6 +40,7 @@ KEY_OUTPUT = {
     "dropped_frames.py": "dropped frames",
     "camera_frames.py": "own instants, exact (tuned)",
     "experiment_design.py": "designed input narrows the predicted mean band",
+    "closed_loop.py": "| excitation |",
     "reduced_model.py": "closed loop stable on the true system: True",
     "paper_simulation.py": "| P |",
 }

@@ -24,6 +24,8 @@ estimates (least squares, DC kernel, PK kernel) share one figure.
   model order over Monte Carlo runs (Fig. 5, 9).
 * :func:`plot_residuals`: autocorrelation of the slow residuals and their
   cross-correlation with each input, with the bands for white residuals.
+* :func:`plot_loop_response` and :func:`plot_intersample_performance`:
+  closed-loop quantities with their bands (:doc:`/closed_loop`).
 * :func:`plot_nonidentifiable_example`: three fast-rate models with
   identical slow-rate outputs (Example 1, Fig. 2).
 
@@ -55,6 +57,9 @@ Examples
 
 from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.plotting.frequency import BodePlot, plot_bode
+from gpmultirate.plotting.loop import (
+    LoopResponsePlot, plot_intersample_performance, plot_loop_response,
+)
 from gpmultirate.plotting.residuals import ResidualPlot, plot_residuals
 from gpmultirate.plotting.study import GoFPlot, StudyPlot, plot_gof_vs_order, plot_study
 from gpmultirate.plotting.time import (
@@ -71,12 +76,15 @@ __all__ = [
     "GoFPlot",
     "ImpulseResponsePlot",
     "IntersamplePlot",
+    "LoopResponsePlot",
     "ResidualPlot",
     "StudyPlot",
     "plot_bode",
     "plot_gof_vs_order",
     "plot_impulse_response",
     "plot_intersample",
+    "plot_intersample_performance",
+    "plot_loop_response",
     "plot_nonidentifiable_example",
     "plot_residuals",
     "plot_study",
