@@ -17,7 +17,8 @@ import argparse
 import math
 import os
 
-__all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "argument_type",
+__all__ = ["FIT_KERNELS", "JOURNAL_NAME", "METHODS", "OneLineErrorParser", "add_sensor_arguments",
+           "add_slow_arguments", "argument_type",
            "available_cpus", "check_out", "check_slow_log", "check_windows", "duration",
            "finite_float", "int_at_least", "nonzero_int", "one_line", "order_or_auto",
            "sample_time", "shorten", "without_abbreviations"]
@@ -138,6 +139,25 @@ def check_windows(parser, args, n: int, sample_times) -> None:
         parser.error(f"argument --latency: leaves no reading inside the record: every window "
                      f"would end before it starts (the latest stamp is {latest:g} s); got "
                      f"{args.latency:g}")
+
+
+def add_sensor_arguments(parser, default) -> None:
+    """Add ``--exposure`` and ``--latency`` (seconds) to a command's parser."""
+    given = "0" if default == 0.0 else "the model's own"
+    parser.add_argument("--exposure", type=duration, default=default, metavar="E",
+                        help="with --slow: each reading is the mean output over the E seconds "
+                             f"before its stamp (default: {given})")
+    parser.add_argument("--latency", type=duration, default=default, metavar="L",
+                        help="with --slow: a reading stamped t shows the output at t - L "
+                             f"(seconds, default: {given})")
+
+
+def add_slow_arguments(parser, holds: str) -> None:
+    """Add ``--slow`` and ``--time`` (a slow log beside the fast record) to a command's parser."""
+    parser.add_argument("--slow", metavar="FILE", default=None,
+                        help=f"slow log (.csv, .npz, .mat) beside DATA: {holds}")
+    parser.add_argument("--time", metavar="COL", default=None,
+                        help="with --slow: its column of time stamps in seconds")
 
 
 def shorten(text: str, limit: int = 80) -> str:

@@ -42,6 +42,7 @@ from gpmultirate.arguments import (FIT_KERNELS, JOURNAL_NAME, METHODS, OneLineEr
                                    available_cpus, check_out, check_slow_log, check_windows,
                                    duration, finite_float, int_at_least, nonzero_int, one_line,
                                    order_or_auto, sample_time, without_abbreviations)
+from gpmultirate.arguments import add_sensor_arguments, add_slow_arguments
 from gpmultirate.design.command import add_design_parser
 
 __all__ = ["build_parser", "main"]
@@ -128,9 +129,9 @@ def _add_fit_parser(commands) -> None:
                      help="zero: at rest before the record; discard: use only outputs that "
                           "see recorded inputs; periodic: the record is one period "
                           "(default: zero)")
-    _add_slow_arguments(fit, "the output column (--output) and the time stamps in seconds on "
+    add_slow_arguments(fit, "the output column (--output) and the time stamps in seconds on "
                              "the clock of DATA, whose row n is at n T")
-    _add_sensor(fit, 0.0)
+    add_sensor_arguments(fit, 0.0)
     fit.add_argument("--xscale", choices=("auto", "linear", "log"), default="auto",
                      help="frequency axis of bode.png: log, linear, or auto (log when the band "
                           "spans more than two decades; default: auto)")
@@ -159,32 +160,15 @@ def _add_predict_parser(commands) -> None:
     predict.add_argument("data", metavar="DATA", help="data file: .csv, .npz or .mat")
     predict.add_argument("--input", nargs="+", metavar="COL", dest="inputs", required=True,
                          help="input column(s), as many as the model has inputs")
-    _add_slow_arguments(predict, "the time stamps (--time, seconds) of the readings to "
+    add_slow_arguments(predict, "the time stamps (--time, seconds) of the readings to "
                                  "predict")
-    _add_sensor(predict, None)
+    add_sensor_arguments(predict, None)
     predict.add_argument("--out", metavar="FILE", default=PREDICT_OUT,
                          help=f"CSV file of the prediction (default: {PREDICT_OUT})")
     predict.add_argument("--force", action="store_true", help="overwrite an existing file")
     predict.add_argument("--quiet", "-q", action="store_true",
                          help="no file messages on stderr")
     predict.set_defaults(handler=_predict, command_parser=predict)
-
-
-def _add_sensor(parser, default) -> None:
-    given = "0" if default == 0.0 else "the model's own"
-    parser.add_argument("--exposure", type=duration, default=default, metavar="E",
-                        help="with --slow: each reading is the mean output over the E seconds "
-                             f"before its stamp (default: {given})")
-    parser.add_argument("--latency", type=duration, default=default, metavar="L",
-                        help="with --slow: a reading stamped t shows the output at t - L "
-                             f"(seconds, default: {given})")
-
-
-def _add_slow_arguments(parser, holds: str) -> None:
-    parser.add_argument("--slow", metavar="FILE", default=None,
-                        help=f"slow log (.csv, .npz, .mat) beside DATA: {holds}")
-    parser.add_argument("--time", metavar="COL", default=None,
-                        help="with --slow: its column of time stamps in seconds")
 
 
 def build_parser() -> argparse.ArgumentParser:

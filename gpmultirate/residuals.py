@@ -242,8 +242,8 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
     z = _normal_quantile(confidence)
     # the correlations are scale-free: read them on residuals and inputs scaled to a
     # largest magnitude of one, so that data near the float range do not overflow
-    filled = np.where(measured, e, 0.0)
-    filled = filled / max(float(np.max(np.abs(filled))), np.finfo(float).tiny)
+    peak_e = max(float(np.max(np.abs(np.where(measured, e, 0.0)))), np.finfo(float).tiny)
+    filled = np.where(measured, e / peak_e, 0.0)
     peak_u = np.max(np.abs(x), axis=0)
     x = x / np.where(peak_u > 0, peak_u, 1.0)
     mask = measured.astype(float)
@@ -278,7 +278,7 @@ def residual_correlations(residuals, sample_indices, u, *, max_lag: int, input_l
     cross_bound = z * cross_bound * scale
     steps = np.diff(index)
     frame = max(1, int(np.median(steps))) if steps.size else 1
-    tests = [feedback_test(e, index, x[:, j], frame) for j in range(n_inputs)]
+    tests = [feedback_test(e / peak_e, index, x[:, j], frame) for j in range(n_inputs)]
     feedback = np.array([[np.nan, np.nan] if t is None else [t.statistic, t.p_value]
                          for t in tests])
 
