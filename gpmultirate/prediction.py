@@ -240,6 +240,12 @@ class FIRModelMixin:
     def score(self, u, y_fast) -> float:
         """Goodness of fit in percent (eq. 20) of ``predict(u)`` against ``y_fast``.
 
+        This is the paper's measure, ``100 (1 - ||y - y_hat||^2 / ||y - mean(y)||^2)``
+        (squared errors), not the normalized fit that other identification
+        toolboxes report, ``100 (1 - ||y - y_hat|| / ||y - mean(y)||)``: that
+        one is :func:`gpmultirate.fit_percent`, which the command line's
+        summary gives beside it.  A score of 99.99 is a fit percent of 99.
+
         Parameters
         ----------
         u : array-like of shape (n,) or (n, n_inputs)

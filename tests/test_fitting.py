@@ -356,3 +356,23 @@ def test_too_short_order_is_reported_with_the_lag_one_correlation_of_the_residua
         warnings.simplefilter("error")
         order.check_long_enough(*args, "a disturbance model", settings)  # its colour
         order.check_long_enough(*args, None, replace(settings, initial_conditions="periodic"))
+
+
+@pytest.mark.parametrize("order, why", [(1200, "not more than the 1200 coefficients"),
+                                         (300, "not on one uniform grid")])
+def test_the_skipped_disturbance_check_says_why(order, why, caplog, monkeypatch):
+    """Frames every 10th sample (a uniform grid) with no more slow samples than
+    coefficients: the message names the coefficients, not the grid."""
+    import logging
+
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(11_000)
+    observation = DownsampledConvolution(u, 10, order)
+    y = observation.matvec(0.9 ** np.arange(order)) + 0.01 * rng.standard_normal(1100)
+    experiment = build_experiment(u, y, factor=10, order=order)
+    if order < 1100:  # more samples than coefficients, off one grid: no AR(1) gain
+        monkeypatch.setattr(disturbance, "ar1_evidence_gain", lambda *args: None)
+    with caplog.at_level(logging.INFO, logger="gpmultirate"):
+        assert not disturbance.calls_for_disturbance(experiment, C(1.0) * DC(0.9, 0.9), 1e-4,
+                                                     check_tail=False)
+    assert f"1100 slow samples: {why}" in caplog.text

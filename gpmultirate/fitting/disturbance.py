@@ -177,8 +177,16 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
     if gain is None and n_samples <= AUTO_NOISE_DENSE_GATE:
         gain = disturbance_evidence_gain(term.covariance(), y, noise_level,
                                          noise_instants(observation))
-    if gain is None:
-        _LOG.info("noise: white (%d slow samples not on one uniform grid)", n_samples)
+    if gain is None:  # say which check could not run, and why
+        if not observation.has_regressor:
+            why = (f"readings off the ticks have no regressor for the AR(1) check, and more "
+                   f"than {AUTO_NOISE_DENSE_GATE} for the dense one")
+        elif n_samples <= observation.n_coefficients:
+            why = (f"not more than the {observation.n_coefficients} coefficients for the AR(1) "
+                   f"check, and more than {AUTO_NOISE_DENSE_GATE} for the dense one")
+        else:
+            why = "not on one uniform grid"
+        _LOG.info("noise: white (%d slow samples: %s)", n_samples, why)
         return False
     _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
     return gain >= AUTO_NOISE_GATE
