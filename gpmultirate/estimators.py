@@ -100,25 +100,16 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).
     order : int, "auto" or sequence of int, optional
         FIR order ``P`` in ``1..N``, shared by all inputs.  Default: chosen
-        from the data.  For a record of at most 2048 fast samples
-        (``orders.SHORT_RECORD``, e.g. the paper's ``N = 600``): ``N``, the
-        length of the (longest) record, unless the held-out check after
-        evidence tuning finds that a shorter order ``N/2, ..., N/32`` (at
-        least 10) predicts held-out slow samples more than one point of fit
-        better at the tuned hyperparameters; the model is then fitted again
-        at the best of them (see *Tuning that generalizes* in the user
-        guide).  For a longer record: the lag beyond which the prior, tuned
-        at a pilot order of 512 (doubled while it has not decayed within the
-        order), is negligible against the noise
-        (:func:`~gpmultirate.orders.default_order`); it costs the pilot
-        fits and at most one refit, and a response that decays well within
-        the record gets fewer coefficients than slow samples (the
-        long-record route).  An integer is used as given (a too short one
-        is reported with an :class:`~gpmultirate.OrderWarning`).  ``"auto"`` or a list of
-        candidate orders: fit each candidate and keep the one the tuning
-        criterion (``tuning``) prefers, per used slow sample; ``"auto"``
-        tries ``N, N/2, N/4, ..., N/32`` (at least 10).  The candidates and
-        their scores are reported in ``order_selection_``.
+        from the data: for a record of at most 2048 fast samples
+        (``orders.SHORT_RECORD``) ``N``, or a shorter order ``N/2 .. N/32``
+        that predicts held-out slow samples more than one point better; for
+        a longer record, the lag beyond which the prior tuned at a pilot
+        order (512, doubled while it has not decayed) is negligible against
+        the noise (:func:`~gpmultirate.orders.default_order`; the user
+        guide's *Tuning that generalizes*).  An integer is used as given (a
+        too short one gets an :class:`~gpmultirate.OrderWarning`).
+        ``"auto"`` or a list of candidates: each is fitted and the tuning
+        criterion's choice kept (``order_selection_``).
     offset : int, default=0
         Fast index of the first slow sample, ``0..F-1``.
     noise_level : float, default=1.0
@@ -161,63 +152,33 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         For readings at their own instants: the reading stamped ``t`` shows
         the output at ``t - latency`` (in the units of ``sample_time``).
     between_ticks : {"auto", "exact", "interpolated"}, default="auto"
-        How readings between the fast ticks are observed.  ``"exact"``: the
-        readings as linear functionals of the response over continuous lag
-        (:class:`~gpmultirate.observations.TimedConvolution`), whose data
-        covariance is ``M x M``.  ``"interpolated"``: the response between
-        the integer lags interpolated (from twelve integer lags), so the
-        readings are a regressor on the integer lags and a long record
-        takes the ``P x P`` parameter space
-        (:class:`~gpmultirate.observations.InterpolatedConvolution`); the
-        interpolation error is absorbed by the tuned
-        noise level, and ``interpolation_error_`` estimates it (:doc:`/cameras`).
-        ``"auto"``: interpolated for a long record, with more readings than
-        coefficients and than 1,000 (where the exact route's ``M x M``
-        covariance costs many seconds per evaluation), exact otherwise; an
-        interpolated fit whose estimated error is above
-        ``INTERPOLATION_TOLERANCE`` (0.2) times the noise's standard
-        deviation (a response with content near the fast Nyquist frequency)
-        is fitted again exactly up to 3,000 readings (beyond, a
-        :class:`~gpmultirate.NumericalWarning` gives the estimate).
+        How readings between the fast ticks are observed: ``"exact"``, as
+        linear functionals of the response over continuous lag
+        (:class:`~gpmultirate.observations.TimedConvolution`, an ``M x M``
+        covariance); ``"interpolated"``, from twelve integer lags
+        (:class:`~gpmultirate.observations.InterpolatedConvolution`, the
+        ``P x P`` route of long records; ``interpolation_error_`` estimates
+        its error).  ``"auto"``: interpolated beyond 1,000 readings and more
+        readings than coefficients, refitted exactly (up to 3,000 readings)
+        where the estimated error exceeds ``INTERPOLATION_TOLERANCE`` (0.2)
+        noise standard deviations (:doc:`/cameras`).
     noise_kernel : "auto", "white", "matern12", "matern32", "ar1" or sklearn Kernel, default="auto"
         The noise of the slow samples.  ``"white"``: ``noise_level * I``.
         ``"matern12"``/``"matern32"``: white noise plus a disturbance
-        ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the samples'
-        instants in fast samples (``Matern(length_scale=10)`` spans ten fast
-        samples).  ``"ar1"``: ``C * Matern(length_scale, nu=1/2)`` alone, no
-        white part (an AR(1) process on a uniform grid).  A kernel: a
-        disturbance over the instants (a periodic one with
-        ``ExpSineSquared``), added to white noise unless it holds a
-        ``WhiteKernel`` or is ``[C *] Matern(nu=0.5)`` alone.  A disturbance
-        is tuned with everything else by the evidence, starting from the
-        white fit, on the samples themselves (the data-space route:
-        ``O(M^3)`` per evaluation); an AR(1) one on one uniform grid with
-        more samples than coefficients through its tridiagonal precision
-        instead (:class:`~gpmultirate.covariance.AR1Covariance`: ``O(M P^2)``
-        once, ``O(P^3)`` per evaluation).  ``"auto"`` fits
-        white first and keeps it unless the data call for more: when the
-        order covers the data's memory and a fixed Matérn disturbance at the
-        tuned prior gains ``AUTO_NOISE_GATE`` (3) nats of evidence, it tunes
-        Matérn 1/2 and 3/2 disturbances (beyond ``AUTO_NOISE_DENSE_GATE``
-        (1000) slow samples on one uniform grid, more than the
-        coefficients: the AR(1) disturbance ``"ar1"`` instead) and keeps the
-        better one only when its log evidence exceeds white's by
-        ``AUTO_NOISE_MARGIN`` (10) nats.  With
-        ``tuning="cross_validation"`` the disturbance is tuned by the
-        cross-validated log predictive likelihood from the white
-        cross-validated fit (the data-space route, ``O(M^3)`` per
-        evaluation, ``"ar1"`` included), and ``"auto"`` (same gate) keeps
-        the better disturbance only when its cross-validated log predictive
-        likelihood exceeds white's by ``AUTO_NOISE_MARGIN`` (10) nats.
-        With ``optimizer=None``, where nothing is tuned, ``"auto"`` is
-        white.  A kernel's variances (a ``WhiteKernel``'s level, a
-        ``ConstantKernel``'s value) and their bounds are read in normalized
-        units, the output divided by its RMS, as ``kernel``'s amplitudes
-        and ``noise_level`` are: the same kernel gives the same fit of the
-        data in any units.  Its time scales are in fast samples, whatever
-        the units.  With ``normalize=False`` or ``optimizer=None`` it is in
-        the data's units.  ``noise_kernel_`` is in the data's units.  See
-        :doc:`/disturbances`.
+        ``C * Matern(length_scale, nu=1/2 or 3/2)`` over the instants in fast
+        samples; ``"ar1"``: ``C * Matern(length_scale, nu=1/2)`` alone (an
+        AR(1) process, through its tridiagonal precision on one uniform
+        grid).  A kernel: a disturbance over the instants, added to white
+        noise unless it holds a ``WhiteKernel``; its variances and their
+        bounds are read in normalized units (the output divided by its RMS),
+        as ``kernel``'s amplitudes are, its time scales in fast samples.  A
+        disturbance is tuned with everything else from the white fit.
+        ``"auto"`` keeps white noise unless a fixed disturbance gains
+        ``AUTO_NOISE_GATE`` (3) nats at the white fit and the tuned one
+        beats white by ``AUTO_NOISE_MARGIN`` (10) nats of evidence (of
+        cross-validated log predictive likelihood under
+        ``tuning="cross_validation"``); with ``optimizer=None`` it is white.
+        ``noise_kernel_`` is in the data's units.  See :doc:`/disturbances`.
     n_restarts_optimizer : int, default=0
         Extra optimizer runs from random points drawn uniformly in the log
         bounds; the best optimum is kept.
