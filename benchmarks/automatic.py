@@ -448,9 +448,9 @@ def targets(summary: dict, rows: list) -> list:
                         f"mean {np.mean(ar1):.3f}, min {np.min(ar1):.3f}, max {np.max(ar1):.3f}",
                         all(0.92 <= c <= 0.98 for c in ar1)))
     white = [r for r in rows if r["disturbance"] is None and r["family"] != "long_memory"]
-    if white:
-        kept = sum(r["auto"]["noise"] == "white" for r in white)
-        out.append(("noise auto keeps white on white data", f"{kept}/{len(white)}",
+    for fit in ("default", "auto") if white else ():
+        kept = sum(r[fit]["noise"] == "white" for r in white)
+        out.append((f"{fit}: noise auto keeps white on white data", f"{kept}/{len(white)}",
                     kept == len(white)))
     grid = [max(r["grid"].values()) - r["default"]["gof"] for r in rows if "grid" in r]
     if grid:
