@@ -516,7 +516,8 @@ def print_row(row: dict) -> None:
           f"{row['snr_db']} dB {row['disturbance'] or ''} | GoF auto {a['gof']:.2f} oracle "
           f"{o['gof']:.2f} default {d['gof']:.2f} | cover {a['coverage']:.3f}/"
           f"{o['coverage']:.3f}/{d['coverage']:.3f} (support {a['coverage_support']:.3f}/"
-          f"{o['coverage_support']:.3f}/{d['coverage_support']:.3f}) | found {a['resonances']['frequencies']} | "
+          f"{o['coverage_support']:.3f}/{d['coverage_support']:.3f}) | "
+          f"found {a['resonances']['frequencies']} | "
           f"noise {a['noise']}/{d['noise']} | {a['seconds']:.1f} s x{a['time_ratio']:.2f}"
           + extra, flush=True)
 
