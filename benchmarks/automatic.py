@@ -177,10 +177,10 @@ def _two_modes(rng, alias: bool, sample_time: float, factor: int) -> list:
 
 
 def draw_system(family: str, seed: int, quick: bool = False,
-                memory: tuple | None = None) -> BenchmarkSystem:
+                memory_range: tuple | None = None) -> BenchmarkSystem:
     """Draw one system of ``family`` from ``seed``, with its records and its truth.
 
-    ``memory``: the range of the ``long_memory`` response's length in fast
+    ``memory_range``: the range of the ``long_memory`` response's length in fast
     samples (default 2,000-4,000, or 300-500 with ``quick``).
 
     Examples
@@ -213,7 +213,7 @@ def draw_system(family: str, seed: int, quick: bool = False,
     else:  # long_memory
         sample_time = 1e-3
         factor = int(rng.integers(10, 41))
-        memory = int(rng.uniform(*(memory or ((300, 500) if quick else (2000, 4000)))))
+        memory = int(rng.uniform(*(memory_range or ((300, 500) if quick else (2000, 4000)))))
         n_samples = int(max(8 * memory, 150 * factor) if quick else max(10 * memory, 200 * factor))
         light = rng.uniform(20.0, 120.0)
         # the envelope exp(-damping w t) falls to 1e-3 within `memory` fast samples
@@ -547,7 +547,7 @@ def main(argv=None) -> int:
         seeds = child.generate_state(n_systems)
         for system_seed in seeds:
             system = draw_system(family, int(system_seed), quick=args.quick,
-                                 memory=args.memory)
+                                 memory_range=args.memory)
             row = run_system(system)
             print_row(row)
             rows.append(row)
