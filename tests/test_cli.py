@@ -167,7 +167,7 @@ def test_python_dash_m_runs_the_command(monkeypatch, capsys):
 
 def test_console_script_is_declared():
     entry_points = importlib.metadata.entry_points(group="console_scripts")
-    assert any(ep.name == "gpmultirate" and ep.value == "gpmultirate.cli:main"
+    assert any(ep.name == "gpmultirate" and ep.value == "gpmultirate.__main__:main"
                for ep in entry_points)
 
 

@@ -91,28 +91,37 @@ class DiagonalPlusLowRank:
         self.inv_d = None if d is None else 1.0 / d
         self.W = W
         self.DW = W if d is None else self.inv_d[:, None] * W  # D^{-1} W
-        self.eigenvalues, self.vectors = np.linalg.eigh(W.T @ self.DW)
-        # D^{-1} W Q (1 + lambda)^{-1/2}: D^{-1} - E E^T is the inverse
-        self.E = (self.DW @ self.vectors) / np.sqrt(1.0 + self.eigenvalues)
+        # the capacitance C = I + W^T D^{-1} W = G G^T
+        self.G = np.linalg.cholesky(np.eye(W.shape[1]) + W.T @ self.DW)
+        self._E = None
 
     def _inv_d_times(self, b: np.ndarray) -> np.ndarray:
         if self.inv_d is None:
             return b
         return self.inv_d.reshape((-1,) + (1,) * (np.ndim(b) - 1)) * b
 
-    def projections(self, y: np.ndarray) -> np.ndarray:
-        """``beta = Q^T W^T D^{-1} y``."""
-        return self.vectors.T @ (self.DW.T @ y)
+    def _whitened(self, b: np.ndarray) -> np.ndarray:
+        """``G^{-1} W^T D^{-1} b``."""
+        return linalg.solve_triangular(self.G, self.DW.T @ b, lower=True, check_finite=False)
+
+    @property
+    def E(self) -> np.ndarray:
+        """``D^{-1} W G^{-T}``: ``D^{-1} - E E^T`` is the inverse."""
+        if self._E is None:
+            self._E = linalg.solve_triangular(self.G, self.DW.T, lower=True,
+                                              check_finite=False).T
+        return self._E
 
     def inv_quad_logdet(self, y: np.ndarray) -> tuple[float, float]:
         """``y^T (D + W W^T)^{-1} y`` and ``log det(D + W W^T)``."""
-        reduction, increase = woodbury_terms(self.eigenvalues, self.projections(y) ** 2)
+        v = self._whitened(y)
         log_det_d = 0.0 if self.d is None else np.sum(np.log(self.d))
-        return float(y @ self._inv_d_times(y) - reduction), float(log_det_d + increase)
+        return (float(y @ self._inv_d_times(y) - v @ v),
+                float(log_det_d + 2.0 * np.log(np.diag(self.G)).sum()))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``(D + W W^T)^{-1} b`` for ``b`` of shape ``(M,)`` or ``(M, k)``."""
-        return self._inv_d_times(b) - self.E @ (self.E.T @ b)
+        return self._inv_d_times(b) - self.E @ self._whitened(b)
 
     def inverse_diagonal(self) -> np.ndarray:
         """The diagonal of ``(D + W W^T)^{-1}``."""
@@ -121,7 +130,7 @@ class DiagonalPlusLowRank:
 
     def inverse_times_low_rank(self) -> np.ndarray:
         """``(D + W W^T)^{-1} W = D^{-1} W C^{-1}``."""
-        return (self.DW @ self.vectors) / (1.0 + self.eigenvalues) @ self.vectors.T
+        return linalg.cho_solve((self.G, True), self.DW.T, check_finite=False).T
 
 
 class WoodburyCovariance(DataCovariance):
