@@ -12,8 +12,8 @@ A loop that a slow sensor closes through a hold is periodically time
 varying: the response of ``u`` to an impulse of ``r`` depends on where in
 the frame the impulse falls.  A time-invariant model of ``u`` from ``r``
 is orthogonal to its error only on average over the phases of the frame,
-while the slow samples all sit on one phase; so the first stage here is
-the first stage can take one kernel-regularized FIR per phase ``n mod period``:
+while the slow samples all sit on one phase.  So the first stage can take
+one kernel-regularized FIR per phase ``n mod period``:
 ``u(n) = sum_i h_p(i) r(n - i) + w(n)``, ``p = n mod period``, with ``w``
 then orthogonal to every sample of ``r`` at every phase.  The default is
 one time-invariant FIR (``period=1``): ``u_r`` depends on ``r`` alone, so
