@@ -84,8 +84,8 @@ def test_predicted_band_is_the_dense_posterior_of_the_papers_equations(u, offset
                                cov[inside] / np.sqrt(var_re * var_im)[inside], atol=1e-7)
     assert np.all(frf.mean == 0)
     assert frf.slow_nyquist == pytest.approx(0.5 / (FACTOR * 0.1))
-    # the readings at those instants, given as instants, are the same experiment
-    again = design.predicted_frequency_response(KERNEL, u, sample_times=instants.astype(float),
+    # the readings at those instants, given as stamps in seconds, are the same experiment
+    again = design.predicted_frequency_response(KERNEL, u, sample_times=instants * 0.1,
                                                 noise_level=NOISE, freqs=freqs, order=ORDER,
                                                 sample_time=0.1)
     np.testing.assert_allclose(again.real_std, frf.real_std, rtol=1e-9)
@@ -451,3 +451,24 @@ def test_design_command_end_to_end(tmp_path, capsys):
         design.band_radius(frf)[inside].mean(), rel=1e-6)
     assert summary["before_input"] == "the given input"
     assert summary["rms"] == pytest.approx(np.sqrt(np.mean(u ** 2)))  # equal power
+
+
+def test_stamps_and_exposure_are_in_the_units_of_the_pilots_sample_time():
+    """A pilot fitted with sample_time T: its exposure (seconds) and the planned stamps
+    (seconds) are read as fit reads them."""
+    T, n = 0.01, 240
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(n)
+    ticks = np.arange(1.5, n - 1, 3.0)
+    pilot = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=30, sample_time=T,
+                                  exposure=0.5 * T, optimizer=None, noise_level=1e-3)
+    y = pilot.fit(u, np.zeros(ticks.size), sample_times=ticks * T)
+    assert design.design_prior(pilot).exposure == pytest.approx(0.5)
+    own = design.predicted_frequency_response(pilot, u, sample_times=ticks * T)
+    given = design.predicted_frequency_response(pilot, u, sample_times=ticks * T,
+                                                exposure=0.5 * T)
+    none = design.predicted_frequency_response(pilot, u, sample_times=ticks * T, exposure=0.0)
+    np.testing.assert_allclose(own.real_std, given.real_std, rtol=1e-12)
+    assert np.max(np.abs(none.real_std - own.real_std)) > 1e-6
+    with pytest.raises(ValueError, match="sample_times"):  # fast periods where seconds are due
+        design.predicted_frequency_response(pilot, u, sample_times=ticks)

@@ -28,6 +28,8 @@ from gpmultirate.responses import (
     dft_matrix,
 )
 from gpmultirate.kernels import check_lags
+from gpmultirate.observations.timed import check_duration
+from gpmultirate.units import duration_in_fast_periods, in_fast_periods
 from gpmultirate.validation import check_level, check_signal
 
 __all__ = [
@@ -48,6 +50,12 @@ def _experiment(prior, u, factor, offset, sample_times, exposure, noise_level, o
     if prior.initial_conditions == "zero" and u.shape[0] < prior.order:
         raise ValueError(f"u must have at least order = {prior.order} samples; "
                          f"got {u.shape[0]}")
+    # stamps and an exposure in the units of the prior's sample_time, as fit takes them
+    if sample_times is not None:
+        sample_times = in_fast_periods(sample_times, prior.sample_time, u)
+    if exposure is not None:
+        exposure = duration_in_fast_periods(check_duration(exposure, "exposure"),
+                                            prior.sample_time)
     scheme = as_scheme(scheme, factor=factor, offset=offset, sample_times=sample_times,
                        exposure=prior.exposure if exposure is None else exposure)
     observation = scheme.observation(u, prior.order, latency=prior.latency,
@@ -122,10 +130,11 @@ def predicted_frequency_response(prior, u, factor=3, offset=0, sample_times=None
         Fast index of the first slow sample, ``0..F-1``; several offsets are
         several slow sensors reading the same output.
     sample_times : array-like of shape (M,), optional
-        Readings at their own instants, in fast sample periods (``factor``
-        and ``offset`` are then ignored).
+        Readings at their own instants, in the units of the prior's
+        ``sample_time`` (seconds; fast sample periods when it is 1), as
+        ``fit`` takes them (``factor`` and ``offset`` are then ignored).
     exposure : float, optional
-        Each reading's exposure in fast sample periods; default the pilot
+        Each reading's exposure, in the same units; default the pilot
         model's, or 0 for a kernel.
     noise_level : float, optional
         White noise variance of a slow sample, in the output's units squared;

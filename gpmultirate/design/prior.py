@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 
 from sklearn.gaussian_process.kernels import Kernel
 
+from gpmultirate.units import duration_in_fast_periods
 from gpmultirate.validation import check_int, check_positive, check_sample_time
 
 __all__ = ["DEFAULT_NOISE_LEVEL", "DesignPrior", "design_prior"]
@@ -136,8 +137,11 @@ def design_prior(prior, *, order=None, sample_time=None, noise_level=None) -> De
         noise_level=check_positive(noise, "noise_level"),
         sample_time=check_sample_time(prior.sample_time if sample_time is None else sample_time),
         noise_kernel=getattr(prior, "noise_kernel_", "white"),
-        exposure=float(getattr(prior, "exposure", 0.0)),
-        latency=float(getattr(prior, "latency", 0.0)),
+        # the model's exposure and latency are in the units of its sample_time
+        exposure=duration_in_fast_periods(float(getattr(prior, "exposure", 0.0)),
+                                          prior.sample_time or 1.0),
+        latency=duration_in_fast_periods(float(getattr(prior, "latency", 0.0)),
+                                         prior.sample_time or 1.0),
         initial_conditions=getattr(prior, "initial_conditions", "zero"),
         reference=prior,
     )
