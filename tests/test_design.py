@@ -462,7 +462,7 @@ def test_stamps_and_exposure_are_in_the_units_of_the_pilots_sample_time():
     ticks = np.arange(1.5, n - 1, 3.0)
     pilot = gm.FIRGaussianProcess(C(1.0) * DC(0.8, 0.5), order=30, sample_time=T,
                                   exposure=0.5 * T, optimizer=None, noise_level=1e-3)
-    y = pilot.fit(u, np.zeros(ticks.size), sample_times=ticks * T)
+    pilot.fit(u, np.zeros(ticks.size), sample_times=ticks * T)
     assert design.design_prior(pilot).exposure == pytest.approx(0.5)
     own = design.predicted_frequency_response(pilot, u, sample_times=ticks * T)
     given = design.predicted_frequency_response(pilot, u, sample_times=ticks * T,
