@@ -17,7 +17,7 @@ from gpmultirate.version import __version__
 __all__ = ["REMOVED_IN", "deprecated_module", "warn_deprecated"]
 
 #: the version that removes the names deprecated in this one (the next minor)
-REMOVED_IN = "0.2.0"
+REMOVED_IN = "0.3.0"
 
 
 def warn_deprecated(old: str, new: str, stacklevel: int = 2) -> None:
@@ -30,7 +30,7 @@ def warn_deprecated(old: str, new: str, stacklevel: int = 2) -> None:
     ...     warnings.simplefilter("always")
     ...     warn_deprecated("gpmultirate.old_name", "gpmultirate.new_name")
     >>> print(caught[0].message)  # doctest: +ELLIPSIS
-    gpmultirate.old_name is deprecated since gpmultirate 0.1... and will be removed in 0.2.0: use gpmultirate.new_name instead
+    gpmultirate.old_name is deprecated since gpmultirate 0.2... and will be removed in 0.3.0: use gpmultirate.new_name instead
     """
     warnings.warn(
         f"{old} is deprecated since gpmultirate {__version__} and will be removed in "

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from sklearn.gaussian_process.kernels import GenericKernelMixin, Hyperparameter, Kernel
 
-from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.validation import as_real_array
 from gpmultirate.observations import Observation
 
@@ -29,9 +28,6 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     observation : Observation
         The observation built from the training input, e.g. a
         :class:`~gpmultirate.DownsampledConvolution`.
-    operator : Observation, optional
-        The former name of ``observation``, deprecated: it warns and is used
-        as ``observation``.
 
     Examples
     --------
@@ -51,21 +47,9 @@ class ObservedKernel(GenericKernelMixin, Kernel):
     True
     """
 
-    def __init__(self, kernel: Kernel, observation: Observation | None = None,
-                 operator: Observation | None = None):
-        if operator is not None:
-            warn_deprecated("ObservedKernel(operator=...)", "ObservedKernel(observation=...)")
-            if observation is not None:
-                raise ValueError("give observation, not both observation and operator")
-            observation = operator
+    def __init__(self, kernel: Kernel, observation: Observation | None = None):
         self.kernel = kernel
         self.observation = observation
-
-    @property
-    def operator(self) -> Observation:
-        """The former name of :attr:`observation`, deprecated."""
-        warn_deprecated("ObservedKernel.operator", "ObservedKernel.observation")
-        return self.observation
 
     def get_params(self, deep: bool = True) -> dict:
         """Get the parameters, including ``kernel__<name>`` with ``deep=True``."""

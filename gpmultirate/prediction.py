@@ -14,7 +14,6 @@ import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import units
-from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.inference import gaussian_samples
 from gpmultirate.metrics import goodness_of_fit
 from gpmultirate.observations import regressor_rows
@@ -53,19 +52,6 @@ class FIRModelMixin:
     @property
     def _order(self) -> int:
         return self.observation_.order
-
-    @property
-    def operator_(self):
-        """Deprecated name of ``observation_``, removed in gpmultirate 0.2.0."""
-        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
-        if "observation_" not in vars(self) and "operator_" in vars(self):
-            return vars(self)["operator_"]  # an estimator pickled before the rename
-        return self.observation_
-
-    @operator_.setter
-    def operator_(self, value) -> None:
-        warn_deprecated(f"{type(self).__name__}.operator_", "observation_")
-        self.observation_ = value
 
     def _shaped(self, flat: np.ndarray) -> np.ndarray:
         """Coefficient-like values ``(n_inputs * n,)`` as ``(n_inputs, n)`` for several inputs."""

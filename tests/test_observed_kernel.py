@@ -273,14 +273,3 @@ def test_invalid_indices_raise(setup, bad):
         ok(bad, eval_gradient=True)
     with pytest.raises(ValueError, match="Y must hold slow-sample indices"):
         ok(indices([0, 1]), bad)
-
-
-def test_operator_is_a_deprecated_name_of_observation():
-    op = DownsampledConvolution(np.random.default_rng(0).standard_normal(60), 3, 30)
-    with pytest.warns(DeprecationWarning, match="observation"):
-        old = ObservedKernel(DC(alpha=0.8, beta=0.6), operator=op)
-    assert old == ObservedKernel(DC(alpha=0.8, beta=0.6), op)
-    with pytest.warns(DeprecationWarning, match="ObservedKernel.observation"):
-        assert old.operator is op
-    with pytest.raises(ValueError, match="not both"), pytest.warns(DeprecationWarning):
-        ObservedKernel(DC(), op, operator=op)

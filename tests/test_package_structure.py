@@ -187,7 +187,7 @@ def test_no_import_cycle_among_the_package_modules():
 
 def test_every_module_imports():
     for info in pkgutil.walk_packages([str(PACKAGE)], prefix=f"{ROOT}."):
-        if info.name in DEPRECATED_MODULES or info.name.endswith("__main__"):
+        if info.name.endswith("__main__"):
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("error", DeprecationWarning)
@@ -199,7 +199,7 @@ def test_every_exception_and_warning_class_is_defined_in_the_exceptions_module()
     defined_elsewhere = []
     n_found = 0
     for name in package_modules():
-        if name in DEPRECATED_MODULES or name.endswith("__main__"):
+        if name.endswith("__main__"):
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("error", DeprecationWarning)
@@ -271,7 +271,8 @@ def test_the_memory_refusal_is_a_value_error_and_a_memory_error(monkeypatch):
 
 
 # ------------------------------------------------------------ deprecations
-DEPRECATED_MODULES = {
+# names deprecated in 0.1.0 and removed in 0.2.0, with their new homes
+REMOVED_MODULES = {
     "gpmultirate.operator": "gpmultirate.observations",
     "gpmultirate.frequency": "gpmultirate.responses",
     "gpmultirate.experiments": "gpmultirate.study",
@@ -279,104 +280,46 @@ DEPRECATED_MODULES = {
 REPOSITORY = PACKAGE.parent
 
 
-def _fresh_import(name):
-    """Import ``name`` again, so that its import-time warning is raised again."""
-    sys.modules.pop(name, None)
-    return importlib.import_module(name)
-
-
-def _python(*arguments):
-    return subprocess.run([sys.executable, *arguments], capture_output=True, text=True,
-                          timeout=300, env={"PYTHONPATH": str(REPOSITORY), "PATH": "/usr/bin:/bin"})
-
-
-# each import in a fresh interpreter started with -W error::DeprecationWarning
-_EACH_IMPORT_FAILS = """
-import importlib, sys
-for name in sys.argv[1:]:
-    try:
-        importlib.import_module(name)
-    except DeprecationWarning as warning:
-        print(name, "|", warning)
-    else:
-        print(name, "| imported")
-    sys.modules.pop(name, None)
-"""
-
-
-@pytest.mark.slow
-def test_importing_a_deprecated_module_fails_under_error_filters():
-    # python -W error::DeprecationWarning -c "import gpmultirate.operator" fails, for each module
-    done = _python("-W", "error::DeprecationWarning", "-c", _EACH_IMPORT_FAILS,
-                   *DEPRECATED_MODULES)
-    assert done.returncode == 0, done.stderr
-    lines = dict(line.split(" | ") for line in done.stdout.strip().splitlines())
-    assert set(lines) == set(DEPRECATED_MODULES)
-    for old, new in DEPRECATED_MODULES.items():
-        # the new home and the version that removes it: the next minor
-        assert old in lines[old] and new in lines[old] and "0.2.0" in lines[old]
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("old", sorted(DEPRECATED_MODULES))
-def test_the_import_fails_as_the_command_line_says_and_warns_by_default(old):
-    done = _python("-W", "error::DeprecationWarning", "-c", f"import {old}")
-    assert done.returncode != 0
-    assert done.stderr.strip().splitlines()[-1].startswith("DeprecationWarning")
-    # without the filter the import works and the warning is shown to __main__
-    done = _python("-c", f"import {old}")
-    assert done.returncode == 0 and "DeprecationWarning" in done.stderr
-    assert done.stderr.startswith("<string>:1:")  # points at the importing statement
-
-
-def test_deprecated_names_still_give_the_same_objects():
-    import gpmultirate.observations as observations
+def test_the_names_deprecated_in_0_1_are_removed_in_0_2():
+    import gpmultirate.kernels.offsets as offsets
     import gpmultirate.plotting as plotting
-    import gpmultirate.responses as responses
-    import gpmultirate.study as study
     from gpmultirate.deprecation import REMOVED_IN
 
-    assert REMOVED_IN == "0.2.0" and gpmultirate.__version__.startswith("0.1.")
-    with pytest.warns(DeprecationWarning, match="gpmultirate.frequency.*gpmultirate.responses"):
-        frequency = _fresh_import("gpmultirate.frequency")
-    with pytest.warns(DeprecationWarning, match="gpmultirate.experiments.*gpmultirate.study"):
-        experiments = _fresh_import("gpmultirate.experiments")
-    with pytest.warns(DeprecationWarning, match="gpmultirate.operator.*gpmultirate.observations"):
-        operator = _fresh_import("gpmultirate.operator")
-    assert frequency.FrequencyResponse is responses.FrequencyResponse is gpmultirate.FrequencyResponse
-    for name in experiments.__all__:
-        assert getattr(experiments, name) is getattr(study, name)
-    assert operator.DownsampledConvolution is observations.DownsampledConvolution
+    assert gpmultirate.__version__.startswith("0.2.") and REMOVED_IN == "0.3.0"
+    for old in REMOVED_MODULES:
+        sys.modules.pop(old, None)
+        with pytest.raises(ModuleNotFoundError):
+            importlib.import_module(old)
     for name in ("nonidentifiable_example", "NonidentifiableExample"):
-        with pytest.warns(DeprecationWarning, match=f"plotting.{name}.*0.2.0.*study.{name}"):
-            assert getattr(plotting, name) is getattr(study, name)
-        assert name not in plotting.__all__
-    assert {"plot_bode", "plot_study", "StudyPlot", "BodePlot"} <= set(plotting.__all__)
-    with pytest.raises(AttributeError, match="no_such_name"):
-        plotting.no_such_name  # noqa: B018
+        with pytest.raises(AttributeError, match=name):
+            getattr(plotting, name)
+    with pytest.raises(AttributeError, match="supports_offsets"):
+        offsets.supports_offsets  # noqa: B018
+    with pytest.raises(TypeError, match="operator"):
+        gpmultirate.ObservedKernel(gpmultirate.kernels.DC(), operator=None)
+    assert not hasattr(gpmultirate.ObservedKernel, "operator")
+    assert not hasattr(gpmultirate.FIRGaussianProcess, "operator_")
 
 
-def test_the_former_attribute_operator_warns_and_answers_observation_():
-    import numpy as np
-
-    u = np.sin(0.7 * np.arange(60)) + np.cos(1.9 * np.arange(60))
-    y_slow = np.convolve(u, 0.6 ** np.arange(6))[:60][::3]
-    model = gpmultirate.LeastSquaresFIR(factor=3, order=6).fit(u, y_slow)
-    assert "observation_" in vars(model) and "operator_" not in vars(model)
-    with pytest.warns(DeprecationWarning, match=r"LeastSquaresFIR.operator_.*0\.2\.0.*observation_"):
-        assert model.operator_ is model.observation_
-    with pytest.warns(DeprecationWarning, match="observation_"):
-        model.operator_ = model.observation_
-    unfitted = gpmultirate.FIRGaussianProcess()
-    with pytest.warns(DeprecationWarning), pytest.raises(AttributeError, match="observation_"):
-        unfitted.operator_  # noqa: B018
+def test_the_changelog_names_each_removed_name_with_its_new_home():
+    changelog = (REPOSITORY / "CHANGELOG.md").read_text(encoding="utf-8")
+    removed = changelog[changelog.index("### Removed"):]
+    for old, new in REMOVED_MODULES.items():
+        assert f"`{old}`" in removed and f"`{new}`" in removed
 
 
-# the old names may appear only where their deprecation is tested or stated
+def test_the_deprecation_of_a_name_names_its_new_home_and_the_next_minor_version():
+    from gpmultirate.deprecation import warn_deprecated
+
+    with pytest.warns(DeprecationWarning, match=r"gpmultirate.old .*0\.2.*0\.3\.0: use gpmultirate.new"):
+        warn_deprecated("gpmultirate.old", "gpmultirate.new")
+
+
+# the removed names may appear only where their removal is stated
 _OLD_NAMES = ("gpmultirate.operator", "gpmultirate.frequency", "gpmultirate.experiments",
               ".operator_", "import experiments", "plotting import nonidentifiable_example",
               "plotting import NonidentifiableExample")
-_ALLOWED = {"tests/test_package_structure.py"}
+_ALLOWED = {"tests/test_package_structure.py", "CHANGELOG.md", "docs/api.rst"}
 
 
 def test_tests_docs_and_examples_use_the_new_homes():
@@ -387,11 +330,9 @@ def test_tests_docs_and_examples_use_the_new_homes():
     found = []
     for path in files:
         relative = path.relative_to(REPOSITORY).as_posix()
-        if relative in _ALLOWED or path.stem in {"operator", "frequency", "experiments"}:
+        if relative in _ALLOWED:
             continue
         for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-            if "deprecat" in line.lower():  # where the deprecation is stated
-                continue
             found += [f"{relative}:{number}: {old}" for old in _OLD_NAMES if old in line]
     assert found == []
 

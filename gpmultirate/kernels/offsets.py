@@ -31,7 +31,6 @@ from typing import NamedTuple
 import numpy as np
 from scipy import signal
 
-from gpmultirate.deprecation import warn_deprecated
 
 __all__ = ["OffsetStructure", "dc_pieces", "exp_divided_difference", "lower_matrix",
            "offset_structure", "ordered_exponential_integral", "ss_pieces", "tc_pieces",
@@ -68,19 +67,6 @@ class OffsetStructure(NamedTuple):
     scale: complex
     base: object
     rates: list | None = None
-
-
-def _declares_offsets(kernel) -> bool:
-    """Whether ``kernel`` declares its pieces (the deprecated ``supports_offsets``)."""
-    return callable(getattr(kernel, "offset_structure", None))
-
-
-def __getattr__(name):
-    if name == "supports_offsets":
-        warn_deprecated("gpmultirate.kernels.offsets.supports_offsets",
-                        "the kernel's own offset_structure and observed_at_instants")
-        return _declares_offsets
-    raise AttributeError(f"module 'gpmultirate.kernels.offsets' has no attribute {name!r}")
 
 
 def lower_matrix(p, q, c) -> np.ndarray:

@@ -33,11 +33,6 @@ The modules: :mod:`gpmultirate.plotting.frequency` (Bode plot),
 :mod:`gpmultirate.plotting.time` (time-domain figures),
 :mod:`gpmultirate.plotting.study` (study figures) and
 :mod:`gpmultirate.plotting.axes` (helpers shared by them).
-``gpmultirate.plotting.nonidentifiable_example`` and
-``gpmultirate.plotting.NonidentifiableExample`` are deprecated names of
-:func:`gpmultirate.study.nonidentifiable_example` and
-:class:`gpmultirate.study.NonidentifiableExample`: they warn when used and
-are removed in gpmultirate 0.2.0.
 
 Examples
 --------
@@ -55,7 +50,6 @@ Examples
 >>> plt.close("all")
 """
 
-from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.plotting.frequency import BodePlot, plot_bode
 from gpmultirate.plotting.loop import (
     LoopResponsePlot, plot_intersample_performance, plot_loop_response,
@@ -69,7 +63,6 @@ from gpmultirate.plotting.time import (
     plot_intersample,
     plot_nonidentifiable_example,
 )
-from gpmultirate.study import examples as _examples
 
 __all__ = [
     "BodePlot",
@@ -89,13 +82,3 @@ __all__ = [
     "plot_residuals",
     "plot_study",
 ]
-
-# names that moved to gpmultirate.study, deprecated
-_MOVED = {"NonidentifiableExample", "nonidentifiable_example"}
-
-
-def __getattr__(name):
-    if name in _MOVED:
-        warn_deprecated(f"gpmultirate.plotting.{name}", f"gpmultirate.study.{name}")
-        return getattr(_examples, name)
-    raise AttributeError(f"module 'gpmultirate.plotting' has no attribute {name!r}")
