@@ -86,15 +86,16 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
 
     Parameters
     ----------
-    kernel : sklearn Kernel, list of them, or "auto", optional
+    kernel : sklearn Kernel, list of them, or "dc", "tc", "ss", "auto", optional
         Prior covariance over lag; a list gives one kernel per input, and
         one kernel for several inputs is copied for each (each copy tuned
-        separately).  Default ``ConstantKernel(c) * DC(alpha=0.9, beta=0.9)``
-        per input, with ``c`` and its bounds set from the data, and ``alpha``
-        bounded so that the prior's envelope ``alpha^(t/2)`` falls at least
-        by ``e^-2`` by lag ``P`` (the FIR model's own assumption: the
-        response has died out by then).  ``"auto"``:
-        that default plus up to ``max_resonances`` PK terms whose frequencies
+        separately).  Default (``None`` or ``"dc"``):
+        ``ConstantKernel(c) * DC(alpha=0.9, beta=0.9)`` per input, with ``c``
+        and its bounds set from the data, and ``alpha`` bounded so that the
+        prior's envelope ``alpha^(t/2)`` falls at least by ``e^-2`` by lag
+        ``P`` (the FIR model's own assumption: the response has died out by
+        then).  ``"tc"``, ``"ss"``: TC or SS scaled the same way.  ``"auto"``:
+        the DC prior plus up to ``max_resonances`` PK terms whose frequencies
         are found from the data (see :mod:`gpmultirate.resonances`).
     factor : int, default=1
         Downsampling factor ``F`` (ignored when ``sample_indices`` are given).

@@ -61,15 +61,11 @@ def kernel_option(name: str):
     >>> kernel_option("tc")
     1**2 * TC(alpha=0.9)
     """
-    from sklearn.gaussian_process.kernels import ConstantKernel
-
-    from gpmultirate.kernels import SS, TC
+    from gpmultirate.fitting.prior import kernel_from_name
 
     if name not in FIT_KERNELS:
         raise ValueError(f"name must be one of {', '.join(FIT_KERNELS)}; got {name!r}")
-    if name in ("dc", "auto"):
-        return None if name == "dc" else "auto"
-    return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
+    return kernel_from_name(name)
 
 
 def _plain(value):

@@ -18,6 +18,8 @@ from sklearn.gaussian_process.kernels import ConstantKernel
 from gpmultirate import units
 from gpmultirate.kernels import (
     DC,
+    SS,
+    TC,
     PerInputKernel,
     input_kernels,
     kernel_for_inputs,
@@ -27,7 +29,7 @@ from gpmultirate.kernels import (
 from gpmultirate.resonances import slowest_decay
 from gpmultirate.validation import check_bounds
 
-__all__ = ["input_powers", "input_powers_of", "prior_in_data_units", "record_inputs",
+__all__ = ["KERNEL_NAMES", "input_powers", "kernel_from_name", "input_powers_of", "prior_in_data_units", "record_inputs",
            "starting_prior"]
 
 
@@ -117,6 +119,40 @@ def input_powers_of(inputs) -> list[float]:
     """``mean(u_k**2)`` of each input over all records (1 for an all-zero input)."""
     stacked = np.vstack([x[:, None] if x.ndim == 1 else x for x in inputs])
     return [float(np.mean(stacked[:, k] ** 2)) or 1.0 for k in range(stacked.shape[1])]
+
+
+#: the kernels named by a string: ``kernel="dc"`` (the default DC prior), ``"tc"``,
+#: ``"ss"`` and ``"auto"`` (the DC prior plus the resonances found in the data)
+KERNEL_NAMES = ("dc", "tc", "ss", "auto")
+
+
+def kernel_from_name(name: str):
+    """The kernel a name stands for, as the estimator reads it.
+
+    ``"dc"`` is the default DC prior (``None``: its amplitude and decay
+    bounds are set from the data), ``"auto"`` the resonance search
+    (``"auto"``); ``"tc"`` and ``"ss"`` are ``ConstantKernel(1) * TC()``
+    (``SS()``) in the estimator's normalized units, with the default
+    kernel's amplitude bounds ``1e-8 .. 1e8``: the estimator scales them to
+    each input's data, as it does its default DC kernel.
+
+    Examples
+    --------
+    >>> kernel_from_name("dc") is None, kernel_from_name("auto")
+    (True, 'auto')
+    >>> kernel_from_name("tc")
+    1**2 * TC(alpha=0.9)
+    >>> kernel_from_name("rbf")
+    Traceback (most recent call last):
+    ...
+    ValueError: kernel must be a scikit-learn kernel, a list of them or one of 'dc', 'tc', 'ss', 'auto'; got 'rbf'
+    """
+    if not isinstance(name, str) or name not in KERNEL_NAMES:
+        raise ValueError("kernel must be a scikit-learn kernel, a list of them or one of "
+                         f"{', '.join(repr(n) for n in KERNEL_NAMES)}; got {name!r}")
+    if name in ("dc", "auto"):
+        return None if name == "dc" else "auto"
+    return ConstantKernel(1.0, (1e-8, 1e8)) * {"tc": TC, "ss": SS}[name]()
 
 
 def input_powers(experiment) -> list[float]:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from gpmultirate import orders
 from gpmultirate.fitting.between_ticks import check_between_ticks
 from gpmultirate.fitting.disturbance import check_noise_kernel
+from gpmultirate.fitting.prior import kernel_from_name
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.observations.timed import check_duration
 from gpmultirate.units import duration_in_fast_periods
@@ -108,10 +109,8 @@ def check_settings(model, prior_in_normalized_units: bool = False) -> Settings:
     noise = check_positive(model.noise_level, "noise_level")
     if not (isinstance(model.noise_level_bounds, str) and model.noise_level_bounds == "auto"):
         check_bounds(model.noise_level_bounds, "noise_level_bounds")
-    auto = isinstance(model.kernel, str) and model.kernel == "auto"
-    if isinstance(model.kernel, str) and not auto:
-        raise ValueError(f"kernel must be a scikit-learn kernel, a list of them or 'auto'; "
-                         f"got {model.kernel!r}")
+    kernel = kernel_from_name(model.kernel) if isinstance(model.kernel, str) else model.kernel
+    auto = isinstance(kernel, str)  # "auto"
     max_resonances = check_int(model.max_resonances, "max_resonances", low=0)
     noise_kernel = check_noise_kernel(model.noise_kernel)
     if noise_kernel == "auto" and model.optimizer is None:
@@ -125,7 +124,7 @@ def check_settings(model, prior_in_normalized_units: bool = False) -> Settings:
     latency = duration_in_fast_periods(check_duration(model.latency, "latency"), sample_time)
     return Settings(
         criterion, n_folds, candidates, n_restarts, noise, auto, max_resonances, normalize,
-        model.optimizer is not None, noise_kernel=noise_kernel, kernel=model.kernel,
+        model.optimizer is not None, noise_kernel=noise_kernel, kernel=kernel,
         order=model.order, noise_level_bounds=model.noise_level_bounds,
         random_state=model.random_state, sample_time=model.sample_time, factor=model.factor,
         offset=model.offset, initial_conditions=model.initial_conditions,
