@@ -557,20 +557,21 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             random_state,
         )
         found = _terms_of(kernel, [g.input for g in gains])
-        twins = set(alias_twins(found, [g.value for g in gains], observation.slow_factor,
-                                y.shape[0]))
-        twins |= set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
-        if twins:
-            _LOG.info("resonance search: %d term(s) dropped, slow-rate aliases of stronger ones",
-                      len(twins))
-            kept = [r for r in range(len(gains)) if r not in twins]
+        retuned = _Retuned(evidence, kernel, noise, found)
+        persistent = set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
+        if persistent:
+            _LOG.info("resonance search: %d term(s) dropped, persistent slow-rate images",
+                      len(persistent))
+            kept = [r for r in range(len(gains)) if r not in persistent]
             gains = [gains[r] for r in kept]
             if gains:
-                kernel, noise, value = _refitted(
-                    evidence, _assembled(kernel, [found[r] for r in kept]), noise)
+                kernel, noise, value = retuned(kept)
+        else:
+            kept = list(range(len(gains)))
         if gains:
-            check = held_out_resonances(observation, y, kernel, noise, [g.input for g in gains],
-                                        base, model_noise0, n_folds)
+            check = held_out_resonances(
+                observation, y, kernel, noise, [g.input for g in gains], base, model_noise0,
+                n_folds, refit=lambda subset: retuned([kept[i] for i in subset])[:2])
             if check is not None and len(check["kept_terms"]) < len(gains):
                 _LOG.info("resonance search: %d term(s) dropped, they do not improve the fit of "
                           "held-out slow samples (%.2f %% with them, %.2f %% without)",
@@ -578,7 +579,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                 gains = [gains[r] for r in check["kept_terms"]]
                 if gains:
                     history.append(value)
-                    kernel, noise, value = _refitted(evidence, check["kernel"], noise)
+                    kernel, noise, value = retuned([kept[i] for i in check["kept_terms"]])
         if not gains:  # every term pruned: the tuned base kernel
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
@@ -726,7 +727,8 @@ def persistent_aliases(terms, factor: int, n_slow: int,
 
 
 def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base_kernel,
-                        base_noise: float, n_folds: int = 5, margin: float = HELD_OUT_GAIN):
+                        base_noise: float, n_folds: int = 5, margin: float = HELD_OUT_GAIN,
+                        refit=None):
     """Which PK terms of ``kernel`` improve the fit of held-out slow samples.
 
     The slow samples are cut into ``n_folds`` contiguous blocks per record
@@ -826,25 +828,28 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         return min(w - o for w, o in zip(with_term, without_term))
 
     terms = _terms_of(kernel, list(inputs))
+    if refit is None:
+        def refit(subset):
+            return _assembled(kernel, [terms[i] for i in subset]), noise_level
     kept = list(range(len(terms)))
     found = current = held_out_fits(kernel, noise_level)
-    while kept:
-        without = {r: held_out_fits(_assembled(kernel, [terms[i] for i in kept if i != r]),
-                                    noise_level)
-                   for r in kept}
+    base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
+    while len(kept) > 1:
+        without = {r: held_out_fits(*refit([i for i in kept if i != r])) for r in kept}
         weakest = min(kept, key=lambda r: cost(current, without[r]))
         if cost(current, without[weakest]) > margin:
             break
         kept.remove(weakest)
         current = without[weakest]
-    base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
+    # the set left must beat the kernel without terms; it is not cut further into
+    # a single survivor that predicts worse than the set
     if kept and cost(current, base) <= margin:
         kept = []
     if not kept:
         current = base
     return {
         "kept_terms": kept,
-        "kernel": _assembled(kernel, [terms[i] for i in kept]) if kept else base_kernel,
+        "kernel": refit(kept)[0] if kept else base_kernel,
         "base": base[0],
         "found": found[0],
         "kept": current[0],
@@ -957,6 +962,38 @@ def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
         return np.concatenate(parts)
 
     return whiten
+
+
+class _Retuned:
+    """Subsets of the found terms, each re-tuned: ``retuned(indices) -> (kernel, noise, value)``.
+
+    The kernel without its PK terms (its tuned shape) is decomposed once; a
+    subset's terms, the overall scale and the noise level are then tuned
+    jointly on the diagonal-plus-low-rank form (:class:`_ResonantModel`),
+    from the values the terms have in ``kernel``.  So a term's partner
+    takes over what the two did together when it can (a slow-rate twin
+    the input does not separate from its mode), and a subset is judged at
+    its best, not with the values it had beside the terms removed.
+    Results are kept per subset.
+    """
+
+    def __init__(self, evidence, kernel, noise, terms):
+        self._model = _ResonantModel(evidence.moved_to(_without_pk(kernel), noise))
+        self._terms = list(terms)
+        self._done = {}
+
+    def model(self, indices):
+        """The tuned :class:`_ResonantModel` of the terms ``indices``."""
+        key = tuple(sorted(indices))
+        if key not in self._done:
+            trial = self._model._copy()
+            trial.terms = [self._terms[i] for i in key]
+            self._done[key] = trial.optimized()
+        return self._done[key]
+
+    def __call__(self, indices):
+        model = self.model(indices)
+        return model.kernel(), model.noise_level, model.value
 
 
 def _refitted(evidence, kernel, noise):
