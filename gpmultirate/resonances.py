@@ -216,7 +216,8 @@ class ResonanceSearch:
         The log evidence of the tuned base kernel, after each term the
         search added (before the final tuning) and, when a term was added,
         of the tuned final kernel (and of the kernel the held-out check
-        kept, when it dropped some terms but not all).
+        kept, when it dropped some terms but not all) and, last, of the kernel
+        whose terms carry the spread of their frequency and decay.
     held_out : dict or None
         The held-out check (:func:`held_out_resonances`) when it ran:
         ``"base"`` and ``"found"``, the held-out fit in percent (of the
@@ -584,6 +585,11 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
+    if terms:  # the prior carries what the data leave uncertain of each frequency and decay
+        kernel, terms = _with_spreads(evidence, kernel, noise, terms)
+        moved = evidence.moved_to(kernel, noise)
+        value = float(moved(moved.theta))
+        history.append(value)
     return ResonanceSearch(
         kernel=kernel, noise_level=noise, optimizer_result=result,
         resonances=[
@@ -996,6 +1002,22 @@ class _Retuned:
         return model.kernel(), model.noise_level, model.value
 
 
+def _with_spreads(evidence, kernel, noise, terms):
+    """``kernel`` with each PK term of ``terms`` given the spread of its frequency and decay.
+
+    The spreads are the Laplace approximation of the evidence at the tuned
+    values (:meth:`_ResonantModel.term_spreads`); the terms get them as
+    ``omega_std`` and ``rate_std`` (:class:`~gpmultirate.kernels.PK`), so
+    the posterior bands carry the frequency the data leave uncertain.
+    Returns the kernel and its terms.
+    """
+    model = _ResonantModel(evidence.moved_to(_without_pk(kernel), noise))
+    model.terms = [(k, term) for k, term in terms]
+    spread = [(k, clone(term).set_params(omega_std=w, rate_std=r))
+              for (k, term), (w, r) in zip(terms, model.term_spreads())]
+    return _assembled(kernel, spread), spread
+
+
 def _refitted(evidence, kernel, noise):
     """``kernel`` with its overall scale and the noise level re-fitted: kernel, noise, evidence."""
     moved = evidence.moved_to(kernel, noise)
@@ -1224,6 +1246,47 @@ class _ResonantModel:
         trial._unpack(x)
         trial.value = -objective(x)[0]
         return trial
+
+    def term_spreads(self, step: float = 1e-4):
+        """``[(omega_std, rate_std)]`` per term: the Laplace approximation at the current values.
+
+        The Hessian of the log evidence over every free coordinate (the
+        overall scale, the noise level where tuned, each term's log decay
+        rate, frequency and log amplitudes) by central differences of its
+        gradient; its negative inverse is the posterior covariance of the
+        coordinates, whose frequency and decay-rate entries give the
+        standard deviations (the rate's through its log).  A term at a
+        bound of its frequency or decay, or where the curvature is not
+        negative definite, gets the standard deviation of its coordinate
+        with the others held (``1 / sqrt(-H_ii)``), or none where that
+        curvature is not negative either.
+        """
+        x = self._pack()
+        bounds = self._bounds()
+        free = np.flatnonzero(bounds[:, 1] > bounds[:, 0])
+        hessian = np.empty((free.size, free.size))
+        for a, i in enumerate(free):
+            h = step * max(1.0, abs(x[i]))
+            up, down = x.copy(), x.copy()
+            up[i] += h
+            down[i] -= h
+            hessian[a] = (self._log_evidence(up, True)[1][free]
+                          - self._log_evidence(down, True)[1][free]) / (2.0 * h)
+        hessian = 0.5 * (hessian + hessian.T)
+        try:
+            np.linalg.cholesky(-hessian)
+            variances = np.diag(np.linalg.inv(-hessian))
+        except np.linalg.LinAlgError:
+            curvature = -np.diag(hessian)
+            variances = np.where(curvature > 0, 1.0 / np.where(curvature > 0, curvature, 1.0),
+                                 0.0)
+        variance = dict(zip(free.tolist(), variances))
+        spreads = []
+        for r in range(len(self.terms)):
+            rate = np.exp(x[2 + 4 * r])
+            spreads.append((float(np.sqrt(max(variance.get(3 + 4 * r, 0.0), 0.0))),
+                            float(rate * np.sqrt(max(variance.get(2 + 4 * r, 0.0), 0.0)))))
+        return spreads
 
     def with_term(self, k, term):
         """A copy with ``term`` added to input ``k`` and everything re-tuned jointly.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from sklearn.base import clone
 import pytest
 from scipy import optimize, signal
 from sklearn.gaussian_process.kernels import ConstantKernel as C
@@ -230,8 +231,13 @@ def test_evidence_gain_is_the_evidence_without_the_term_refitted():
     with threadpool_limits(limits=1, user_api="blas"):  # small matrices
         best = optimize.minimize(negative, [0.0, np.log(model.noise_level_)], jac=True,
                                  method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-9})
-    expected = model.log_marginal_likelihood_value_ + best.fun
+    # the gain is of the tuned term, before the prior is given its frequency's spread
+    term = clone(model.kernel_.k2).set_params(omega_std=0.0, rate_std=0.0)
+    tuned = log_marginal_likelihood(op, model.kernel_.k1 + term, model.noise_level_, z,
+                                    False, True)
+    expected = tuned + best.fun
     assert found.evidence_gain == pytest.approx(expected, rel=1e-4)
+    assert model.kernel_.k2.omega_std > 0.0 and model.kernel_.k2.rate_std > 0.0
 
 
 def test_long_record_and_missing_samples():
