@@ -553,12 +553,11 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                   float(omega) / (2.0 * np.pi * sample_time), k, gain)
     gains, check = [], None
     if model.terms:
-        kernel, noise, result, value, gains = _tune_and_prune(
+        kernel, noise, result, value, gains, retuned = _tune_and_prune(
             evidence, model.kernel(), model.noise_level, [k for k, _ in model.terms],
             random_state,
         )
         found = _terms_of(kernel, [g.input for g in gains])
-        retuned = _Retuned(evidence, kernel, noise, found)
         persistent = set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
         if persistent:
             _LOG.info("resonance search: %d term(s) dropped, persistent slow-rate images",
@@ -1056,33 +1055,34 @@ def _assembled(kernel, terms):
 def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
     """Tune everything; drop the weakest term while one is not worth keeping, and retune.
 
-    A term is kept when the tuned log evidence exceeds that of the same
-    model without it (scale and noise re-fitted) by more than
-    :data:`EVIDENCE_THRESHOLD` nats, and it is resonant.  Returns the tuned
-    kernel, noise level, optimizer result, log evidence and the gains
-    (empty when no term is left).
+    A term is kept when the tuned log evidence exceeds that of the model
+    without it, the other terms, the scale and the noise re-tuned
+    (:class:`_Retuned`), by more than :data:`EVIDENCE_THRESHOLD` nats, and
+    it is resonant.  Returns the tuned kernel, noise level, optimizer
+    result, log evidence, the gains (empty when no term is left) and the
+    :class:`_Retuned` of the kept terms (None without terms), whose subsets
+    the held-out check reuses.
     """
     while inputs:
         kernel, noise, result, value = _tune(
             evidence.moved_to(kernel, noise), kernel, noise, random_state, FINAL_EVALUATIONS
         )
         terms = _terms_of(kernel, inputs)
-        gains = []
-        for r in range(len(terms)):
-            rest = _ResonantModel(evidence.moved_to(
-                _assembled(kernel, terms[:r] + terms[r + 1:]), noise
-            )).optimized()
-            gains.append(value - rest.value)
+        retuned = _Retuned(evidence, kernel, noise, terms)
+        everything = range(len(terms))
+        gains = [value - retuned.model([i for i in everything if i != r]).value
+                 for r in everything]
         weak = [r for r, (_, term) in enumerate(terms)
                 if gains[r] <= EVIDENCE_THRESHOLD
                 or damping_ratio(term.alpha, term.omega) >= MAX_DAMPING]
         if not weak:
-            return kernel, noise, result, value, [_Gain(k, g) for k, g in zip(inputs, gains)]
+            return (kernel, noise, result, value, [_Gain(k, g) for k, g in zip(inputs, gains)],
+                    retuned)
         drop = min(weak, key=lambda r: gains[r])
         del terms[drop]
         inputs = inputs[:drop] + inputs[drop + 1:]
         kernel = _assembled(kernel, terms)
-    return kernel, noise, None, None, []
+    return kernel, noise, None, None, [], None
 
 
 class _ResonantModel:
