@@ -114,7 +114,7 @@ from gpmultirate.orders import MAX_CHECKED_SAMPLES
 from gpmultirate.validation import check_positive
 
 __all__ = [
-    "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
+    "EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
     "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
@@ -130,9 +130,6 @@ EVIDENCE_THRESHOLD = 12.0
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
-#: the evaluations the tuning of the kernel with its terms may spend (where it runs
-#: L-BFGS-B: more than 1,000 reduced slow samples); it starts from the joint refinement
-FINAL_EVALUATIONS = 40
 #: held-out fit (points of fit percent) a term must add to be kept
 HELD_OUT_GAIN = 0.1
 #: the order of the AR model of the base kernel's held-out residuals that whitens
@@ -553,11 +550,8 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                   float(omega) / (2.0 * np.pi * sample_time), k, gain)
     gains, check = [], None
     if model.terms:
-        kernel, noise, result, value, gains, retuned = _tune_and_prune(
-            evidence, model.kernel(), model.noise_level, [k for k, _ in model.terms],
-            random_state,
-        )
-        found = _terms_of(kernel, [g.input for g in gains])
+        kernel, noise, value, gains, retuned = _prune(evidence, model)
+        found = _terms_of(kernel, [g.input for g in gains]) if gains else []
         persistent = set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
         if persistent:
             _LOG.info("resonance search: %d term(s) dropped, persistent slow-rate images",
@@ -568,6 +562,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                 kernel, noise, value = retuned(kept)
         else:
             kept = list(range(len(gains)))
+        final = kept
         if gains:
             check = held_out_resonances(
                 observation, y, kernel, noise, [g.input for g in gains], base, model_noise0,
@@ -577,15 +572,16 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                           "held-out slow samples (%.2f %% with them, %.2f %% without)",
                           check["dropped"], check["found"], check["kept"])
                 gains = [gains[r] for r in check["kept_terms"]]
+                final = [kept[i] for i in check["kept_terms"]]
                 if gains:
                     history.append(value)
-                    kernel, noise, value = retuned([kept[i] for i in check["kept_terms"]])
+                    kernel, noise, value = retuned(final)
         if not gains:  # every term pruned: the tuned base kernel
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
     if terms:  # the prior carries what the data leave uncertain of each frequency and decay
-        kernel, terms = _with_spreads(evidence, kernel, noise, terms)
+        kernel, terms = _with_spreads(kernel, terms, retuned.model(final).term_spreads())
         moved = evidence.moved_to(kernel, noise)
         value = float(moved(moved.theta))
         history.append(value)
@@ -828,10 +824,6 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
             return -np.inf, -np.inf
         return fit_percent(white_y, whiten(mean)), fit_percent(y, mean)
 
-    def cost(with_term, without_term):
-        # what removing a term costs: the smaller of its two gains
-        return min(w - o for w, o in zip(with_term, without_term))
-
     terms = _terms_of(kernel, list(inputs))
     if refit is None:
         def refit(subset):
@@ -839,16 +831,24 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
     kept = list(range(len(terms)))
     found = current = held_out_fits(kernel, noise_level)
     base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
+    # near a perfect fit ``margin`` points may be more than the base kernel leaves to
+    # gain: there a gain counts from a twentieth of the base's held-out error
+    needed = [max(min(margin, 0.05 * (100.0 - b)), 1e-9) for b in base]
+
+    def cost(with_term, without_term):
+        # what removing a term costs: the smaller of its two gains, in units of `needed`
+        return min((w - o) / n for w, o, n in zip(with_term, without_term, needed))
+
     while len(kept) > 1:
         without = {r: held_out_fits(*refit([i for i in kept if i != r])) for r in kept}
         weakest = min(kept, key=lambda r: cost(current, without[r]))
-        if cost(current, without[weakest]) > margin:
+        if cost(current, without[weakest]) > 1.0:
             break
         kept.remove(weakest)
         current = without[weakest]
     # the set left must beat the kernel without terms; it is not cut further into
     # a single survivor that predicts worse than the set
-    if kept and cost(current, base) <= margin:
+    if kept and cost(current, base) <= 1.0:
         kept = []
     if not kept:
         current = base
@@ -1001,8 +1001,8 @@ class _Retuned:
         return model.kernel(), model.noise_level, model.value
 
 
-def _with_spreads(evidence, kernel, noise, terms):
-    """``kernel`` with each PK term of ``terms`` given the spread of its frequency and decay.
+def _with_spreads(kernel, terms, spreads):
+    """``kernel`` with each PK term of ``terms`` given its ``(omega_std, rate_std)``.
 
     The spreads are the Laplace approximation of the evidence at the tuned
     values (:meth:`_ResonantModel.term_spreads`); the terms get them as
@@ -1010,20 +1010,9 @@ def _with_spreads(evidence, kernel, noise, terms):
     the posterior bands carry the frequency the data leave uncertain.
     Returns the kernel and its terms.
     """
-    model = _ResonantModel(evidence.moved_to(_without_pk(kernel), noise))
-    model.terms = [(k, term) for k, term in terms]
     spread = [(k, clone(term).set_params(omega_std=w, rate_std=r))
-              for (k, term), (w, r) in zip(terms, model.term_spreads())]
+              for (k, term), (w, r) in zip(terms, spreads)]
     return _assembled(kernel, spread), spread
-
-
-def _refitted(evidence, kernel, noise):
-    """``kernel`` with its overall scale and the noise level re-fitted: kernel, noise, evidence."""
-    moved = evidence.moved_to(kernel, noise)
-    if moved.scale_positions() is None:
-        return kernel, noise, float(moved(moved.theta))
-    model = _ResonantModel(moved).optimized()
-    return model.kernel(), model.noise_level, model.value
 
 
 @dataclass
@@ -1052,22 +1041,22 @@ def _assembled(kernel, terms):
     return like_inputs(kernels, kernel)
 
 
-def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
-    """Tune everything; drop the weakest term while one is not worth keeping, and retune.
+def _prune(evidence, model):
+    """Drop the weakest term while one is not worth keeping; the others re-tuned each time.
 
-    A term is kept when the tuned log evidence exceeds that of the model
-    without it, the other terms, the scale and the noise re-tuned
-    (:class:`_Retuned`), by more than :data:`EVIDENCE_THRESHOLD` nats, and
-    it is resonant.  Returns the tuned kernel, noise level, optimizer
-    result, log evidence, the gains (empty when no term is left) and the
-    :class:`_Retuned` of the kept terms (None without terms), whose subsets
-    the held-out check reuses.
+    ``model``: the search's :class:`_ResonantModel`, its terms, scale and
+    noise tuned jointly on the base kernel's tuned shape.  A term is kept
+    when the log evidence exceeds that of the model without it, the other
+    terms, the scale and the noise re-tuned (:class:`_Retuned`), by more
+    than :data:`EVIDENCE_THRESHOLD` nats, and it is resonant.  Returns the
+    kernel, noise level, log evidence, the gains (empty when no term is
+    left) and the :class:`_Retuned` of the kept terms (None without terms),
+    whose subsets the held-out check reuses.
     """
+    inputs = [k for k, _ in model.terms]
     while inputs:
-        kernel, noise, result, value = _tune(
-            evidence.moved_to(kernel, noise), kernel, noise, random_state, FINAL_EVALUATIONS
-        )
-        terms = _terms_of(kernel, inputs)
+        kernel, noise, value = model.kernel(), model.noise_level, model.value
+        terms = list(model.terms)
         retuned = _Retuned(evidence, kernel, noise, terms)
         everything = range(len(terms))
         gains = [value - retuned.model([i for i in everything if i != r]).value
@@ -1076,13 +1065,11 @@ def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
                 if gains[r] <= EVIDENCE_THRESHOLD
                 or damping_ratio(term.alpha, term.omega) >= MAX_DAMPING]
         if not weak:
-            return (kernel, noise, result, value, [_Gain(k, g) for k, g in zip(inputs, gains)],
-                    retuned)
+            return kernel, noise, value, [_Gain(k, g) for k, g in zip(inputs, gains)], retuned
         drop = min(weak, key=lambda r: gains[r])
-        del terms[drop]
+        model = retuned.model([i for i in everything if i != drop])
         inputs = inputs[:drop] + inputs[drop + 1:]
-        kernel = _assembled(kernel, terms)
-    return kernel, noise, None, None, [], None
+    return None, None, None, [], None
 
 
 class _ResonantModel:
