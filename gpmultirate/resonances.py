@@ -15,45 +15,75 @@ terms one at a time, greedily:
 2. **joint refinement**: the best candidate is added and all PK terms, the
    overall scale of the base kernel and the noise level are tuned together
    on a diagonal-plus-low-rank form of the data covariance, ``O(M P r)``
-   per evaluation for ``r`` terms; the term is kept when the log evidence
-   grew by more than :data:`SEARCH_THRESHOLD` nats and the term is
-   resonant (damping ratio below :data:`MAX_DAMPING`), otherwise the
-   search stops; it also stops after ``max_resonances`` terms;
-3. **tuning and pruning**: everything is tuned
-   (:func:`gpmultirate.tuning.maximize`); each term's evidence gain is the
-   tuned log evidence minus that of the model without it (scale and noise
-   refitted); while a term gains at most :data:`EVIDENCE_THRESHOLD` nats
-   or is not resonant, the weakest is removed and the rest tuned again;
-4. **slow-rate twins** (:func:`alias_twins`): a term at ``k / F +- f`` of a
-   stronger one at ``f`` on the same input shows at the same slow-rate
-   frequency; the slow samples cannot tell them apart, and it is dropped;
-   so is a nearly undamped term whose folded frequency is near DC
-   (:func:`persistent_aliases`: within :data:`PERSISTENT_CYCLES` cycles
-   over the record of ``k / F``): in the slow samples it is a slowly
-   wandering signal on which a slow disturbance regresses, in held-out
-   blocks too;
+   per evaluation for ``r`` terms, on the base kernel's tuned shape; the
+   term is kept when the log evidence grew by more than
+   :data:`SEARCH_THRESHOLD` nats and the term is resonant (damping ratio
+   below :data:`MAX_DAMPING`), otherwise the search stops; it also stops
+   after ``max_resonances`` terms.  The terms keep these values: the
+   base kernel's shape is not tuned again with them (that tuning cost as
+   much as the rest of the search, moved the fit by hundredths of a point
+   and left bands at a point that is not the evidence's optimum of the
+   terms);
+3. **pruning by evidence**: each term's evidence gain is the log evidence
+   minus that of the model without it, **the other terms**, the scale and
+   the noise re-tuned: a term whose work another term can take over
+   (a slow-rate twin the input does not separate from its mode) gains
+   little, a mode the input separates from its twin keeps its gain; while
+   a term gains at most :data:`EVIDENCE_THRESHOLD` nats or is not
+   resonant, the weakest is removed and the rest re-tuned;
+4. **persistent images** (:func:`persistent_aliases`): a nearly undamped
+   term whose folded frequency is near DC (within
+   :data:`PERSISTENT_CYCLES` cycles over the record of ``k / F``) is
+   dropped: in the slow samples it is a slowly wandering signal on which a
+   slow disturbance regresses, in held-out blocks too;
 5. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
    model, and on measured data a term can raise it by fitting a
    disturbance that does not repeat.  The slow samples are cut into
    contiguous blocks over time (as for ``tuning="cross_validation"``) and
    each block is predicted from the others
-   (:func:`~gpmultirate.crossvalidation.held_out_predictions`); a term is
-   kept only when it improves the held-out fit by more than
-   :data:`HELD_OUT_GAIN` points, both of the outputs and of the outputs
-   whitened by an AR model of the base kernel's held-out residuals, and
-   the found terms together must beat the tuned base kernel by that much,
-   or the search returns the tuned base kernel.  The whitened fit is the
+   (:func:`~gpmultirate.crossvalidation.held_out_predictions`).  The check
+   judges **sets** of terms: a term is removed only when the others,
+   re-tuned without it (as in step 3), predict the held-out samples as
+   well (within :data:`HELD_OUT_GAIN` points, or a twentieth of the base
+   kernel's held-out error where that is less), both the outputs and the
+   outputs whitened by an AR model of the base kernel's held-out
+   residuals; the terms left together must beat the tuned base kernel by
+   as much, or the search returns the tuned base kernel.  A survivor is
+   never judged with the values it had beside a partner that is gone (the
+   failure of a rule by frequencies: it dropped one of a mode and its
+   slow-rate alias, and the held-out check then dropped the survivor, which
+   alone predicts worse than no term).  The whitened fit is the
    one that matters against slow disturbances (drift, level steps): a
    slow, nearly undamped term turns the input's history into a slowly
    wandering signal that follows such a disturbance within the record,
    even in held-out blocks (a spurious regression of one persistent
    signal on another), but not its changes from one sample to the next,
    nor on a new record;
-6. **under the disturbance** (:func:`resonances_under_disturbance`): the
+6. **the frequencies' spread**: the kept terms get ``omega_std`` and
+   ``rate_std`` (:class:`~gpmultirate.kernels.PK`), the standard
+   deviations of their frequency and decay rate in the Laplace
+   approximation of the evidence at the tuned values
+   (:meth:`_ResonantModel.term_spreads`): without them a PK term of rank
+   two knows the phase of its response at every lag, and a tuned
+   frequency off by a fraction of a percent leaves the truth outside the
+   95 % band at long lags;
+7. **under the disturbance** (:func:`resonances_under_disturbance`): the
    search works with white noise; where the fit then chooses a coloured
    disturbance (``noise_kernel``), each term is judged again with it, by
    its evidence gain and the held-out check, for a term may have done
    what the disturbance now does.
+
+Failure modes: a mode whose slow-rate alias falls on another mode and that
+the input does not separate from it (no power at one of the two
+frequencies, or the same content at both) is represented by one term, the
+better-supported of the two, whose frequency may be the alias: the slow
+samples predict as well, the response between them is wrong at the
+other frequency; the data cannot say more.  The spread is first order in
+the frequency: at a high signal-to-noise ratio with a frequency the data
+resolve poorly, the band is still too narrow (a Monte Carlo of
+``tests/test_resonances.py`` measures it).  The held-out check does not
+run beyond :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples;
+there the evidence alone decides.
 
 The threshold is an approximate Bayes factor: a PK term brings four
 hyperparameters and its frequency is chosen among a few hundred
@@ -68,11 +98,12 @@ away.
 
 Cost: one tuning of the base kernel; per found resonance one scan
 (``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
-refinement; the last, unsuccessful scan and refinement; one tuning of the
-final kernel; the held-out check, one ``M x M`` factorization per
-kernel compared (skipped beyond
-:data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples).  Without
-resonances, one tuning of the base kernel, a scan and a refinement.
+refinement; the last, unsuccessful scan and refinement; one re-tuning per
+subset of terms judged (``O(M P r)`` per evaluation); the held-out check,
+one ``M x M`` factorization per kernel compared (skipped beyond
+:data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
+spreads, ``2 (2 + 4 r)`` gradient evaluations.  Without resonances, one
+tuning of the base kernel (the default fit), a scan and a refinement.
 """
 
 from __future__ import annotations
@@ -203,7 +234,8 @@ class ResonanceSearch:
     noise_level : float
         The tuned noise variance.
     optimizer_result : scipy.optimize.OptimizeResult or None
-        The optimizer run of the kept kernel (None when nothing is free).
+        The optimizer run of the base kernel (None when nothing is free);
+        the terms are tuned by the search's joint refinement.
     resonances : list of Resonance
         The resonances in the order they were found, with their tuned
         frequencies and damping ratios.
@@ -211,9 +243,9 @@ class ResonanceSearch:
         The log evidence of the kept kernel.
     history : list of float
         The log evidence of the tuned base kernel, after each term the
-        search added (before the final tuning) and, when a term was added,
-        of the tuned final kernel (and of the kernel the held-out check
-        kept, when it dropped some terms but not all) and, last, of the kernel
+        search added and, when a term was added, of the kernel the
+        pruning kept (and of the kernel the held-out check kept, when it
+        dropped some terms but not all) and, last, of the kernel
         whose terms carry the spread of their frequency and decay.
     held_out : dict or None
         The held-out check (:func:`held_out_resonances`) when it ran:
@@ -450,10 +482,11 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
     kernel; repeatedly scan one more PK term over the whole band on every
     input, refine it jointly with the terms found so far, and keep it when
     the log evidence grows by more than :data:`SEARCH_THRESHOLD` nats and
-    it is resonant; then tune everything, prune the terms whose
-    evidence gain is at most :data:`EVIDENCE_THRESHOLD` nats, and keep only
-    the terms that improve the fit of held-out slow samples
-    (:func:`held_out_resonances`).  With several
+    it is resonant; then prune the terms whose evidence gain against the
+    others re-tuned without them is at most :data:`EVIDENCE_THRESHOLD`
+    nats, keep only the set of terms that improves the fit of held-out slow
+    samples (:func:`held_out_resonances`), and give the kept terms the
+    spread of their frequency and decay.  With several
     inputs the terms go into the input kernels of the
     :class:`~gpmultirate.kernels.PerInputKernel`, each to the input whose
     scan gains most.
@@ -605,13 +638,14 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
 def alias_twins(terms, gains, factor: int, n_slow: int) -> list[int]:
     """The terms that are slow-rate aliases of a stronger term on the same input.
 
-    Sampled every ``factor`` fast samples, a resonance at ``f`` cycles per
-    fast sample and one at ``k / factor +- f`` show at the same slow-rate
-    frequency: the slow samples cannot tell them apart, so a held-out check
-    on slow samples cannot show that the second one earns its place (on the
-    measured robot arm at ``factor=3``, a twin at 0.206 of the mode at
-    0.127 kept by the evidence lowered the validation fit and left 0.75 of
-    the validation samples inside the 95 % band).  Two terms are twins when
+    A diagnostic, not a decision: the search no longer drops a term by its
+    frequency (the module docstring, steps 3 and 5).  Sampled every
+    ``factor`` fast samples, a resonance at ``f`` cycles per fast sample
+    and one at ``k / factor +- f`` show at the same slow-rate frequency;
+    only the fast input can tell them apart, and where it does both are
+    modes (a rule that dropped the weaker one lost a true mode on random
+    two-mass systems whose upper alias falls on the lower mode).  Two
+    terms are twins when
     their folded slow-rate frequencies differ by less than the narrower of
     their half-power bandwidths (``2 zeta f``), or than the record's
     frequency resolution ``1 / (factor * n_slow)`` where that is wider
@@ -740,11 +774,14 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
     on the outputs and predictions filtered by ``A(q)``, the AR model
     (order :data:`PREWHITENING_ORDER`, least squares, per record) of the
     held-out residuals of ``base_kernel``, which whitens them.  A term's
-    gain is the smaller of its two gains.  Backward elimination: while
-    removing some term (the others unchanged) costs at most ``margin``
-    points, the term whose removal costs least is dropped.  The terms left
-    must gain more than ``margin`` points over ``base_kernel`` (the tuned
-    kernel without terms), or none is kept.
+    gain is the smaller of its two gains, each in units of the gain
+    needed: ``margin`` points, or a twentieth of the base kernel's held-out
+    error (``100`` minus its fit) where that is less.  Backward elimination
+    over sets: while removing some term, the others as ``refit`` gives them
+    without it, costs at most the gain needed, the term whose removal
+    costs least is dropped.  The set left must gain more than that over
+    ``base_kernel`` (the tuned kernel without terms), or none is kept; it
+    is not cut into a lone survivor that predicts worse than the set.
 
     Parameters
     ----------
@@ -762,7 +799,12 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         Its noise variance.
     n_folds : int, default=5
     margin : float, default=HELD_OUT_GAIN
-        Points of fit percent a term must add.
+        Points of fit percent a term must add (at most; see above).
+    refit : callable, optional
+        ``refit(indices) -> (kernel, noise_level)``: the model with only
+        the terms ``indices`` (the search passes the terms re-tuned
+        without the others); default ``kernel`` with the other terms
+        removed, every hyperparameter held.
 
     Returns
     -------
@@ -770,9 +812,8 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         None where the check does not run (more than
         :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples, fewer
         samples than folds, a constant output).  Otherwise ``"kept_terms"``
-        (the indices of the terms kept, in order), ``"kernel"`` (``kernel``
-        with only those terms, its hyperparameters unchanged; ``base_kernel``
-        when none is kept), ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in
+        (the indices of the terms kept, in order), ``"kernel"`` (the model
+        of those terms by ``refit``; ``base_kernel`` when none is kept), ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in
         percent of the whitened outputs, of ``base_kernel``, ``kernel`` and
         the kept kernel), ``"raw_base"``, ``"raw_found"`` and ``"raw_kept"``
         (the same of the outputs) and ``"dropped"`` (the number of terms
