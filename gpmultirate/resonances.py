@@ -62,8 +62,8 @@ terms one at a time, greedily:
 6. **the frequencies' spread**: the kept terms get ``omega_std`` and
    ``rate_std`` (:class:`~gpmultirate.kernels.PK`), the standard
    deviations of their frequency and decay rate in the Laplace
-   approximation of the evidence at the tuned values
-   (:meth:`_ResonantModel.term_spreads`): without them a PK term of rank
+   approximation of the evidence at the tuned values (its Hessian by
+   central differences of the analytic gradient): without them a PK term of rank
    two knows the phase of its response at every lag, and a tuned
    frequency off by a fraction of a percent leaves the truth outside the
    95 % band at long lags;
@@ -1046,7 +1046,7 @@ def _with_spreads(kernel, terms, spreads):
     """``kernel`` with each PK term of ``terms`` given its ``(omega_std, rate_std)``.
 
     The spreads are the Laplace approximation of the evidence at the tuned
-    values (:meth:`_ResonantModel.term_spreads`); the terms get them as
+    values (``_ResonantModel.term_spreads``); the terms get them as
     ``omega_std`` and ``rate_std`` (:class:`~gpmultirate.kernels.PK`), so
     the posterior bands carry the frequency the data leave uncertain.
     Returns the kernel and its terms.
