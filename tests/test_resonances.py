@@ -766,3 +766,15 @@ def test_band_of_a_pk_term_with_its_frequency_spread_covers_by_monte_carlo():
     exact = band_coverage(PK(alpha=alpha, omega=omega0), draws)
     assert 0.9 <= spread <= 0.99, spread  # measured 0.93
     assert exact < 0.6, exact  # measured 0.40
+
+
+def test_excitation_on_the_scan_grid_is_the_dense_excitation():
+    from gpmultirate.resonances import _excitation_on_grid, excitation
+
+    rng = np.random.default_rng(3)
+    Phi = gm.DownsampledConvolution(rng.standard_normal(400), factor=3, order=90).matrix
+    n_fft = 256
+    index = np.arange(1, n_fft + 1)
+    index = index[index * 90 >= 4 * n_fft]
+    np.testing.assert_allclose(_excitation_on_grid(Phi, n_fft, index),
+                               excitation(Phi, np.pi * index / n_fft), rtol=1e-9, atol=1e-12)
