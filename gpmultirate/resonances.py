@@ -833,8 +833,9 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples, fewer
         samples than folds, a constant output).  Otherwise ``"kept_terms"``
         (the indices of the terms kept, in order), ``"kernel"`` (the model
-        of those terms by ``refit``; ``base_kernel`` when none is kept), ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in
-        percent of the whitened outputs, of ``base_kernel``, ``kernel`` and
+        of those terms by ``refit``; ``base_kernel`` when none is kept),
+        ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in percent of
+        the whitened outputs, of ``base_kernel``, ``kernel`` and
         the kept kernel), ``"raw_base"``, ``"raw_found"`` and ``"raw_kept"``
         (the same of the outputs) and ``"dropped"`` (the number of terms
         dropped).
