@@ -91,10 +91,10 @@ candidates.  Without a resonance the best gain over the grid is the largest
 of many ``chi^2_2 / 2`` draws, about ``log(n_candidates) ~ 7`` nats; 12
 nats is an evidence ratio of ``e^12 ~ 1.6e5``, which also pays a BIC-like
 Occam penalty ``2 log M`` for the four hyperparameters up to ``M ~ 400``
-slow samples.  The search stage, where the base kernel's shape is still
-the one tuned without resonances, asks for twice as much: there, terms that
-only make up for that shape gain 15-18 nats, which the full tuning takes
-away.
+slow samples.  The search stage asks a new term for twice as much: on the
+base kernel's shape tuned without resonances, terms that only make up for
+that shape gained 15-18 nats when it was tuned again with them; the
+pruning, against the other terms re-tuned, asks for the 12 nats.
 
 Cost: one tuning of the base kernel; per found resonance one scan
 (``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
