@@ -15,45 +15,75 @@ terms one at a time, greedily:
 2. **joint refinement**: the best candidate is added and all PK terms, the
    overall scale of the base kernel and the noise level are tuned together
    on a diagonal-plus-low-rank form of the data covariance, ``O(M P r)``
-   per evaluation for ``r`` terms; the term is kept when the log evidence
-   grew by more than :data:`SEARCH_THRESHOLD` nats and the term is
-   resonant (damping ratio below :data:`MAX_DAMPING`), otherwise the
-   search stops; it also stops after ``max_resonances`` terms;
-3. **tuning and pruning**: everything is tuned
-   (:func:`gpmultirate.tuning.maximize`); each term's evidence gain is the
-   tuned log evidence minus that of the model without it (scale and noise
-   refitted); while a term gains at most :data:`EVIDENCE_THRESHOLD` nats
-   or is not resonant, the weakest is removed and the rest tuned again;
-4. **slow-rate twins** (:func:`alias_twins`): a term at ``k / F +- f`` of a
-   stronger one at ``f`` on the same input shows at the same slow-rate
-   frequency; the slow samples cannot tell them apart, and it is dropped;
-   so is a nearly undamped term whose folded frequency is near DC
-   (:func:`persistent_aliases`: within :data:`PERSISTENT_CYCLES` cycles
-   over the record of ``k / F``): in the slow samples it is a slowly
-   wandering signal on which a slow disturbance regresses, in held-out
-   blocks too;
+   per evaluation for ``r`` terms, on the base kernel's tuned shape; the
+   term is kept when the log evidence grew by more than
+   :data:`SEARCH_THRESHOLD` nats and the term is resonant (damping ratio
+   below :data:`MAX_DAMPING`), otherwise the search stops; it also stops
+   after ``max_resonances`` terms.  The terms keep these values: the
+   base kernel's shape is not tuned again with them (that tuning cost as
+   much as the rest of the search, moved the fit by hundredths of a point
+   and left bands at a point that is not the evidence's optimum of the
+   terms);
+3. **pruning by evidence**: each term's evidence gain is the log evidence
+   minus that of the model without it, **the other terms**, the scale and
+   the noise re-tuned: a term whose work another term can take over
+   (a slow-rate twin the input does not separate from its mode) gains
+   little, a mode the input separates from its twin keeps its gain; while
+   a term gains at most :data:`EVIDENCE_THRESHOLD` nats or is not
+   resonant, the weakest is removed and the rest re-tuned;
+4. **persistent images** (:func:`persistent_aliases`): a nearly undamped
+   term whose folded frequency is near DC (within
+   :data:`PERSISTENT_CYCLES` cycles over the record of ``k / F``) is
+   dropped: in the slow samples it is a slowly wandering signal on which a
+   slow disturbance regresses, in held-out blocks too;
 5. **held-out check** (:func:`held_out_resonances`): the evidence trusts the
    model, and on measured data a term can raise it by fitting a
    disturbance that does not repeat.  The slow samples are cut into
    contiguous blocks over time (as for ``tuning="cross_validation"``) and
    each block is predicted from the others
-   (:func:`~gpmultirate.crossvalidation.held_out_predictions`); a term is
-   kept only when it improves the held-out fit by more than
-   :data:`HELD_OUT_GAIN` points, both of the outputs and of the outputs
-   whitened by an AR model of the base kernel's held-out residuals, and
-   the found terms together must beat the tuned base kernel by that much,
-   or the search returns the tuned base kernel.  The whitened fit is the
+   (:func:`~gpmultirate.crossvalidation.held_out_predictions`).  The check
+   judges **sets** of terms: a term is removed only when the others,
+   re-tuned without it (as in step 3), predict the held-out samples as
+   well (within :data:`HELD_OUT_GAIN` points, or a twentieth of the base
+   kernel's held-out error where that is less), both the outputs and the
+   outputs whitened by an AR model of the base kernel's held-out
+   residuals; the terms left together must beat the tuned base kernel by
+   as much, or the search returns the tuned base kernel.  A survivor is
+   never judged with the values it had beside a partner that is gone (the
+   failure of a rule by frequencies: it dropped one of a mode and its
+   slow-rate alias, and the held-out check then dropped the survivor, which
+   alone predicts worse than no term).  The whitened fit is the
    one that matters against slow disturbances (drift, level steps): a
    slow, nearly undamped term turns the input's history into a slowly
    wandering signal that follows such a disturbance within the record,
    even in held-out blocks (a spurious regression of one persistent
    signal on another), but not its changes from one sample to the next,
    nor on a new record;
-6. **under the disturbance** (:func:`resonances_under_disturbance`): the
+6. **the frequencies' spread**: the kept terms get ``omega_std`` and
+   ``rate_std`` (:class:`~gpmultirate.kernels.PK`), the standard
+   deviations of their frequency and decay rate in the Laplace
+   approximation of the evidence at the tuned values (its Hessian by
+   central differences of the analytic gradient): without them a PK term of rank
+   two knows the phase of its response at every lag, and a tuned
+   frequency off by a fraction of a percent leaves the truth outside the
+   95 % band at long lags;
+7. **under the disturbance** (:func:`resonances_under_disturbance`): the
    search works with white noise; where the fit then chooses a coloured
    disturbance (``noise_kernel``), each term is judged again with it, by
    its evidence gain and the held-out check, for a term may have done
    what the disturbance now does.
+
+Failure modes: a mode whose slow-rate alias falls on another mode and that
+the input does not separate from it (no power at one of the two
+frequencies, or the same content at both) is represented by one term, the
+better-supported of the two, whose frequency may be the alias: the slow
+samples predict as well, the response between them is wrong at the
+other frequency; the data cannot say more.  The spread is first order in
+the frequency: at a high signal-to-noise ratio with a frequency the data
+resolve poorly, the band is still too narrow (a Monte Carlo of
+``tests/test_resonances.py`` measures it).  The held-out check does not
+run beyond :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples;
+there the evidence alone decides.
 
 The threshold is an approximate Bayes factor: a PK term brings four
 hyperparameters and its frequency is chosen among a few hundred
@@ -61,18 +91,19 @@ candidates.  Without a resonance the best gain over the grid is the largest
 of many ``chi^2_2 / 2`` draws, about ``log(n_candidates) ~ 7`` nats; 12
 nats is an evidence ratio of ``e^12 ~ 1.6e5``, which also pays a BIC-like
 Occam penalty ``2 log M`` for the four hyperparameters up to ``M ~ 400``
-slow samples.  The search stage, where the base kernel's shape is still
-the one tuned without resonances, asks for twice as much: there, terms that
-only make up for that shape gain 15-18 nats, which the full tuning takes
-away.
+slow samples.  The search stage asks a new term for twice as much: on the
+base kernel's shape tuned without resonances, terms that only make up for
+that shape gained 15-18 nats when it was tuned again with them; the
+pruning, against the other terms re-tuned, asks for the 12 nats.
 
 Cost: one tuning of the base kernel; per found resonance one scan
 (``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
-refinement; the last, unsuccessful scan and refinement; one tuning of the
-final kernel; the held-out check, one ``M x M`` factorization per
-kernel compared (skipped beyond
-:data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples).  Without
-resonances, one tuning of the base kernel, a scan and a refinement.
+refinement; the last, unsuccessful scan and refinement; one re-tuning per
+subset of terms judged (``O(M P r)`` per evaluation); the held-out check,
+one ``M x M`` factorization per kernel compared (skipped beyond
+:data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
+spreads, ``2 (2 + 4 r)`` gradient evaluations.  Without resonances, one
+tuning of the base kernel (the default fit), a scan and a refinement.
 """
 
 from __future__ import annotations
@@ -114,7 +145,7 @@ from gpmultirate.orders import MAX_CHECKED_SAMPLES
 from gpmultirate.validation import check_positive
 
 __all__ = [
-    "EVIDENCE_THRESHOLD", "FINAL_EVALUATIONS", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
+    "EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
     "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
@@ -130,9 +161,6 @@ EVIDENCE_THRESHOLD = 12.0
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
-#: the evaluations the tuning of the kernel with its terms may spend (where it runs
-#: L-BFGS-B: more than 1,000 reduced slow samples); it starts from the joint refinement
-FINAL_EVALUATIONS = 40
 #: held-out fit (points of fit percent) a term must add to be kept
 HELD_OUT_GAIN = 0.1
 #: the order of the AR model of the base kernel's held-out residuals that whitens
@@ -206,7 +234,8 @@ class ResonanceSearch:
     noise_level : float
         The tuned noise variance.
     optimizer_result : scipy.optimize.OptimizeResult or None
-        The optimizer run of the kept kernel (None when nothing is free).
+        The optimizer run of the base kernel (None when nothing is free);
+        the terms are tuned by the search's joint refinement.
     resonances : list of Resonance
         The resonances in the order they were found, with their tuned
         frequencies and damping ratios.
@@ -214,9 +243,10 @@ class ResonanceSearch:
         The log evidence of the kept kernel.
     history : list of float
         The log evidence of the tuned base kernel, after each term the
-        search added (before the final tuning) and, when a term was added,
-        of the tuned final kernel (and of the kernel the held-out check
-        kept, when it dropped some terms but not all).
+        search added and, when a term was added, of the kernel the
+        pruning kept (and of the kernel the held-out check kept, when it
+        dropped some terms but not all) and, last, of the kernel
+        whose terms carry the spread of their frequency and decay.
     held_out : dict or None
         The held-out check (:func:`held_out_resonances`) when it ran:
         ``"base"`` and ``"found"``, the held-out fit in percent (of the
@@ -387,7 +417,8 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         sigma[a] = np.sqrt(s2[best])
     # where the input has (almost) no power the data cannot locate a resonance:
     # a large amplitude there only fits noise, and the response beyond the record
-    gain[:, excitation(Phi, omegas) < MIN_EXCITATION] = 0.0
+    seen = excitation(Phi, omegas) if n_fft is None else _excitation_on_grid(Phi, n_fft, index)
+    gain[:, seen < MIN_EXCITATION] = 0.0
     return gain, sigma, omegas, alphas
 
 
@@ -435,10 +466,29 @@ def excitation(Phi: np.ndarray, omegas) -> np.ndarray:
     P = Phi.shape[1]
     lags = np.arange(P, dtype=float)
     # a Hann taper over the lags keeps the leakage of strong bands low (below 1e-4)
-    taper = (0.5 - 0.5 * np.cos(2.0 * np.pi * (lags + 0.5) / P))[:, None]
+    taper = _hann_over_lags(P)[:, None]
     phase = np.outer(lags, omegas)
     seen = (np.sum((Phi @ (taper * np.cos(phase))) ** 2, axis=0)
             + np.sum((Phi @ (taper * np.sin(phase))) ** 2, axis=0))
+    mean = float(np.mean(seen))
+    return seen / mean if mean > 0 else np.zeros_like(seen)
+
+
+def _hann_over_lags(P: int) -> np.ndarray:
+    """The Hann taper of :func:`excitation` over ``P`` lags."""
+    return 0.5 - 0.5 * np.cos(2.0 * np.pi * (np.arange(P) + 0.5) / P)
+
+
+def _excitation_on_grid(Phi: np.ndarray, n_fft: int, index: np.ndarray) -> np.ndarray:
+    """:func:`excitation` at the frequencies ``pi * index / n_fft``: one real FFT per row.
+
+    ``sum_t x_t cos(omega t)`` and ``sum_t x_t sin(omega t)`` of the tapered
+    rows ``x`` are the real part and minus the imaginary part of their
+    transform of length ``2 n_fft`` at bin ``index``; ``O(M P log P)``
+    instead of ``O(M P n_omegas)``.
+    """
+    spectrum = np.fft.rfft(Phi * _hann_over_lags(Phi.shape[1]), n=2 * n_fft, axis=1)[:, index]
+    seen = np.sum(spectrum.real**2 + spectrum.imag**2, axis=0)
     mean = float(np.mean(seen))
     return seen / mean if mean > 0 else np.zeros_like(seen)
 
@@ -452,10 +502,11 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
     kernel; repeatedly scan one more PK term over the whole band on every
     input, refine it jointly with the terms found so far, and keep it when
     the log evidence grows by more than :data:`SEARCH_THRESHOLD` nats and
-    it is resonant; then tune everything, prune the terms whose
-    evidence gain is at most :data:`EVIDENCE_THRESHOLD` nats, and keep only
-    the terms that improve the fit of held-out slow samples
-    (:func:`held_out_resonances`).  With several
+    it is resonant; then prune the terms whose evidence gain against the
+    others re-tuned without them is at most :data:`EVIDENCE_THRESHOLD`
+    nats, keep only the set of terms that improves the fit of held-out slow
+    samples (:func:`held_out_resonances`), and give the kept terms the
+    spread of their frequency and decay.  With several
     inputs the terms go into the input kernels of the
     :class:`~gpmultirate.kernels.PerInputKernel`, each to the input whose
     scan gains most.
@@ -552,37 +603,41 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                   float(omega) / (2.0 * np.pi * sample_time), k, gain)
     gains, check = [], None
     if model.terms:
-        kernel, noise, result, value, gains = _tune_and_prune(
-            evidence, model.kernel(), model.noise_level, [k for k, _ in model.terms],
-            random_state,
-        )
-        found = _terms_of(kernel, [g.input for g in gains])
-        twins = set(alias_twins(found, [g.value for g in gains], observation.slow_factor,
-                                y.shape[0]))
-        twins |= set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
-        if twins:
-            _LOG.info("resonance search: %d term(s) dropped, slow-rate aliases of stronger ones",
-                      len(twins))
-            kept = [r for r in range(len(gains)) if r not in twins]
+        kernel, noise, value, gains, retuned = _prune(evidence, model)
+        found = _terms_of(kernel, [g.input for g in gains]) if gains else []
+        persistent = set(persistent_aliases(found, observation.slow_factor, y.shape[0]))
+        if persistent:
+            _LOG.info("resonance search: %d term(s) dropped, persistent slow-rate images",
+                      len(persistent))
+            kept = [r for r in range(len(gains)) if r not in persistent]
             gains = [gains[r] for r in kept]
             if gains:
-                kernel, noise, value = _refitted(
-                    evidence, _assembled(kernel, [found[r] for r in kept]), noise)
+                kernel, noise, value = retuned(kept)
+        else:
+            kept = list(range(len(gains)))
+        final = kept
         if gains:
-            check = held_out_resonances(observation, y, kernel, noise, [g.input for g in gains],
-                                        base, model_noise0, n_folds)
+            check = held_out_resonances(
+                observation, y, kernel, noise, [g.input for g in gains], base, model_noise0,
+                n_folds, refit=lambda subset: retuned([kept[i] for i in subset])[:2])
             if check is not None and len(check["kept_terms"]) < len(gains):
                 _LOG.info("resonance search: %d term(s) dropped, they do not improve the fit of "
                           "held-out slow samples (%.2f %% with them, %.2f %% without)",
                           check["dropped"], check["found"], check["kept"])
                 gains = [gains[r] for r in check["kept_terms"]]
+                final = [kept[i] for i in check["kept_terms"]]
                 if gains:
                     history.append(value)
-                    kernel, noise, value = _refitted(evidence, check["kernel"], noise)
+                    kernel, noise, value = retuned(final)
         if not gains:  # every term pruned: the tuned base kernel
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
+    if terms:  # the prior carries what the data leave uncertain of each frequency and decay
+        kernel, terms = _with_spreads(kernel, terms, retuned.model(final).term_spreads())
+        moved = evidence.moved_to(kernel, noise)
+        value = float(moved(moved.theta))
+        history.append(value)
     return ResonanceSearch(
         kernel=kernel, noise_level=noise, optimizer_result=result,
         resonances=[
@@ -603,13 +658,14 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
 def alias_twins(terms, gains, factor: int, n_slow: int) -> list[int]:
     """The terms that are slow-rate aliases of a stronger term on the same input.
 
-    Sampled every ``factor`` fast samples, a resonance at ``f`` cycles per
-    fast sample and one at ``k / factor +- f`` show at the same slow-rate
-    frequency: the slow samples cannot tell them apart, so a held-out check
-    on slow samples cannot show that the second one earns its place (on the
-    measured robot arm at ``factor=3``, a twin at 0.206 of the mode at
-    0.127 kept by the evidence lowered the validation fit and left 0.75 of
-    the validation samples inside the 95 % band).  Two terms are twins when
+    A diagnostic, not a decision: the search no longer drops a term by its
+    frequency (the module docstring, steps 3 and 5).  Sampled every
+    ``factor`` fast samples, a resonance at ``f`` cycles per fast sample
+    and one at ``k / factor +- f`` show at the same slow-rate frequency;
+    only the fast input can tell them apart, and where it does both are
+    modes (a rule that dropped the weaker one lost a true mode on random
+    two-mass systems whose upper alias falls on the lower mode).  Two
+    terms are twins when
     their folded slow-rate frequencies differ by less than the narrower of
     their half-power bandwidths (``2 zeta f``), or than the record's
     frequency resolution ``1 / (factor * n_slow)`` where that is wider
@@ -726,7 +782,8 @@ def persistent_aliases(terms, factor: int, n_slow: int,
 
 
 def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base_kernel,
-                        base_noise: float, n_folds: int = 5, margin: float = HELD_OUT_GAIN):
+                        base_noise: float, n_folds: int = 5, margin: float = HELD_OUT_GAIN,
+                        refit=None):
     """Which PK terms of ``kernel`` improve the fit of held-out slow samples.
 
     The slow samples are cut into ``n_folds`` contiguous blocks per record
@@ -737,11 +794,14 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
     on the outputs and predictions filtered by ``A(q)``, the AR model
     (order :data:`PREWHITENING_ORDER`, least squares, per record) of the
     held-out residuals of ``base_kernel``, which whitens them.  A term's
-    gain is the smaller of its two gains.  Backward elimination: while
-    removing some term (the others unchanged) costs at most ``margin``
-    points, the term whose removal costs least is dropped.  The terms left
-    must gain more than ``margin`` points over ``base_kernel`` (the tuned
-    kernel without terms), or none is kept.
+    gain is the smaller of its two gains, each in units of the gain
+    needed: ``margin`` points, or a twentieth of the base kernel's held-out
+    error (``100`` minus its fit) where that is less.  Backward elimination
+    over sets: while removing some term, the others as ``refit`` gives them
+    without it, costs at most the gain needed, the term whose removal
+    costs least is dropped.  The set left must gain more than that over
+    ``base_kernel`` (the tuned kernel without terms), or none is kept; it
+    is not cut into a lone survivor that predicts worse than the set.
 
     Parameters
     ----------
@@ -759,7 +819,12 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         Its noise variance.
     n_folds : int, default=5
     margin : float, default=HELD_OUT_GAIN
-        Points of fit percent a term must add.
+        Points of fit percent a term must add (at most; see above).
+    refit : callable, optional
+        ``refit(indices) -> (kernel, noise_level)``: the model with only
+        the terms ``indices`` (the search passes the terms re-tuned
+        without the others); default ``kernel`` with the other terms
+        removed, every hyperparameter held.
 
     Returns
     -------
@@ -767,10 +832,10 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
         None where the check does not run (more than
         :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples, fewer
         samples than folds, a constant output).  Otherwise ``"kept_terms"``
-        (the indices of the terms kept, in order), ``"kernel"`` (``kernel``
-        with only those terms, its hyperparameters unchanged; ``base_kernel``
-        when none is kept), ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in
-        percent of the whitened outputs, of ``base_kernel``, ``kernel`` and
+        (the indices of the terms kept, in order), ``"kernel"`` (the model
+        of those terms by ``refit``; ``base_kernel`` when none is kept),
+        ``"base"``, ``"found"`` and ``"kept"`` (held-out fits in percent of
+        the whitened outputs, of ``base_kernel``, ``kernel`` and
         the kept kernel), ``"raw_base"``, ``"raw_found"`` and ``"raw_kept"``
         (the same of the outputs) and ``"dropped"`` (the number of terms
         dropped).
@@ -821,30 +886,37 @@ def held_out_resonances(observation, y, kernel, noise_level: float, inputs, base
             return -np.inf, -np.inf
         return fit_percent(white_y, whiten(mean)), fit_percent(y, mean)
 
-    def cost(with_term, without_term):
-        # what removing a term costs: the smaller of its two gains
-        return min(w - o for w, o in zip(with_term, without_term))
-
     terms = _terms_of(kernel, list(inputs))
+    if refit is None:
+        def refit(subset):
+            return _assembled(kernel, [terms[i] for i in subset]), noise_level
     kept = list(range(len(terms)))
     found = current = held_out_fits(kernel, noise_level)
-    while kept:
-        without = {r: held_out_fits(_assembled(kernel, [terms[i] for i in kept if i != r]),
-                                    noise_level)
-                   for r in kept}
+    base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
+    # near a perfect fit ``margin`` points may be more than the base kernel leaves to
+    # gain: there a gain counts from a twentieth of the base's held-out error
+    needed = [max(min(margin, 0.05 * (100.0 - b)), 1e-9) for b in base]
+
+    def cost(with_term, without_term):
+        # what removing a term costs: the smaller of its two gains, in units of `needed`
+        return min((w - o) / n for w, o, n in zip(with_term, without_term, needed))
+
+    while len(kept) > 1:
+        without = {r: held_out_fits(*refit([i for i in kept if i != r])) for r in kept}
         weakest = min(kept, key=lambda r: cost(current, without[r]))
-        if cost(current, without[weakest]) > margin:
+        if cost(current, without[weakest]) > 1.0:
             break
         kept.remove(weakest)
         current = without[weakest]
-    base = fit_percent(white_y, whiten(base_mean)), fit_percent(y, base_mean)
-    if kept and cost(current, base) <= margin:
+    # the set left must beat the kernel without terms; it is not cut further into
+    # a single survivor that predicts worse than the set
+    if kept and cost(current, base) <= 1.0:
         kept = []
     if not kept:
         current = base
     return {
         "kept_terms": kept,
-        "kernel": _assembled(kernel, [terms[i] for i in kept]) if kept else base_kernel,
+        "kernel": refit(kept)[0] if kept else base_kernel,
         "base": base[0],
         "found": found[0],
         "kept": current[0],
@@ -959,13 +1031,50 @@ def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
     return whiten
 
 
-def _refitted(evidence, kernel, noise):
-    """``kernel`` with its overall scale and the noise level re-fitted: kernel, noise, evidence."""
-    moved = evidence.moved_to(kernel, noise)
-    if moved.scale_positions() is None:
-        return kernel, noise, float(moved(moved.theta))
-    model = _ResonantModel(moved).optimized()
-    return model.kernel(), model.noise_level, model.value
+class _Retuned:
+    """Subsets of the found terms, each re-tuned: ``retuned(indices) -> (kernel, noise, value)``.
+
+    The kernel without its PK terms (its tuned shape) is decomposed once; a
+    subset's terms, the overall scale and the noise level are then tuned
+    jointly on the diagonal-plus-low-rank form (:class:`_ResonantModel`),
+    from the values the terms have in ``kernel``.  So a term's partner
+    takes over what the two did together when it can (a slow-rate twin
+    the input does not separate from its mode), and a subset is judged at
+    its best, not with the values it had beside the terms removed.
+    Results are kept per subset.
+    """
+
+    def __init__(self, evidence, kernel, noise, terms):
+        self._model = _ResonantModel(evidence.moved_to(_without_pk(kernel), noise))
+        self._terms = list(terms)
+        self._done = {}
+
+    def model(self, indices):
+        """The tuned :class:`_ResonantModel` of the terms ``indices``."""
+        key = tuple(sorted(indices))
+        if key not in self._done:
+            trial = self._model._copy()
+            trial.terms = [self._terms[i] for i in key]
+            self._done[key] = trial.optimized()
+        return self._done[key]
+
+    def __call__(self, indices):
+        model = self.model(indices)
+        return model.kernel(), model.noise_level, model.value
+
+
+def _with_spreads(kernel, terms, spreads):
+    """``kernel`` with each PK term of ``terms`` given its ``(omega_std, rate_std)``.
+
+    The spreads are the Laplace approximation of the evidence at the tuned
+    values (``_ResonantModel.term_spreads``); the terms get them as
+    ``omega_std`` and ``rate_std`` (:class:`~gpmultirate.kernels.PK`), so
+    the posterior bands carry the frequency the data leave uncertain.
+    Returns the kernel and its terms.
+    """
+    spread = [(k, clone(term).set_params(omega_std=w, rate_std=r))
+              for (k, term), (w, r) in zip(terms, spreads)]
+    return _assembled(kernel, spread), spread
 
 
 @dataclass
@@ -994,36 +1103,35 @@ def _assembled(kernel, terms):
     return like_inputs(kernels, kernel)
 
 
-def _tune_and_prune(evidence, kernel, noise, inputs, random_state):
-    """Tune everything; drop the weakest term while one is not worth keeping, and retune.
+def _prune(evidence, model):
+    """Drop the weakest term while one is not worth keeping; the others re-tuned each time.
 
-    A term is kept when the tuned log evidence exceeds that of the same
-    model without it (scale and noise re-fitted) by more than
-    :data:`EVIDENCE_THRESHOLD` nats, and it is resonant.  Returns the tuned
-    kernel, noise level, optimizer result, log evidence and the gains
-    (empty when no term is left).
+    ``model``: the search's :class:`_ResonantModel`, its terms, scale and
+    noise tuned jointly on the base kernel's tuned shape.  A term is kept
+    when the log evidence exceeds that of the model without it, the other
+    terms, the scale and the noise re-tuned (:class:`_Retuned`), by more
+    than :data:`EVIDENCE_THRESHOLD` nats, and it is resonant.  Returns the
+    kernel, noise level, log evidence, the gains (empty when no term is
+    left) and the :class:`_Retuned` of the kept terms (None without terms),
+    whose subsets the held-out check reuses.
     """
+    inputs = [k for k, _ in model.terms]
     while inputs:
-        kernel, noise, result, value = _tune(
-            evidence.moved_to(kernel, noise), kernel, noise, random_state, FINAL_EVALUATIONS
-        )
-        terms = _terms_of(kernel, inputs)
-        gains = []
-        for r in range(len(terms)):
-            rest = _ResonantModel(evidence.moved_to(
-                _assembled(kernel, terms[:r] + terms[r + 1:]), noise
-            )).optimized()
-            gains.append(value - rest.value)
+        kernel, noise, value = model.kernel(), model.noise_level, model.value
+        terms = list(model.terms)
+        retuned = _Retuned(evidence, kernel, noise, terms)
+        everything = range(len(terms))
+        gains = [value - retuned.model([i for i in everything if i != r]).value
+                 for r in everything]
         weak = [r for r, (_, term) in enumerate(terms)
                 if gains[r] <= EVIDENCE_THRESHOLD
                 or damping_ratio(term.alpha, term.omega) >= MAX_DAMPING]
         if not weak:
-            return kernel, noise, result, value, [_Gain(k, g) for k, g in zip(inputs, gains)]
+            return kernel, noise, value, [_Gain(k, g) for k, g in zip(inputs, gains)], retuned
         drop = min(weak, key=lambda r: gains[r])
-        del terms[drop]
+        model = retuned.model([i for i in everything if i != drop])
         inputs = inputs[:drop] + inputs[drop + 1:]
-        kernel = _assembled(kernel, terms)
-    return kernel, noise, None, None, []
+    return None, None, None, [], None
 
 
 class _ResonantModel:
@@ -1187,6 +1295,47 @@ class _ResonantModel:
         trial._unpack(x)
         trial.value = -objective(x)[0]
         return trial
+
+    def term_spreads(self, step: float = 1e-4):
+        """``[(omega_std, rate_std)]`` per term: the Laplace approximation at the current values.
+
+        The Hessian of the log evidence over every free coordinate (the
+        overall scale, the noise level where tuned, each term's log decay
+        rate, frequency and log amplitudes) by central differences of its
+        gradient; its negative inverse is the posterior covariance of the
+        coordinates, whose frequency and decay-rate entries give the
+        standard deviations (the rate's through its log).  A term at a
+        bound of its frequency or decay, or where the curvature is not
+        negative definite, gets the standard deviation of its coordinate
+        with the others held (``1 / sqrt(-H_ii)``), or none where that
+        curvature is not negative either.
+        """
+        x = self._pack()
+        bounds = self._bounds()
+        free = np.flatnonzero(bounds[:, 1] > bounds[:, 0])
+        hessian = np.empty((free.size, free.size))
+        for a, i in enumerate(free):
+            h = step * max(1.0, abs(x[i]))
+            up, down = x.copy(), x.copy()
+            up[i] += h
+            down[i] -= h
+            hessian[a] = (self._log_evidence(up, True)[1][free]
+                          - self._log_evidence(down, True)[1][free]) / (2.0 * h)
+        hessian = 0.5 * (hessian + hessian.T)
+        try:
+            np.linalg.cholesky(-hessian)
+            variances = np.diag(np.linalg.inv(-hessian))
+        except np.linalg.LinAlgError:
+            curvature = -np.diag(hessian)
+            variances = np.where(curvature > 0, 1.0 / np.where(curvature > 0, curvature, 1.0),
+                                 0.0)
+        variance = dict(zip(free.tolist(), variances))
+        spreads = []
+        for r in range(len(self.terms)):
+            rate = np.exp(x[2 + 4 * r])
+            spreads.append((float(np.sqrt(max(variance.get(3 + 4 * r, 0.0), 0.0))),
+                            float(rate * np.sqrt(max(variance.get(2 + 4 * r, 0.0), 0.0)))))
+        return spreads
 
     def with_term(self, k, term):
         """A copy with ``term`` added to input ``k`` and everything re-tuned jointly.

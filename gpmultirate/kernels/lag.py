@@ -694,6 +694,23 @@ class PK(LagKernel):
     omega_bounds : pair of floats or "fixed", default=(1e-3, pi)
     sigma1_bounds, sigma2_bounds : pair of floats or "fixed", default=(1e-5, 1e5)
         Bounds for marginal-likelihood tuning.
+    omega_std : float, default=0.0
+        Standard deviation of the frequency (radians per fast sample) the
+        prior carries: a resonance known to within ``omega_std``.  Not a
+        hyperparameter (never tuned).  With ``omega_std`` or ``rate_std``
+        positive the kernel adds the first-order change of the response
+        with the frequency and the decay rate ``r = -log(alpha) / 2``,
+        ``t s alpha^((t+s)/2) (A cos(omega t) cos(omega s) + B sin(omega t) sin(omega s))``
+        with ``A = omega_std^2 sigma2^2 + rate_std^2 sigma1^2`` and
+        ``B = omega_std^2 sigma1^2 + rate_std^2 sigma2^2``: the covariance
+        of ``d g / d omega * d omega + d g / d r * d r`` for independent
+        zero-mean ``d omega``, ``d r`` of those standard deviations, and
+        rank four.  Without it a PK term knows the phase of its response at
+        every lag, and a frequency slightly off leaves the truth outside its
+        band at long lags.
+    rate_std : float, default=0.0
+        Standard deviation of the decay rate per fast sample (see
+        ``omega_std``).
 
     Examples
     --------
@@ -730,6 +747,8 @@ class PK(LagKernel):
         omega_bounds=(1e-3, np.pi),
         sigma1_bounds=(1e-5, 1e5),
         sigma2_bounds=(1e-5, 1e5),
+        omega_std: float = 0.0,
+        rate_std: float = 0.0,
     ):
         self.alpha = alpha
         self.omega = omega
@@ -739,6 +758,8 @@ class PK(LagKernel):
         self.omega_bounds = omega_bounds
         self.sigma1_bounds = sigma1_bounds
         self.sigma2_bounds = sigma2_bounds
+        self.omega_std = omega_std
+        self.rate_std = rate_std
 
     @classmethod
     def from_hz(
@@ -818,13 +839,45 @@ class PK(LagKernel):
         values = self.checked_values()
         return damped_sinusoids(lags, values["omega"], values["alpha"] ** (lags / 2.0))
 
+    def spread(self) -> tuple[float, float]:
+        """``(omega_std, rate_std)`` checked: finite and non-negative.
+
+        Examples
+        --------
+        >>> PK(omega_std=0.01).spread()
+        (0.01, 0.0)
+        """
+        values = []
+        for name in ("omega_std", "rate_std"):
+            value = getattr(self, name)
+            if isinstance(value, (bool, str)) or not isinstance(value, numbers.Real):
+                raise ValueError(f"{name} must be a real number; got {value!r}")
+            value = float(value)
+            if not np.isfinite(value) or value < 0.0:
+                raise ValueError(f"{name} must be finite and non-negative; got {value!r}")
+            values.append(value)
+        return values[0], values[1]
+
+    def _spread_weights(self, values) -> tuple[float, float]:
+        """``(A, B)``, the variances of the spread's cosine and sine parts."""
+        w_std, r_std = self.spread()
+        var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
+        return w_std**2 * var2 + r_std**2 * var1, w_std**2 * var1 + r_std**2 * var2
+
     def lag_covariance(self, t, s, eval_gradient=False):
-        alpha, omega, sigma1, sigma2 = self.checked_values().values()
+        values = self.checked_values()
+        alpha, omega, sigma1, sigma2 = values.values()
         ct, st = self.basis(t)
         cs, ss = self.basis(s)
         cos_part = sigma1**2 * np.outer(ct, cs)
         sin_part = sigma2**2 * np.outer(st, ss)
         K = cos_part + sin_part
+        spread = any(self.spread())
+        if spread:  # the first-order change with the frequency and the decay
+            A, B = self._spread_weights(values)
+            w_std, r_std = self.spread()
+            cc, sn = np.outer(t * ct, s * cs), np.outer(t * st, s * ss)
+            K = K + A * cc + B * sn
         if not eval_gradient:
             return K
         mean_lag = np.add.outer(t, s) / 2.0
@@ -833,9 +886,18 @@ class PK(LagKernel):
             sigma1**2 * (-np.outer(t * st, cs) - np.outer(ct, s * ss))
             + sigma2**2 * (np.outer(t * ct, ss) + np.outer(st, s * cs))
         )
+        d_sigma1, d_sigma2 = 2.0 * cos_part, 2.0 * sin_part
+        if spread:
+            t2, s2 = t * t, s * s
+            d_omega = d_omega + omega * (
+                A * (-np.outer(t2 * st, s * cs) - np.outer(t * ct, s2 * ss))
+                + B * (np.outer(t2 * ct, s * ss) + np.outer(t * st, s2 * cs))
+            )
+            d_sigma1 = d_sigma1 + 2.0 * sigma1**2 * (r_std**2 * cc + w_std**2 * sn)
+            d_sigma2 = d_sigma2 + 2.0 * sigma2**2 * (w_std**2 * cc + r_std**2 * sn)
         return K, {
             "alpha": mean_lag * K, "omega": d_omega,
-            "sigma1": 2.0 * cos_part, "sigma2": 2.0 * sin_part,
+            "sigma1": d_sigma1, "sigma2": d_sigma2,
         }
 
     def observed(self, observation, path=""):
@@ -853,23 +915,77 @@ class PK(LagKernel):
             "sigma1": _single(0, 2.0 * var1),
             "sigma2": _single(1, 2.0 * var2),
         }
+        if any(self.spread()):
+            return self._observed_with_spread(observation, values, lags, c, s, path)
         weights = [candidates[h.name] for h in self.hyperparameters if not h.fixed]
         return LowRankTerm(
             self, observation, np.column_stack([c, s]), np.diag([var1, var2]),
             np.column_stack([lags * c, lags * s]), weights, path,
         )
 
+    def _observed_with_spread(self, observation, values, lags, c, s, path):
+        """Rank four: ``V = [c, s, t c, t s]``, ``D = diag(sigma1^2, sigma2^2, A, B)``.
+
+        The derivatives act on the extended basis ``[V, t c, t s, t^2 c, t^2 s]``
+        (columns 0-7): ``d/dlog(alpha)`` maps each column ``x -> (t/2) x``,
+        ``d/dlog(omega)`` maps ``c -> -omega t s``, ``s -> omega t c`` (and
+        ``t c``, ``t s`` likewise one power of ``t`` up).
+        """
+        var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
+        omega = values["omega"]
+        A, B = self._spread_weights(values)
+        w2, r2 = (x**2 for x in self.spread())
+
+        def pair(i, j, weight):
+            D = np.zeros((8, 8))
+            D[i, j] += weight
+            D[j, i] += weight
+            return D
+
+        def single(*entries):
+            D = np.zeros((8, 8))
+            for i, weight in entries:
+                D[i, i] += weight
+            return D
+
+        candidates = {
+            "alpha": (pair(0, 4, 0.5 * var1) + pair(1, 5, 0.5 * var2)
+                      + pair(2, 6, 0.5 * A) + pair(3, 7, 0.5 * B)),
+            "omega": (pair(0, 5, -omega * var1) + pair(1, 4, omega * var2)
+                      + pair(2, 7, -omega * A) + pair(3, 6, omega * B)),
+            "sigma1": single((0, 2.0 * var1), (2, 2.0 * r2 * var1), (3, 2.0 * w2 * var1)),
+            "sigma2": single((1, 2.0 * var2), (2, 2.0 * w2 * var2), (3, 2.0 * r2 * var2)),
+        }
+        weights = [candidates[h.name] for h in self.hyperparameters if not h.fixed]
+        tc, ts = lags * c, lags * s
+        return LowRankTerm(
+            self, observation, np.column_stack([c, s, tc, ts]), np.diag([var1, var2, A, B]),
+            np.column_stack([tc, ts, lags * tc, lags * ts]), weights, path,
+        )
+
     def observed_at_instants(self, observation, path=""):
         """Readings at their own instants by the rank-two basis at the real lags (one input)."""
-        if observation.n_inputs != 1:
+        if observation.n_inputs != 1 or any(self.spread()):
             return observation.dense_term(self, path)
         return PKTimedTerm(self, observation, path)
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
         values = self.checked_values()
-        c, s = self.basis(check_lags(X, "X"))
-        return values["sigma1"] ** 2 * c**2 + values["sigma2"] ** 2 * s**2
+        t = check_lags(X, "X")
+        c, s = self.basis(t)
+        out = values["sigma1"] ** 2 * c**2 + values["sigma2"] ** 2 * s**2
+        if any(self.spread()):
+            A, B = self._spread_weights(values)
+            out = out + t * t * (A * c**2 + B * s**2)
+        return out
+
+    def __repr__(self) -> str:
+        text = super().__repr__()
+        w_std, r_std = self.spread()
+        if w_std or r_std:
+            text = f"{text[:-1]}, omega_std={w_std:.3g}, rate_std={r_std:.3g})"
+        return text
 
 
 def _pair(i: int, j: int, weight: float) -> np.ndarray:
