@@ -46,6 +46,7 @@ __all__ = [
     "fit_checked_order",
     "fit_order",
     "order_too_short",
+    "pilot_lag",
     "raise_short_default_order",
 ]
 
@@ -155,6 +156,22 @@ def fit_order(data, settings, fit_at):
     return fitted, rule.table
 
 
+def pilot_lag(kernel, powers, noise_level: float, order: int) -> int:
+    """The lag a pilot fit at ``order`` reads its response's length from.
+
+    The larger of :func:`~gpmultirate.orders.prior_tail_lag` (the tuned
+    prior's tail against the tuned noise) and
+    :func:`~gpmultirate.orders.prior_envelope_lag` (the tuned decay alone),
+    both over twice the order: a prior cut by the order has not decayed,
+    nor has a decay tuned to the order's bound, however small the prior is
+    against the noise (a short pilot that sees little of a long response
+    leaves most of it to the noise estimate).
+    """
+    window = 2 * order
+    return max(orders.prior_tail_lag(kernel, powers, noise_level, window),
+               orders.prior_envelope_lag(kernel, len(powers), window))
+
+
 def default_order_rule(data, settings, fit_at):
     """The default order of a record longer than ``SHORT_RECORD``.
 
@@ -187,11 +204,8 @@ def default_order_rule(data, settings, fit_at):
         return fitted
 
     def tail_lag(fitted):
-        # over twice the order: a prior cut by the order has not decayed; a decay
-        # tuned to the order's bound has not either, however small against the noise
-        window = 2 * fitted.observation_.order
-        return max(orders.prior_tail_lag(fitted.kernel_, powers, fitted.noise_level_, window),
-                   orders.prior_envelope_lag(fitted.kernel_, len(powers), window))
+        return pilot_lag(fitted.kernel_, powers, fitted.noise_level_,
+                         fitted.observation_.order)
 
     # the pilots' evidence is comparable where every order uses the same slow samples
     evidence = (None if settings.initial_conditions == "discard"
