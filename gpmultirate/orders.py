@@ -411,8 +411,9 @@ def default_order(
     route is cheap).  The doubling also stops when the doubled order's
     ``evidence`` gains less than ``EVIDENCE_GAIN`` nats over the previous
     one (the data do not support the longer response the prior asks for,
-    and each doubling costs up to eight times the last fit); the fit of
-    the two with the higher evidence is kept.  The order is then ``L``
+    and each doubling costs up to eight times the last fit); the longer
+    order is kept with its fit, or the shorter one, fitted again, where
+    the longer one lost evidence.  The order is then ``L``
     (at least ``MIN_DEFAULT_ORDER``) when that is at most half the last
     order fitted or when it makes the fit a long-record one (more slow
     samples than coefficients, ``n_inputs * L < n_samples``) where the last
@@ -469,9 +470,10 @@ def default_order(
 
     tried, lags = [], []
     seconds = 0.0
-    previous = None  # (order, fit, evidence) of the last pilot
+    previous = None  # (order, evidence) of the last pilot; its fit is not held (memory)
     while True:
         start = time.perf_counter()
+        fit = None  # the last pilot's matrices are freed before the next is fitted
         fit = fit_at(order)
         seconds = time.perf_counter() - start
         lag = min(int(tail_lag(fit)), order)
@@ -480,16 +482,16 @@ def default_order(
         decayed = lag < order
         value = None if evidence is None else float(evidence(fit))
         if not decayed and previous is not None and value is not None and (
-                value < previous[2] + EVIDENCE_GAIN):
-            if value < previous[2]:  # the shorter order explains the data better
-                order, fit = previous[0], previous[1]
+                value < previous[1] + EVIDENCE_GAIN):
+            if value < previous[1]:  # the shorter order explains the data better: refit it
+                order, fit = previous[0], None
             if log is not None:
                 log(f"default order: fitted order {tried[-1]} in {seconds:.1f} s, the prior "
                     f"has not decayed by lag {tried[-1]} but the evidence gains "
-                    f"{value - previous[2]:.1f} nats over order {previous[0]}: order {order}")
+                    f"{value - previous[1]:.1f} nats over order {previous[0]}: order {order}")
             lag = order
             break
-        previous = (order, fit, value)
+        previous = (order, value)
         if log is not None:
             following = longer(order)
             # a doubled order cost 2-8 times as much in the benchmark: the time left, roughly

@@ -196,6 +196,7 @@ def default_order_rule(data, settings, fit_at):
     last = []
 
     def fit_pilot(order):
+        last.clear()  # the last pilot is not held while the next one is fitted
         with warnings.catch_warnings(record=True) as record:
             warnings.simplefilter("always")
             fitted = fit_at(data, order, pilot)
