@@ -81,9 +81,9 @@ def test_a_response_that_decays_is_cut_as_before_whatever_the_evidence():
     fitted, fit_at, tail_lag = _pilots(700, lambda order: 0.0)
     result = orders.default_order(fit_at, tail_lag, 10**5, 33333,
                                   evidence=lambda fit: fit.evidence)
-    # 512 is too short; at 1024 the prior has decayed: the evidence did not gain, and
-    # at 1024 the prior had decayed, so the doubling was not stopped by the evidence
-    assert fitted == [512, 1024] and result.order == 1024
+    # 512 is too short; at 1024 the prior has decayed: the rule stops there by the decay,
+    # and a flat evidence does not send it back to 512
+    assert fitted == [512, 1024] and result.order == 1024 and result.fit.order == 1024
 
 
 def test_a_default_order_called_short_is_raised_and_never_warned_about(monkeypatch):
