@@ -97,8 +97,9 @@ def raise_short_default_order(data, fitted, table, settings, fit_at):
     least :data:`~gpmultirate.orders.EVIDENCE_GAIN` nats (per used slow
     sample, times their number: ``"discard"`` uses fewer at longer
     orders); otherwise the shorter order stays, the data not supporting a
-    longer one, and the progress log says so.  Returns ``(fit, table)``,
-    the table's ``best_order`` the order kept.
+    longer one, and the progress log says so (the warnings of a refit not
+    kept are dropped).  Returns ``(fit, table)``, the table's
+    ``best_order`` the order kept.
     """
     while True:
         longer = order_too_short(fitted.observation_, fitted.y_slow_, fitted.posterior_,
@@ -108,7 +109,9 @@ def raise_short_default_order(data, fitted, table, settings, fit_at):
             return fitted, table
         order = fitted.observation_.order
         start = time.perf_counter()
-        refit = fit_at(data, longer, settings)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            refit = fit_at(data, longer, settings)
         n_used = fitted.y_slow_.shape[0]
         gain = (refit.log_marginal_likelihood_value_ / refit.y_slow_.shape[0]
                 - fitted.log_marginal_likelihood_value_ / n_used) * n_used
@@ -118,6 +121,8 @@ def raise_short_default_order(data, fitted, table, settings, fit_at):
                   time.perf_counter() - start, gain, kept)
         if kept == order:
             return fitted, table
+        for w in caught:  # only the kept fit's warnings concern the user
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         fitted = refit
         if table is not None:
             table = {**table, "best_order": int(longer)}
