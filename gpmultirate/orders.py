@@ -38,6 +38,7 @@ __all__ = [
     "default_order",
     "held_out_fits",
     "order_candidates",
+    "prior_envelope_lag",
     "prior_tail_lag",
     "select_order",
 ]
@@ -237,6 +238,14 @@ PILOT_ORDER = 512
 TAIL_TOLERANCE = 1e-2
 #: the shortest order the default rule chooses
 MIN_DEFAULT_ORDER = 10
+#: the prior's variance has decayed when it stays below ``exp(-ENVELOPE_DECAY)``
+#: of its peak: the default prior's slowest decay within an order ``P``
+#: (:func:`~gpmultirate.resonances.slowest_decay`) reaches ``exp(-4)`` at lag
+#: ``P``, so a prior tuned within 10 % of that bound reads as not decayed
+ENVELOPE_DECAY = 4.4
+#: log evidence (nats) a doubled pilot order must gain over the previous
+#: one for the doubling to go on when the prior has not decayed
+EVIDENCE_GAIN = 2.0
 
 
 def prior_tail_lag(kernel, input_power, noise_level: float, n_lags: int,
@@ -294,6 +303,63 @@ def prior_tail_lag(kernel, input_power, noise_level: float, n_lags: int,
     return lag
 
 
+def prior_envelope_lag(kernel, n_inputs: int, n_lags: int,
+                       decay: float = ENVELOPE_DECAY) -> int:
+    """The lag from which the prior's variance stays below ``exp(-decay)`` of its peak.
+
+    The smallest ``L`` such that, for every input, the prior variance
+    ``k(t, t)`` of every lag ``L <= t < n_lags`` is at most
+    ``exp(-decay)`` times its largest value over the window; ``n_lags``
+    when no such lag is within the window.  Where
+    :func:`prior_tail_lag` weighs the prior's tail against the noise (a
+    prior scaled down by a large noise estimate looks negligible early),
+    this reads the shape of the tuned decay alone: a prior tuned to the
+    slowest decay the order allows (the default prior's bound,
+    :func:`~gpmultirate.resonances.slowest_decay`, ``exp(-4)`` at lag
+    ``P``) reaches beyond the order, and an order chosen at least this
+    long lets the default prior at that order hold the decay the data
+    asked for.
+
+    Parameters
+    ----------
+    kernel : sklearn Kernel
+        One input, or a :class:`~gpmultirate.kernels.PerInputKernel`.
+    n_inputs : int
+    n_lags : int
+    decay : float, default=ENVELOPE_DECAY
+
+    Returns
+    -------
+    int in ``1..n_lags``
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate.kernels import DC
+    >>> # variance 0.99**t falls below exp(-4.4) from lag 438
+    >>> prior_envelope_lag(DC(alpha=0.99, beta=0.5), 1, 1000)
+    438
+    >>> # the default prior's slowest decay within 512 lags reaches beyond them
+    >>> prior_envelope_lag(DC(alpha=np.exp(-4 / 512), beta=0.5), 1, 1024) > 512
+    True
+    """
+    lags = np.arange(n_lags, dtype=float)
+    if n_inputs == 1:
+        variances = [kernel.diag(lags[:, None])]
+    else:
+        variances = [kernel.diag(np.column_stack([np.full(n_lags, float(k)), lags]))
+                     for k in range(n_inputs)]
+    lag = 1
+    for variance in variances:
+        variance = np.maximum(variance, 0.0)
+        peak = variance.max()
+        if peak == 0.0:
+            continue
+        above = np.flatnonzero(variance > np.exp(-decay) * peak)
+        lag = max(lag, int(above[-1]) + 1 if above.size else 1)
+    return min(lag, n_lags)
+
+
 @dataclass(frozen=True)
 class DefaultOrder:
     """The result of :func:`default_order`.
@@ -330,6 +396,7 @@ def default_order(
     n_samples: int,
     n_inputs: int = 1,
     log: Callable[[str], None] | None = None,
+    evidence: Callable[[object], float] | None = None,
 ) -> DefaultOrder:
     """The default FIR order of a record: from the tuned decay of the prior, doubling.
 
@@ -341,7 +408,12 @@ def default_order(
     double the order, at most ``longest``; a doubling that would cross the
     number of slow samples per input stops just below it first (there the
     fit reduces a long record to ``P x P``; at ``M`` close to ``P`` neither
-    route is cheap).  The order is then ``L``
+    route is cheap).  The doubling also stops when the doubled order's
+    ``evidence`` gains less than ``EVIDENCE_GAIN`` nats over the previous
+    one (the data do not support the longer response the prior asks for,
+    and each doubling costs up to eight times the last fit); the longer
+    order is kept with its fit, or the shorter one, fitted again, where
+    the longer one lost evidence.  The order is then ``L``
     (at least ``MIN_DEFAULT_ORDER``) when that is at most half the last
     order fitted or when it makes the fit a long-record one (more slow
     samples than coefficients, ``n_inputs * L < n_samples``) where the last
@@ -365,6 +437,10 @@ def default_order(
         the lag read, and the next order with an estimate of the time it
         takes (a fit's time grows about like ``P^2`` on a long record), and
         the chosen order with the time its fit takes when it is fitted again.
+    evidence : callable, optional
+        ``evidence(fit)``: that fit's log evidence, comparable between
+        orders (the same slow samples); None: the doubling goes on while
+        the prior has not decayed.
 
     Returns
     -------
@@ -394,14 +470,28 @@ def default_order(
 
     tried, lags = [], []
     seconds = 0.0
+    previous = None  # (order, evidence) of the last pilot; its fit is not held (memory)
     while True:
         start = time.perf_counter()
+        fit = None  # the last pilot's matrices are freed before the next is fitted
         fit = fit_at(order)
         seconds = time.perf_counter() - start
         lag = min(int(tail_lag(fit)), order)
         tried.append(order)
         lags.append(lag)
         decayed = lag < order
+        value = None if evidence is None else float(evidence(fit))
+        if not decayed and previous is not None and value is not None and (
+                value < previous[1] + EVIDENCE_GAIN):
+            if value < previous[1]:  # the shorter order explains the data better: refit it
+                order, fit = previous[0], None
+            if log is not None:
+                log(f"default order: fitted order {tried[-1]} in {seconds:.1f} s, the prior "
+                    f"has not decayed by lag {tried[-1]} but the evidence gains "
+                    f"{value - previous[1]:.1f} nats over order {previous[0]}: order {order}")
+            lag = order
+            break
+        previous = (order, value)
         if log is not None:
             following = longer(order)
             # a doubled order cost 2-8 times as much in the benchmark: the time left, roughly

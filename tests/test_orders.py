@@ -152,10 +152,12 @@ def test_default_order_of_a_longer_record_is_read_from_the_tuned_prior():
     assert selection["criterion"] == "prior_tail"
     order = selection["best_order"]
     assert model.coef_.shape == (order,) and order < y_slow.shape[0] < 2400  # long-record route
-    # the order is the tuned prior's negligible lag, recomputed from the pilot fit
+    # the order is the tuned prior's negligible lag, recomputed from the pilot fit: its
+    # tail against the noise, or its decay's envelope, whichever is longer
     pilot = gm.FIRGaussianProcess(factor=3, order=int(selection["order"][0])).fit(u, y_slow)
-    lag = orders.prior_tail_lag(pilot.kernel_, [np.mean(u**2)], pilot.noise_level_,
-                                2 * pilot.coef_.shape[0])
+    window = 2 * pilot.coef_.shape[0]
+    lag = max(orders.prior_tail_lag(pilot.kernel_, [np.mean(u**2)], pilot.noise_level_, window),
+              orders.prior_envelope_lag(pilot.kernel_, 1, window))
     assert order == max(lag, orders.MIN_DEFAULT_ORDER) == int(selection["score"][0])
     # and it is fitted as an explicit order is
     direct = gm.FIRGaussianProcess(factor=3, order=order).fit(u, y_slow)

@@ -8,8 +8,10 @@
 * :func:`check_shorter_orders`: after evidence tuning, the held-out fit at
   shorter orders (:func:`~gpmultirate.orders.held_out_fits`), which may
   replace the default order or name a better one in a warning;
-* :func:`check_long_enough`: an :class:`~gpmultirate.OrderWarning` when the
-  order looks too short for the data's memory.
+* :func:`check_long_enough`: an :class:`~gpmultirate.OrderWarning` when an
+  explicit order looks too short for the data's memory
+  (:func:`order_too_short`); the default order is raised instead
+  (:func:`raise_short_default_order`), never followed by that warning.
 
 Each takes the fit at one order as a function ``fit_at(data, order,
 settings, start=None)`` (:func:`~gpmultirate.fitting.one_order.fit_at_order`)
@@ -43,6 +45,9 @@ __all__ = [
     "default_order_rule",
     "fit_checked_order",
     "fit_order",
+    "order_too_short",
+    "pilot_lag",
+    "raise_short_default_order",
 ]
 
 #: the logger of a fit's progress (the default order's pilot fits, the resonance search)
@@ -63,7 +68,8 @@ def fit_checked_order(data, settings, fit_at):
 
     :func:`fit_order`; then, unless the order was chosen among candidates,
     :func:`check_shorter_orders` after evidence tuning (which may fit the
-    default order again, shorter) and :func:`check_long_enough`.
+    default order again, shorter) and :func:`check_long_enough` (for the
+    default order :func:`raise_short_default_order`).
     """
     fitted, table = fit_order(data, settings, fit_at)
     if settings.candidates is not None:
@@ -73,9 +79,53 @@ def fit_checked_order(data, settings, fit_at):
             refit, checked = check_shorter_orders(data, fitted, settings, fit_at)
         fitted = fitted if refit is None else refit
         table = table if checked is None else checked
+    if settings.order is None:
+        return raise_short_default_order(data, fitted, table, settings, fit_at)
     check_long_enough(fitted.observation_, fitted.y_slow_, fitted.posterior_, fitted.kernel_,
                       fitted.noise_level_, fitted.noise_model, settings)
     return fitted, table
+
+
+def raise_short_default_order(data, fitted, table, settings, fit_at):
+    """The default order, raised while :func:`order_too_short` calls it short.
+
+    The default order is the library's choice, so the check of
+    :func:`check_long_enough` does not warn about it: where the check's
+    two signs (the tuned prior not negligible by the order, correlated
+    residuals) call it too short, the fit is done again at the longer
+    order the warning would name, and kept when its log evidence gains at
+    least :data:`~gpmultirate.orders.EVIDENCE_GAIN` nats (per used slow
+    sample, times their number: ``"discard"`` uses fewer at longer
+    orders); otherwise the shorter order stays, the data not supporting a
+    longer one, and the progress log says so (the warnings of a refit not
+    kept are dropped).  Returns ``(fit, table)``, the table's
+    ``best_order`` the order kept.
+    """
+    while True:
+        longer = order_too_short(fitted.observation_, fitted.y_slow_, fitted.posterior_,
+                                 fitted.kernel_, fitted.noise_level_, fitted.noise_model,
+                                 settings)
+        if longer is None:
+            return fitted, table
+        order = fitted.observation_.order
+        start = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            refit = fit_at(data, longer, settings)
+        n_used = fitted.y_slow_.shape[0]
+        gain = (refit.log_marginal_likelihood_value_ / refit.y_slow_.shape[0]
+                - fitted.log_marginal_likelihood_value_ / n_used) * n_used
+        kept = longer if gain >= orders.EVIDENCE_GAIN else order
+        _LOG.info("order %d looked short for the data's memory; order %d (%.1f s) gains "
+                  "%.1f nats of evidence: order %d", order, longer,
+                  time.perf_counter() - start, gain, kept)
+        if kept == order:
+            return fitted, table
+        for w in caught:  # only the kept fit's warnings concern the user
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        fitted = refit
+        if table is not None:
+            table = {**table, "best_order": int(longer)}
 
 
 def fit_order(data, settings, fit_at):
@@ -111,6 +161,22 @@ def fit_order(data, settings, fit_at):
     return fitted, rule.table
 
 
+def pilot_lag(kernel, powers, noise_level: float, order: int) -> int:
+    """The lag a pilot fit at ``order`` reads its response's length from.
+
+    The larger of :func:`~gpmultirate.orders.prior_tail_lag` (the tuned
+    prior's tail against the tuned noise) and
+    :func:`~gpmultirate.orders.prior_envelope_lag` (the tuned decay alone),
+    both over twice the order: a prior cut by the order has not decayed,
+    nor has a decay tuned to the order's bound, however small the prior is
+    against the noise (a short pilot that sees little of a long response
+    leaves most of it to the noise estimate).
+    """
+    window = 2 * order
+    return max(orders.prior_tail_lag(kernel, powers, noise_level, window),
+               orders.prior_envelope_lag(kernel, len(powers), window))
+
+
 def default_order_rule(data, settings, fit_at):
     """The default order of a record longer than ``SHORT_RECORD``.
 
@@ -135,6 +201,7 @@ def default_order_rule(data, settings, fit_at):
     last = []
 
     def fit_pilot(order):
+        last.clear()  # the last pilot is not held while the next one is fitted
         with warnings.catch_warnings(record=True) as record:
             warnings.simplefilter("always")
             fitted = fit_at(data, order, pilot)
@@ -143,12 +210,14 @@ def default_order_rule(data, settings, fit_at):
         return fitted
 
     def tail_lag(fitted):
-        # over twice the order: a prior cut by the order has not decayed
-        return orders.prior_tail_lag(fitted.kernel_, powers, fitted.noise_level_,
-                                     2 * fitted.observation_.order)
+        return pilot_lag(fitted.kernel_, powers, fitted.noise_level_,
+                         fitted.observation_.order)
 
+    # the pilots' evidence is comparable where every order uses the same slow samples
+    evidence = (None if settings.initial_conditions == "discard"
+                else lambda fitted: fitted.log_marginal_likelihood_value_)
     rule = orders.default_order(fit_pilot, tail_lag, longest, whole.y.shape[0],
-                                whole.n_inputs, log=_LOG.info)
+                                whole.n_inputs, log=_LOG.info, evidence=evidence)
     start = None
     if settings.auto and last[0].noise_model is None:
         start = (last[0].kernel_, last[0].noise_level_)
@@ -251,7 +320,45 @@ def check_shorter_orders(data, fitted, settings, fit_at):
 
 def check_long_enough(observation, y, posterior, kernel, noise_level: float, noise_model,
                       settings) -> None:
-    """Warn when the fitted order is too short for the data's memory.
+    """Warn when an explicit order is too short for the data's memory.
+
+    :func:`order_too_short`; the :class:`~gpmultirate.OrderWarning` names
+    the longer order it returns.
+    """
+    longer = order_too_short(observation, y, posterior, kernel, noise_level, noise_model,
+                             settings)
+    if longer is None:
+        return
+    order = observation.order
+    correlation = _residual_correlation(observation, y, posterior, noise_level)
+    default = ("" if settings.order is None
+               else " (or the default order=None, which reads it from the data)")
+    warnings.warn(
+        f"order={order} looks too short for the data's memory: the tuned prior has not "
+        f"decayed against the noise by lag {order} and the residuals of the slow samples "
+        f"are correlated from one to the next ({correlation:.2f} at lag one); the noise "
+        f"level and the bands are then too large. Try order={longer}{default}.",
+        OrderWarning,
+        stacklevel=4,
+    )
+
+
+def _residual_correlation(observation, y, posterior, noise_level: float) -> float | None:
+    """The lag-one autocorrelation of the slow samples' residuals (None: all zero)."""
+    products = squares = 0.0
+    start = 0
+    for record, fitted in zip(observation.records,
+                              observation.fitted_readings(posterior, y, noise_level)):
+        residual = y[start : start + record.n_outputs] - fitted
+        start += record.n_outputs
+        products += float(residual[1:] @ residual[:-1])
+        squares += float(residual @ residual)
+    return None if squares == 0.0 else products / squares
+
+
+def order_too_short(observation, y, posterior, kernel, noise_level: float, noise_model,
+                    settings) -> int | None:
+    """A longer order when the fitted one is too short for the data's memory, else None.
 
     ``observation``, ``y``, ``posterior``, ``kernel``, ``noise_level``,
     ``noise_model``: the fit's.  Where the fit has more slow samples than
@@ -263,41 +370,22 @@ def check_long_enough(observation, y, posterior, kernel, noise_level: float, noi
     :meth:`~gpmultirate.observations.Observation.fitted_readings`) are
     correlated from one slow sample to the next (lag-one autocorrelation
     above ``RESIDUAL_CORRELATION`` and four standard errors).  The
-    :class:`~gpmultirate.OrderWarning` names a longer order.
+    longer order is twice the order, at most the record's length.
     """
     order = observation.order
     # under a disturbance model correlated residuals are the model's, not a short order's
     if (observation.n_outputs <= observation.n_coefficients
             or settings.initial_conditions == "periodic" or noise_model is not None):
-        return
+        return None
     inputs = [np.asarray(r.u, dtype=float) for r in observation.records]
     longest = max(x.shape[0] for x in inputs)
     if order >= longest:
-        return
+        return None
     powers = input_powers_of(inputs)
     if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) < order:
-        return
-    products = squares = 0.0
-    start = 0
-    for record, fitted in zip(observation.records,
-                              observation.fitted_readings(posterior, y, noise_level)):
-        residual = y[start : start + record.n_outputs] - fitted
-        start += record.n_outputs
-        products += float(residual[1:] @ residual[:-1])
-        squares += float(residual @ residual)
-    if squares == 0.0:
-        return
-    correlation = products / squares
-    if correlation <= max(RESIDUAL_CORRELATION, 4.0 / np.sqrt(observation.n_outputs)):
-        return
-    longer = min(2 * order, longest)
-    default = ("" if settings.order is None
-               else " (or the default order=None, which reads it from the data)")
-    warnings.warn(
-        f"order={order} looks too short for the data's memory: the tuned prior has not "
-        f"decayed against the noise by lag {order} and the residuals of the slow samples "
-        f"are correlated from one to the next ({correlation:.2f} at lag one); the noise "
-        f"level and the bands are then too large. Try order={longer}{default}.",
-        OrderWarning,
-        stacklevel=4,
-    )
+        return None
+    correlation = _residual_correlation(observation, y, posterior, noise_level)
+    if correlation is None or correlation <= max(RESIDUAL_CORRELATION,
+                                                 4.0 / np.sqrt(observation.n_outputs)):
+        return None
+    return min(2 * order, longest)
