@@ -432,7 +432,7 @@ def summarize(rows: list) -> dict:
 
 
 def targets(summary: dict, rows: list) -> list:
-    """``(target, measured, met)`` for the issue's targets that this run measured."""
+    """``(target, measured, met)`` for the automatic layer's targets that this run measured."""
     out = []
     resonant = [r for r in rows if r["family"] in RESONANT]
     if resonant:
@@ -446,7 +446,7 @@ def targets(summary: dict, rows: list) -> list:
         out.append(("resonances found without resonance = 0", str(n), n == 0))
         equal = [r["auto"]["gof"] - r["default"]["gof"] for r in rows
                  if r["family"] == "no_resonance"]
-        out.append(("auto - default GoF without resonance within 0.1 (issue 35)",
+        out.append(("auto - default GoF without resonance within 0.1 (auto as the default)",
                     f"{min(equal, key=abs):+.3f}..{max(equal, key=abs):+.3f}",
                     all(abs(e) <= 0.1 for e in equal)))
     for fit in ("auto", "default"):
@@ -465,7 +465,7 @@ def targets(summary: dict, rows: list) -> list:
         out.append(("default order within 2 points of the best by hand",
                     f"worst gap {max(grid):.2f}", max(grid) <= 2.0))
     ratios = [r["auto"]["time_ratio"] for r in rows]
-    out.append(("auto time / default time <= 2 (issue 35)",
+    out.append(("auto time / default time <= 2 (auto as the default)",
                 f"mean {np.mean(ratios):.2f}, max {np.max(ratios):.2f}", max(ratios) <= 2.0))
     return out
 
