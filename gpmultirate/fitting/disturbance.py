@@ -19,7 +19,7 @@ from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import orders, tuning, units
 from gpmultirate.crossvalidation import CrossValidation
-from gpmultirate.fitting.prior import input_powers
+from gpmultirate.fitting.prior import input_powers, starting_prior
 from gpmultirate.inference import LogEvidence
 from gpmultirate.kernels import observe
 from gpmultirate.memory import check_fit_memory
@@ -41,6 +41,7 @@ __all__ = [
     "calls_for_disturbance",
     "check_noise_kernel",
     "choose_disturbance",
+    "disturbance_gain",
     "fit_disturbance",
     "is_ar1",
     "takes_ar1_route",
@@ -128,45 +129,92 @@ def is_ar1(choice, observation) -> bool:
 
 
 def calls_for_disturbance(experiment, kernel, noise_level: float,
-                          check_tail: bool = True) -> bool:
+                          check_tail: bool = True, experiment_at=None, noise_bounds=None,
+                          settings=None) -> bool:
     """Whether ``noise_kernel="auto"`` goes on to tune disturbances after the white fit.
 
-    Three cheap checks on the tuned white-noise fit (``kernel`` and
+    Two cheap checks on the tuned white-noise fit (``kernel`` and
     ``noise_level`` on ``experiment``), in order:
 
-    * the order covers the data's memory: it is the default order read
-      from the data (``check_tail=False``), it reaches the longest record,
-      or the output variance the tuned prior gives the lags from the
-      order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
-      times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
-      the measure of the order check).
-      Otherwise the colour of the residuals may be the response's tail
-      cut by the order, which a longer order explains, not a disturbance
-      (the paper's study at orders below ``N``);
     * at most ``MAX_CHECKED_SAMPLES`` slow samples (a disturbance is tuned
       with the ``M x M`` data covariance);
     * a fixed Matérn disturbance, with the tuned prior held, gains at
       least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
-      (:func:`~gpmultirate.noise.disturbance_evidence_gain`; with more
-      slow samples than coefficients, where the fit has no ``M x M``
-      matrix, an AR(1) one on a uniform grid,
-      :func:`~gpmultirate.noise.ar1_evidence_gain`; off a uniform grid
-      the dense one up to ``AUTO_NOISE_DENSE_GATE`` slow samples, and
-      white noise beyond).
+      (:func:`disturbance_gain`).
+
+    Below the longest record's length, unless the order is the default
+    order read from the data (``check_tail=False``), the colour of the
+    residuals may be the response's tail cut by the order, which a longer
+    order explains, not a disturbance (the paper's study at orders below
+    ``N``).  Up to ``AUTO_NOISE_DENSE_GATE`` slow samples the gain is then
+    measured on a white fit tuned again at the record's length
+    (``experiment_at(order)`` builds the experiment at another order;
+    ``noise_bounds`` and ``settings`` tune it): the cut tail is signal
+    there, a disturbance is not.  Beyond, or without ``experiment_at``,
+    white noise is kept where the tuned prior has not decayed against the
+    noise by twice the order (the output variance it gives the lags from
+    the order to twice the order above ``TAIL_TOLERANCE`` times the noise
+    variance, :func:`~gpmultirate.orders.prior_tail_lag`, the measure of
+    the order check).
     """
     observation, y = experiment.observation, experiment.y
     order, n_samples = observation.order, y.shape[0]
     longest = max(np.asarray(r.u).shape[0] for r in observation.records)
-    if check_tail and order < longest:
-        powers = input_powers(experiment)
-        if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
-            _LOG.info("noise: white (the prior has not decayed against the noise by order "
-                      "%d: the residuals' colour may be the cut tail)", order)
-            return False
     if n_samples > MAX_CHECKED_SAMPLES:
         _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
                   n_samples, MAX_CHECKED_SAMPLES)
         return False
+    if check_tail and order < longest:
+        if experiment_at is not None and n_samples <= AUTO_NOISE_DENSE_GATE:
+            # the colour may be the tail the order cuts: look with the prior and the
+            # noise tuned on all the lags of the record, where the tail is signal
+            experiment = experiment_at(longest)
+            kernel, noise_level = _tuned_white(experiment, kernel, noise_level, noise_bounds,
+                                               settings)
+        elif orders.prior_tail_lag(kernel, input_powers(experiment), noise_level,
+                                   2 * order) >= order:
+            _LOG.info("noise: white (the prior has not decayed against the noise by "
+                      "order %d: the residuals' colour may be the cut tail)", order)
+            return False
+    gain = disturbance_gain(experiment, kernel, noise_level)
+    if gain is None:
+        return False
+    _LOG.info("noise: a fixed disturbance gains %.1f nats over white (order %d)",
+              gain, experiment.observation.order)
+    return gain >= AUTO_NOISE_GATE
+
+
+def _tuned_white(experiment, kernel, noise_level, noise_bounds, settings):
+    """The prior and white noise level tuned on ``experiment``: the better of the runs from
+    ``kernel`` and ``noise_level`` and from the fit's starting point there (a noise level
+    tuned at a short order holds the cut tail, a local optimum at the longer one)."""
+    if settings is None or not settings.tuned:
+        return kernel, noise_level
+    starts = [(kernel, noise_level)]
+    first, noise, _ = starting_prior(experiment, settings)
+    starts.append((kernel if settings.auto else first, noise))
+    best, best_value = (kernel, noise_level), -np.inf
+    for start_kernel, start_noise in starts:
+        evidence = LogEvidence(experiment.observation, experiment.y, start_kernel, start_noise,
+                               noise_bounds)
+        result = tuning.maximize(evidence, 0, settings.random_state)
+        if result is not None and -result.fun > best_value:
+            best, best_value = evidence.split(result.x), -result.fun
+    return best
+
+
+def disturbance_gain(experiment, kernel, noise_level: float) -> float | None:
+    """The log evidence a fixed disturbance gains over the white noise, the prior held.
+
+    With more slow samples than coefficients, where the fit has no ``M x M``
+    matrix, an AR(1) one on a uniform grid
+    (:func:`~gpmultirate.noise.ar1_evidence_gain`, ``O(M P^2)`` once);
+    otherwise, up to ``AUTO_NOISE_DENSE_GATE`` slow samples, the dense
+    Matérn ones (:func:`~gpmultirate.noise.disturbance_evidence_gain`).
+    None (logged) when neither applies.
+    """
+    observation, y = experiment.observation, experiment.y
+    n_samples = y.shape[0]
     term = observe(kernel, observation)
     gain = None
     if n_samples > observation.n_coefficients and observation.has_regressor:
@@ -187,9 +235,7 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
         else:
             why = "not on one uniform grid"
         _LOG.info("noise: white (%d slow samples: %s)", n_samples, why)
-        return False
-    _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
-    return gain >= AUTO_NOISE_GATE
+    return gain
 
 
 def noise_kernel_in_fit_units(settings, y):
@@ -261,7 +307,8 @@ def fit_disturbance(observation, y, kernel, noise_level, noise_bounds, choice, s
 
 
 def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, white_score,
-                       settings, cross_validated: bool = False) -> DisturbanceFit | None:
+                       settings, cross_validated: bool = False,
+                       experiment_at=None) -> DisturbanceFit | None:
     """The disturbance the fit keeps after the white-noise fit, or None for white noise.
 
     ``kernel``, ``noise_level``: the tuned white-noise fit on ``experiment``;
@@ -272,10 +319,13 @@ def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, whi
     (the Matérn ones, or beyond ``AUTO_NOISE_DENSE_GATE`` slow samples on one
     uniform grid the AR(1) one, :func:`takes_ar1_route`) and keeps the best
     only when it gains ``AUTO_NOISE_MARGIN`` over white noise.
+    ``experiment_at(order)``: the experiment at another order, where the
+    check looks past the order (:func:`calls_for_disturbance`).
     """
     choice = settings.noise_kernel
     if choice == "white" or (choice == "auto" and not calls_for_disturbance(
-            experiment, kernel, noise_level, check_tail=not settings.order_from_data)):
+            experiment, kernel, noise_level, check_tail=not settings.order_from_data,
+            experiment_at=experiment_at, noise_bounds=noise_bounds, settings=settings)):
         return None
     observation, y = experiment.observation, experiment.y
     # the disturbance is tuned with everything else, from the white fit
