@@ -36,6 +36,7 @@ def _fit(u, y_slow, **options):
         return FIRGaussianProcess(factor=FACTOR, sample_time=0.1, **options).fit(u, y_slow)
 
 
+@pytest.mark.slow  # a disturbance tuned: about 1.5 s of CPU each, more on a loaded machine
 @pytest.mark.parametrize("order", [300, N])
 def test_auto_chooses_a_disturbance_under_an_ar1_one_below_and_at_the_record_length(order):
     _, u, y_slow = _paper_record(1, pole=0.99)

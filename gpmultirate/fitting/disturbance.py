@@ -146,8 +146,8 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
     order read from the data (``check_tail=False``), the colour of the
     residuals may be the response's tail cut by the order, which a longer
     order explains, not a disturbance (the paper's study at orders below
-    ``N``).  Up to ``AUTO_NOISE_DENSE_GATE`` slow samples the gain is then
-    measured on a white fit tuned again at the record's length
+    ``N``).  Up to ``AUTO_NOISE_DENSE_GATE`` slow samples a gain found
+    there is measured again on a white fit tuned at the record's length
     (``experiment_at(order)`` builds the experiment at another order;
     ``noise_bounds`` and ``settings`` tune it): the cut tail is signal
     there, a disturbance is not.  Beyond, or without ``experiment_at``,
@@ -164,23 +164,28 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
         _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
                   n_samples, MAX_CHECKED_SAMPLES)
         return False
-    if check_tail and order < longest:
-        if experiment_at is not None and n_samples <= AUTO_NOISE_DENSE_GATE:
-            # the colour may be the tail the order cuts: look with the prior and the
-            # noise tuned on all the lags of the record, where the tail is signal
-            experiment = experiment_at(longest)
-            kernel, noise_level = _tuned_white(experiment, kernel, noise_level, noise_bounds,
-                                               settings)
-        elif orders.prior_tail_lag(kernel, input_powers(experiment), noise_level,
-                                   2 * order) >= order:
-            _LOG.info("noise: white (the prior has not decayed against the noise by "
-                      "order %d: the residuals' colour may be the cut tail)", order)
-            return False
+    look_past = (check_tail and order < longest and experiment_at is not None
+                 and n_samples <= AUTO_NOISE_DENSE_GATE)
+    if check_tail and order < longest and not look_past and orders.prior_tail_lag(
+            kernel, input_powers(experiment), noise_level, 2 * order) >= order:
+        _LOG.info("noise: white (the prior has not decayed against the noise by "
+                  "order %d: the residuals' colour may be the cut tail)", order)
+        return False
     gain = disturbance_gain(experiment, kernel, noise_level)
     if gain is None:
         return False
-    _LOG.info("noise: a fixed disturbance gains %.1f nats over white (order %d)",
-              gain, experiment.observation.order)
+    _LOG.info("noise: a fixed disturbance gains %.1f nats over white (order %d)", gain, order)
+    if gain >= AUTO_NOISE_GATE and look_past:
+        # the colour may be the tail the order cuts: look again with the prior and the
+        # noise tuned on all the lags of the record, where the tail is signal
+        experiment = experiment_at(longest)
+        kernel, noise_level = _tuned_white(experiment, kernel, noise_level, noise_bounds,
+                                           settings)
+        gain = disturbance_gain(experiment, kernel, noise_level)
+        if gain is None:
+            return False
+        _LOG.info("noise: at order %d, where the cut tail is signal, it gains %.1f nats",
+                  longest, gain)
     return gain >= AUTO_NOISE_GATE
 
 
