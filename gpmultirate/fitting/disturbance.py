@@ -15,10 +15,11 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import linalg
 from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import orders, tuning, units
-from gpmultirate.crossvalidation import CrossValidation
+from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
 from gpmultirate.fitting.prior import input_powers, starting_prior
 from gpmultirate.inference import LogEvidence
 from gpmultirate.kernels import observe
@@ -36,6 +37,7 @@ from gpmultirate.orders import MAX_CHECKED_SAMPLES
 __all__ = [
     "AUTO_NOISE_DENSE_GATE",
     "AUTO_NOISE_GATE",
+    "AUTO_NOISE_HELD_OUT",
     "AUTO_NOISE_MARGIN",
     "DisturbanceFit",
     "calls_for_disturbance",
@@ -43,6 +45,7 @@ __all__ = [
     "choose_disturbance",
     "disturbance_gain",
     "fit_disturbance",
+    "held_out_loss",
     "is_ar1",
     "takes_ar1_route",
 ]
@@ -60,6 +63,11 @@ AUTO_NOISE_GATE = 3.0
 #: of a long record (more samples than coefficients), and its check of samples off a
 #: uniform grid keeps white noise instead of ``M x M`` factorizations
 AUTO_NOISE_DENSE_GATE = 1000
+#: points of held-out fit (fit percent) the response under a disturbance may lose
+#: against white noise's for ``noise_kernel="auto"`` to keep it (:func:`held_out_loss`)
+AUTO_NOISE_HELD_OUT = 0.5
+#: contiguous blocks of :func:`held_out_loss`
+HELD_OUT_FOLDS = 5
 
 
 def check_noise_kernel(noise_kernel):
@@ -243,6 +251,49 @@ def disturbance_gain(experiment, kernel, noise_level: float) -> float | None:
     return gain
 
 
+def held_out_loss(observation, y, kernel, noise_level: float, disturbance,
+                  n_folds: int = HELD_OUT_FOLDS) -> float | None:
+    """Points of held-out fit the disturbance's response loses against white noise's.
+
+    The record's slow samples are cut into ``n_folds`` contiguous blocks
+    (:func:`~gpmultirate.crossvalidation.contiguous_folds`); each block is
+    predicted by the response alone, ``S_BR (S_RR + N_RR)^{-1} y_R`` with
+    ``S = Phi K Phi^T`` (the posterior mean of the coefficients given the
+    other blocks, through the regressor of the block: a simulation, without
+    the disturbance's own prediction), once with the white fit (``kernel``,
+    ``noise_level``) and once with the ``disturbance``
+    (:class:`DisturbanceFit`).  Returns ``100 (|e_disturbance| - |e_white|)
+    / |y - mean(y)|`` over all blocks, the loss in points of the fit
+    percent; None beyond ``AUTO_NOISE_DENSE_GATE`` slow samples (dense
+    ``M x M`` algebra).
+    """
+    M = y.shape[0]
+    if M > AUTO_NOISE_DENSE_GATE or M < 2 * n_folds:
+        return None
+    sizes = [t.shape[0] for t in noise_instants(observation)]
+    folds = contiguous_folds(sizes, min(n_folds, min(sizes)))
+
+    def errors(S, N):
+        out = np.empty(M)
+        for block in folds:
+            rest = np.setdiff1d(np.arange(M), block)
+            weights = linalg.cho_solve(linalg.cho_factor(S[np.ix_(rest, rest)]
+                                                         + N[np.ix_(rest, rest)]), y[rest])
+            out[block] = y[block] - S[np.ix_(block, rest)] @ weights
+        return float(np.linalg.norm(out))
+
+    S_white = np.asarray(observe(kernel, observation).covariance(), dtype=float)
+    S_disturbed = np.asarray(observe(disturbance.kernel, observation).covariance(), dtype=float)
+    noise = disturbance.noise_model.add_to(np.zeros((M, M)))
+    try:
+        white = errors(S_white, float(noise_level) * np.eye(M))
+        disturbed = errors(S_disturbed, noise)
+    except linalg.LinAlgError:
+        return None
+    spread = float(np.linalg.norm(y - y.mean())) or 1.0
+    return 100.0 * (disturbed - white) / spread
+
+
 def noise_kernel_in_fit_units(settings, y):
     """The noise choice in the units of the data the fit works on (``y``, its slow samples).
 
@@ -351,6 +402,13 @@ def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, whi
                                 settings)
         if best is None or tried.score > best.score:
             best = tried
-    if choice != "auto" or best.score > white_score + AUTO_NOISE_MARGIN:
+    if choice != "auto":
         return best
-    return None
+    if best.score <= white_score + AUTO_NOISE_MARGIN:
+        return None
+    lost = held_out_loss(observation, y, kernel, noise_level, best)
+    if lost is not None and lost > AUTO_NOISE_HELD_OUT:
+        _LOG.info("noise: white (the disturbance gains %.1f nats but its response predicts "
+                  "the held-out blocks %.2f points worse)", best.score - white_score, lost)
+        return None
+    return best
