@@ -380,7 +380,8 @@ def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, whi
     kept; ``"auto"`` tunes candidates only when :func:`calls_for_disturbance`
     (the Matérn ones, or beyond ``AUTO_NOISE_DENSE_GATE`` slow samples on one
     uniform grid the AR(1) one, :func:`takes_ar1_route`) and keeps the best
-    only when it gains ``AUTO_NOISE_MARGIN`` over white noise.
+    only when it gains ``AUTO_NOISE_MARGIN`` over white noise and loses at
+    most ``AUTO_NOISE_HELD_OUT`` points of held-out fit (:func:`held_out_loss`).
     ``experiment_at(order)``: the experiment at another order, where the
     check looks past the order (:func:`calls_for_disturbance`).
     """
