@@ -141,3 +141,25 @@ def test_a_disturbance_that_absorbs_model_error_is_refused_by_the_held_out_block
     fit = DisturbanceFit(None, coloured.kernel_, coloured._noise_model, None, None, 0.0)
     assert held_out_loss(white.observation_, white.y_slow_, white.kernel_, white.noise_level_,
                          fit) > AUTO_NOISE_HELD_OUT
+
+
+@pytest.mark.slow
+def test_readings_between_the_ticks_an_ar1_disturbance_seen_below_the_record_length():
+    """Readings at their own instants (jittered stamps, the fast output interpolated): the
+    AR(1) disturbance is seen at order 300; white readings keep white noise."""
+    _, u, _ = _paper_record(1)
+    rng = np.random.default_rng(11)
+    system = paper_system(perturbation=0.1, random_state=np.random.default_rng(1))
+    y = system.simulate(u)
+    e = rng.standard_normal(N) * np.sqrt(1.0 - 0.99**2)
+    v, _ = signal.lfilter([1.0], [1.0, -0.99], e, zi=[0.99 * rng.standard_normal()])
+    ticks = np.arange(1, N - 2, FACTOR)
+    stamps = ticks + rng.uniform(-0.4, 0.4, ticks.shape[0])
+    coloured = np.interp(stamps, np.arange(N), y + v * np.std(y) / 10.0)
+    white = np.interp(stamps, np.arange(N), y + rng.standard_normal(N) * np.std(y) / 100.0)
+    for readings, expected in ((coloured, True), (white, False)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            model = FIRGaussianProcess(factor=FACTOR, order=300).fit(u, readings,
+                                                                     sample_times=stamps)
+        assert (model.noise_kernel_ != "white") == expected
