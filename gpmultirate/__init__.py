@@ -21,6 +21,7 @@ _EXPORTS = {
     "FeedbackWarning": "gpmultirate.exceptions",
     "HeldOutWarning": "gpmultirate.exceptions",
     "IdentifiabilityError": "gpmultirate.exceptions",
+    "MisspecificationWarning": "gpmultirate.exceptions",
     "ModelFileError": "gpmultirate.exceptions",
     "NumericalWarning": "gpmultirate.exceptions",
     "OrderWarning": "gpmultirate.exceptions",

@@ -28,7 +28,7 @@ from sklearn.base import BaseEstimator
 from sklearn.gaussian_process.kernels import Kernel
 from sklearn.utils.validation import check_is_fitted
 
-from gpmultirate import units
+from gpmultirate import misspecification, units
 from gpmultirate.closedloop import check_feedback, loop_input
 from gpmultirate.exceptions import IdentifiabilityError
 from gpmultirate.export import StateSpaceMixin
@@ -436,10 +436,16 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             self._adopt(*order_steps.fit_checked_order(data, settings, fit_at_order))
         elif check is not None:
             self.interpolation_error_ = check.error
+        # the innovations in the fit's own units, before the rescaling
+        specified = misspecification.check_fit(
+            self.observation_, self.y_slow_, self.kernel_, self.noise_level_,
+            self._noise_model, self.noise_level_bounds_)
         units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
             given, self.observation_.order, settings))
         if self.excitation_model_ is None:
             check_feedback(self, given_input, given[1], given[2], sample_times)
+        self.misspecification_ = misspecification.check_misspecification(
+            self, specified, given_input, given[1], given[2], sample_times)
         return self
 
     def _adopt(self, fitted: Fit, order_selection=None) -> None:

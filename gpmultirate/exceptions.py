@@ -19,6 +19,7 @@ __all__ = [
     "IdentifiabilityError",
     "JournalError",
     "MemoryLimitError",
+    "MisspecificationWarning",
     "ModelFileError",
     "NotPositiveDefinite",
     "NumericalWarning",
@@ -131,6 +132,23 @@ class OrderWarning(UserWarning):
     --------
     >>> from gpmultirate.exceptions import OrderWarning
     >>> issubclass(OrderWarning, UserWarning)
+    True
+    """
+
+
+class MisspecificationWarning(UserWarning):
+    """The fitted model does not describe the data: its bands are not to be trusted.
+
+    Emitted once after a fit whose innovations (the standardized one-step
+    prediction errors of the slow samples under the fitted model) are
+    correlated or of the wrong size, or whose noise estimate is at its
+    lower bound (:mod:`gpmultirate.misspecification`); the message names
+    what to try: ``kernel="auto"``, a longer order, a disturbance model.
+
+    Examples
+    --------
+    >>> from gpmultirate.exceptions import MisspecificationWarning
+    >>> issubclass(MisspecificationWarning, UserWarning)
     True
     """
 

@@ -273,7 +273,8 @@ def noise_summary(model, residuals=None, explanation=None) -> dict:
         fitted model, where the explanation has it), and where they are not white
         ``residuals_explained`` (what is left and what takes it up,
         :func:`gpmultirate.diagnosis.explain_residuals`) and
-        ``residual_remedies``.
+        ``residual_remedies``; ``misspecification``, the message of the
+        fit's :class:`~gpmultirate.MisspecificationWarning`, where it warned.
 
     Examples
     --------
@@ -299,6 +300,8 @@ def noise_summary(model, residuals=None, explanation=None) -> dict:
             name: float(np.ravel(value)[0]) for name, value in kernel.get_params().items()
             if name.endswith(("length_scale", "periodicity")) and not name.endswith("_bounds")
         }
+    if getattr(model, "misspecification_", None):
+        found["misspecification"] = model.misspecification_
     if residuals is not None:
         from gpmultirate.diagnosis import explain_residuals
 
@@ -338,6 +341,8 @@ def _noise_lines(noise) -> list[str]:
         if noise.get("residuals_explained"):
             reasons = noise["residuals_explained"].split(": ", 1)[-1]
             lines.append(f"  - what is left: {reasons}")
+    if noise.get("misspecification"):
+        lines.append(f"- **the bands are not to be trusted**: {noise['misspecification']}")
     return lines
 
 

@@ -15,11 +15,12 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import linalg
 from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import orders, tuning, units
-from gpmultirate.crossvalidation import CrossValidation
-from gpmultirate.fitting.prior import input_powers
+from gpmultirate.crossvalidation import CrossValidation, contiguous_folds
+from gpmultirate.fitting.prior import input_powers, starting_prior
 from gpmultirate.inference import LogEvidence
 from gpmultirate.kernels import observe
 from gpmultirate.memory import check_fit_memory
@@ -36,12 +37,15 @@ from gpmultirate.orders import MAX_CHECKED_SAMPLES
 __all__ = [
     "AUTO_NOISE_DENSE_GATE",
     "AUTO_NOISE_GATE",
+    "AUTO_NOISE_HELD_OUT",
     "AUTO_NOISE_MARGIN",
     "DisturbanceFit",
     "calls_for_disturbance",
     "check_noise_kernel",
     "choose_disturbance",
+    "disturbance_gain",
     "fit_disturbance",
+    "held_out_loss",
     "is_ar1",
     "takes_ar1_route",
 ]
@@ -59,6 +63,14 @@ AUTO_NOISE_GATE = 3.0
 #: of a long record (more samples than coefficients), and its check of samples off a
 #: uniform grid keeps white noise instead of ``M x M`` factorizations
 AUTO_NOISE_DENSE_GATE = 1000
+#: points of held-out fit (fit percent) the response under a disturbance may lose
+#: against white noise's for ``noise_kernel="auto"`` to keep it (:func:`held_out_loss`):
+#: the one point a disturbance may cost on a measured record (docs/disturbances.rst:
+#: true AR(1) disturbances and drifts gain, disturbances that absorb model error lose
+#: tens of points)
+AUTO_NOISE_HELD_OUT = 1.0
+#: contiguous blocks of :func:`held_out_loss`
+HELD_OUT_FOLDS = 5
 
 
 def check_noise_kernel(noise_kernel):
@@ -128,45 +140,97 @@ def is_ar1(choice, observation) -> bool:
 
 
 def calls_for_disturbance(experiment, kernel, noise_level: float,
-                          check_tail: bool = True) -> bool:
+                          check_tail: bool = True, experiment_at=None, noise_bounds=None,
+                          settings=None) -> bool:
     """Whether ``noise_kernel="auto"`` goes on to tune disturbances after the white fit.
 
-    Three cheap checks on the tuned white-noise fit (``kernel`` and
+    Two cheap checks on the tuned white-noise fit (``kernel`` and
     ``noise_level`` on ``experiment``), in order:
 
-    * the order covers the data's memory: it is the default order read
-      from the data (``check_tail=False``), it reaches the longest record,
-      or the output variance the tuned prior gives the lags from the
-      order to twice the order is below ``TAIL_TOLERANCE`` (a hundredth)
-      times the noise variance (:func:`~gpmultirate.orders.prior_tail_lag`,
-      the measure of the order check).
-      Otherwise the colour of the residuals may be the response's tail
-      cut by the order, which a longer order explains, not a disturbance
-      (the paper's study at orders below ``N``);
     * at most ``MAX_CHECKED_SAMPLES`` slow samples (a disturbance is tuned
       with the ``M x M`` data covariance);
     * a fixed Matérn disturbance, with the tuned prior held, gains at
       least ``AUTO_NOISE_GATE`` nats of log evidence over the white noise
-      (:func:`~gpmultirate.noise.disturbance_evidence_gain`; with more
-      slow samples than coefficients, where the fit has no ``M x M``
-      matrix, an AR(1) one on a uniform grid,
-      :func:`~gpmultirate.noise.ar1_evidence_gain`; off a uniform grid
-      the dense one up to ``AUTO_NOISE_DENSE_GATE`` slow samples, and
-      white noise beyond).
+      (:func:`disturbance_gain`).
+
+    Below the longest record's length, unless the order is the default
+    order read from the data (``check_tail=False``), the colour of the
+    residuals may be the response's tail cut by the order, which a longer
+    order explains, not a disturbance (the paper's study at orders below
+    ``N``).  Up to ``AUTO_NOISE_DENSE_GATE`` slow samples a gain found
+    there is measured again on a white fit tuned at the record's length
+    (``experiment_at(order)`` builds the experiment at another order;
+    ``noise_bounds`` and ``settings`` tune it): the cut tail is signal
+    there, a disturbance is not.  Beyond, or without ``experiment_at``,
+    white noise is kept where the tuned prior has not decayed against the
+    noise by twice the order (the output variance it gives the lags from
+    the order to twice the order above ``TAIL_TOLERANCE`` times the noise
+    variance, :func:`~gpmultirate.orders.prior_tail_lag`, the measure of
+    the order check).
     """
     observation, y = experiment.observation, experiment.y
     order, n_samples = observation.order, y.shape[0]
     longest = max(np.asarray(r.u).shape[0] for r in observation.records)
-    if check_tail and order < longest:
-        powers = input_powers(experiment)
-        if orders.prior_tail_lag(kernel, powers, noise_level, 2 * order) >= order:
-            _LOG.info("noise: white (the prior has not decayed against the noise by order "
-                      "%d: the residuals' colour may be the cut tail)", order)
-            return False
     if n_samples > MAX_CHECKED_SAMPLES:
         _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
                   n_samples, MAX_CHECKED_SAMPLES)
         return False
+    look_past = (check_tail and order < longest and experiment_at is not None
+                 and n_samples <= AUTO_NOISE_DENSE_GATE)
+    if check_tail and order < longest and not look_past and orders.prior_tail_lag(
+            kernel, input_powers(experiment), noise_level, 2 * order) >= order:
+        _LOG.info("noise: white (the prior has not decayed against the noise by "
+                  "order %d: the residuals' colour may be the cut tail)", order)
+        return False
+    gain = disturbance_gain(experiment, kernel, noise_level)
+    if gain is None:
+        return False
+    _LOG.info("noise: a fixed disturbance gains %.1f nats over white (order %d)", gain, order)
+    if gain >= AUTO_NOISE_GATE and look_past:
+        # the colour may be the tail the order cuts: look again with the prior and the
+        # noise tuned on all the lags of the record, where the tail is signal
+        experiment = experiment_at(longest)
+        kernel, noise_level = _tuned_white(experiment, kernel, noise_level, noise_bounds,
+                                           settings)
+        gain = disturbance_gain(experiment, kernel, noise_level)
+        if gain is None:
+            return False
+        _LOG.info("noise: at order %d, where the cut tail is signal, it gains %.1f nats",
+                  longest, gain)
+    return gain >= AUTO_NOISE_GATE
+
+
+def _tuned_white(experiment, kernel, noise_level, noise_bounds, settings):
+    """The prior and white noise level tuned on ``experiment``: the better of the runs from
+    ``kernel`` and ``noise_level`` and from the fit's starting point there (a noise level
+    tuned at a short order holds the cut tail, a local optimum at the longer one)."""
+    if settings is None or not settings.tuned:
+        return kernel, noise_level
+    starts = [(kernel, noise_level)]
+    first, noise, _ = starting_prior(experiment, settings)
+    starts.append((kernel if settings.auto else first, noise))
+    best, best_value = (kernel, noise_level), -np.inf
+    for start_kernel, start_noise in starts:
+        evidence = LogEvidence(experiment.observation, experiment.y, start_kernel, start_noise,
+                               noise_bounds)
+        result = tuning.maximize(evidence, 0, settings.random_state)
+        if result is not None and -result.fun > best_value:
+            best, best_value = evidence.split(result.x), -result.fun
+    return best
+
+
+def disturbance_gain(experiment, kernel, noise_level: float) -> float | None:
+    """The log evidence a fixed disturbance gains over the white noise, the prior held.
+
+    With more slow samples than coefficients, where the fit has no ``M x M``
+    matrix, an AR(1) one on a uniform grid
+    (:func:`~gpmultirate.noise.ar1_evidence_gain`, ``O(M P^2)`` once);
+    otherwise, up to ``AUTO_NOISE_DENSE_GATE`` slow samples, the dense
+    Matérn ones (:func:`~gpmultirate.noise.disturbance_evidence_gain`).
+    None (logged) when neither applies.
+    """
+    observation, y = experiment.observation, experiment.y
+    n_samples = y.shape[0]
     term = observe(kernel, observation)
     gain = None
     if n_samples > observation.n_coefficients and observation.has_regressor:
@@ -187,9 +251,53 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
         else:
             why = "not on one uniform grid"
         _LOG.info("noise: white (%d slow samples: %s)", n_samples, why)
-        return False
-    _LOG.info("noise: a fixed disturbance gains %.1f nats over white", gain)
-    return gain >= AUTO_NOISE_GATE
+    return gain
+
+
+def held_out_loss(observation, y, kernel, noise_level: float, disturbance,
+                  n_folds: int = HELD_OUT_FOLDS) -> float | None:
+    """Points of held-out fit the disturbance's response loses against white noise's.
+
+    The record's slow samples are cut into ``n_folds`` contiguous blocks
+    (:func:`~gpmultirate.crossvalidation.contiguous_folds`); each block is
+    predicted by the response alone, ``S_BR (S_RR + N_RR)^{-1} y_R`` with
+    ``S = Phi K Phi^T`` (the posterior mean of the coefficients given the
+    other blocks, through the regressor of the block: a simulation, without
+    the disturbance's own prediction), once with the white fit (``kernel``,
+    ``noise_level``) and once with the ``disturbance``
+    (:class:`DisturbanceFit`).  The errors of each block are taken about
+    their mean (a level per block is no response's to predict: a drift
+    moves it).  Returns ``100 (|e_disturbance| - |e_white|) / |y - mean(y)|``
+    over all blocks, the loss in points of the fit percent; None beyond
+    ``AUTO_NOISE_DENSE_GATE`` slow samples (dense ``M x M`` algebra).
+    """
+    M = y.shape[0]
+    if M > AUTO_NOISE_DENSE_GATE or M < 2 * n_folds:
+        return None
+    sizes = [t.shape[0] for t in noise_instants(observation)]
+    folds = contiguous_folds(sizes, min(n_folds, min(sizes)))
+
+    def errors(S, N):
+        out = np.empty(M)
+        for block in folds:
+            rest = np.setdiff1d(np.arange(M), block)
+            weights = linalg.cho_solve(linalg.cho_factor(S[np.ix_(rest, rest)]
+                                                         + N[np.ix_(rest, rest)]), y[rest])
+            error = y[block] - S[np.ix_(block, rest)] @ weights
+            # a level per block is no response's to predict: a drift moves it
+            out[block] = error - error.mean()
+        return float(np.linalg.norm(out))
+
+    S_white = np.asarray(observe(kernel, observation).covariance(), dtype=float)
+    S_disturbed = np.asarray(observe(disturbance.kernel, observation).covariance(), dtype=float)
+    noise = disturbance.noise_model.add_to(np.zeros((M, M)))
+    try:
+        white = errors(S_white, float(noise_level) * np.eye(M))
+        disturbed = errors(S_disturbed, noise)
+    except linalg.LinAlgError:
+        return None
+    spread = float(np.linalg.norm(y - y.mean())) or 1.0
+    return 100.0 * (disturbed - white) / spread
 
 
 def noise_kernel_in_fit_units(settings, y):
@@ -261,7 +369,8 @@ def fit_disturbance(observation, y, kernel, noise_level, noise_bounds, choice, s
 
 
 def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, white_score,
-                       settings, cross_validated: bool = False) -> DisturbanceFit | None:
+                       settings, cross_validated: bool = False,
+                       experiment_at=None) -> DisturbanceFit | None:
     """The disturbance the fit keeps after the white-noise fit, or None for white noise.
 
     ``kernel``, ``noise_level``: the tuned white-noise fit on ``experiment``;
@@ -271,11 +380,15 @@ def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, whi
     kept; ``"auto"`` tunes candidates only when :func:`calls_for_disturbance`
     (the Matérn ones, or beyond ``AUTO_NOISE_DENSE_GATE`` slow samples on one
     uniform grid the AR(1) one, :func:`takes_ar1_route`) and keeps the best
-    only when it gains ``AUTO_NOISE_MARGIN`` over white noise.
+    only when it gains ``AUTO_NOISE_MARGIN`` over white noise and loses at
+    most ``AUTO_NOISE_HELD_OUT`` points of held-out fit (:func:`held_out_loss`).
+    ``experiment_at(order)``: the experiment at another order, where the
+    check looks past the order (:func:`calls_for_disturbance`).
     """
     choice = settings.noise_kernel
     if choice == "white" or (choice == "auto" and not calls_for_disturbance(
-            experiment, kernel, noise_level, check_tail=not settings.order_from_data)):
+            experiment, kernel, noise_level, check_tail=not settings.order_from_data,
+            experiment_at=experiment_at, noise_bounds=noise_bounds, settings=settings)):
         return None
     observation, y = experiment.observation, experiment.y
     # the disturbance is tuned with everything else, from the white fit
@@ -296,6 +409,13 @@ def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, whi
                                 settings)
         if best is None or tried.score > best.score:
             best = tried
-    if choice != "auto" or best.score > white_score + AUTO_NOISE_MARGIN:
+    if choice != "auto":
         return best
-    return None
+    if best.score <= white_score + AUTO_NOISE_MARGIN:
+        return None
+    lost = held_out_loss(observation, y, kernel, noise_level, best)
+    if lost is not None and lost > AUTO_NOISE_HELD_OUT:
+        _LOG.info("noise: white (the disturbance gains %.1f nats but its response predicts "
+                  "the held-out blocks %.2f points worse)", best.score - white_score, lost)
+        return None
+    return best

@@ -110,7 +110,8 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
         disturbance = choose_disturbance(
             experiment, kernel, noise, noise_bounds,
             posterior.log_marginal_likelihood if cv_value is None else cv_value, settings,
-            cross_validated=cv_value is not None)
+            cross_validated=cv_value is not None,
+            experiment_at=lambda longer: experiment_of(data, longer, settings))
         if disturbance is not None:
             steps = [disturbance]
             # a disturbance without white noise (AR(1)) keeps the white fit's level

@@ -27,7 +27,12 @@ import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 
 from gpmultirate.estimators import FIRGaussianProcess, LeastSquaresFIR
-from gpmultirate.exceptions import IdentifiabilityError, NumericalWarning, OrderWarning
+from gpmultirate.exceptions import (
+    IdentifiabilityError,
+    MisspecificationWarning,
+    NumericalWarning,
+    OrderWarning,
+)
 from gpmultirate.inference import one_blas_thread
 from gpmultirate.study.journal import StudyJournal, read_journal, study_settings
 from gpmultirate.study.results import StudyResult, TrialResult
@@ -82,9 +87,11 @@ def fit_method(method: str, order: int, data: RunData):
     """Fit one model on a run's data; return ``(model or None, seconds, n_warnings)``.
 
     Convergence and jitter warnings of the tuning are counted rather than
-    printed once per fit; an :class:`~gpmultirate.OrderWarning` is dropped
-    (the study sweeps the order on purpose: what a short order costs is what
-    it measures); any other warning is passed on.  BLAS runs on one
+    printed once per fit; an :class:`~gpmultirate.OrderWarning` and a
+    :class:`~gpmultirate.MisspecificationWarning` are dropped (the study
+    sweeps the order and compares priors on purpose: what a short order or a
+    prior that misses the modes costs is what it measures); any other
+    warning is passed on.  BLAS runs on one
     thread during the fit.  The model is None when least squares has no
     unique solution (Lemma 1, 2).
 
@@ -112,7 +119,7 @@ def fit_method(method: str, order: int, data: RunData):
     seconds = time.perf_counter() - start
     counted = (ConvergenceWarning, NumericalWarning)
     for w in caught:
-        if not issubclass(w.category, counted + (OrderWarning,)):
+        if not issubclass(w.category, counted + (OrderWarning, MisspecificationWarning)):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return model, seconds, sum(issubclass(w.category, counted) for w in caught)
 
