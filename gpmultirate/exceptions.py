@@ -137,7 +137,7 @@ class OrderWarning(UserWarning):
 
 
 class MisspecificationWarning(UserWarning):
-    """The fitted model does not describe the data: its bands are not to be trusted.
+    """The fitted model leaves structure in the data: its bands may not hold their level.
 
     Emitted once after a fit whose innovations (the standardized one-step
     prediction errors of the slow samples under the fitted model) are

@@ -91,7 +91,7 @@ def test_a_misspecified_fit_warns_once_and_names_what_to_try():
     raised = [w for w in caught if w.category is gm.MisspecificationWarning]
     assert len(raised) == 1
     message = str(raised[0].message)
-    assert "not to be trusted" in message and "innovations are correlated" in message
+    assert "may not hold their level" in message and "innovations are correlated" in message
     assert 'kernel="auto"' in message
     assert model.misspecification_ == message
     assert noise_summary(model)["misspecification"] == message
@@ -114,3 +114,32 @@ def test_a_well_specified_fit_does_not_warn(seed):
     assert model.misspecification_ is None
     assert "misspecification" not in noise_summary(model)
 
+
+
+def test_a_significant_but_small_correlation_is_not_a_sign():
+    # the spectrum against its definition written out, and the gate: with 2,000
+    # innovations an AR(1) of coefficient 0.1 is significant (Ljung-Box) but moves
+    # the spectrum by about 1.2 at most, inside TRUSTED_RATIO; 0.5 does not
+    from scipy import signal
+
+    from gpmultirate.misspecification import (
+        TRUSTED_RATIO, _autocorrelation, _ljung_box, innovation_spectrum,
+    )
+
+    r = np.array([0.3, -0.1, 0.05])
+    w = np.linspace(0, np.pi, 7)
+    written = 1 + 2 * (0.75 * 0.3 * np.cos(w) - 0.5 * 0.1 * np.cos(2 * w)
+                       + 0.25 * 0.05 * np.cos(3 * w))
+    np.testing.assert_allclose(innovation_spectrum(r, 7), written)
+    low, high = TRUSTED_RATIO
+    assert (1.96 / 2.326) ** 2 == pytest.approx(low, abs=0.005)
+    assert (1.96 / 1.645) ** 2 == pytest.approx(high, abs=0.005)
+    rng = np.random.default_rng(5)
+    for pole, counts in ((0.1, False), (0.5, True)):
+        e = signal.lfilter([1.0], [1.0, -pole], rng.standard_normal(2000))
+        r = _autocorrelation(e / e.std(), 25)
+        assert _ljung_box(r, e.size) < 1e-3
+        check = gm.misspecification.check_fit(
+            gm.DownsampledConvolution(np.zeros(2000), 1, 1), e / e.std(), C(1e-12, "fixed") * DC(),
+            1.0)
+        assert (not check.trusted) is counts, innovation_spectrum(r)
