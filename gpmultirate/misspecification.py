@@ -199,7 +199,8 @@ def _at_lower_bound(noise_level: float, bounds) -> bool:
 def check_fit(observation, y, kernel, noise_level: float, noise_model=None,
               noise_bounds="fixed") -> MisspecificationCheck | None:
     """The signs that the fitted model does not describe the data; None beyond
-    ``CHECKED_SAMPLES`` slow samples or with fewer than 20.
+    ``CHECKED_SAMPLES`` slow samples, with fewer than 20, or where the fitted
+    data covariance is singular in floating point (not checked).
 
     Parameters
     ----------
@@ -233,7 +234,10 @@ def check_fit(observation, y, kernel, noise_level: float, noise_model=None,
     M = y.shape[0]
     if M > CHECKED_SAMPLES or M < 20:
         return None
-    e = innovations(observation, y, kernel, noise_level, noise_model)
+    try:
+        e = innovations(observation, y, kernel, noise_level, noise_model)
+    except np.linalg.LinAlgError:  # a covariance singular in floating point: not checked
+        return None
     lags = max(1, min(INNOVATION_LAGS, M // 5))
     r = _autocorrelation(e, lags)
     box = _ljung_box(r, M)
