@@ -14,6 +14,7 @@ import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import units
+from gpmultirate.bands import convolution_variance, dft_bins, dft_variances
 from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.inference import gaussian_samples
 from gpmultirate.metrics import goodness_of_fit
@@ -177,6 +178,10 @@ class FIRModelMixin:
         coef = posterior.coef.reshape(self.n_inputs_, -1)
         if not return_std and not periodic:
             return sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+        if return_std and not periodic and coef.shape[1] >= _FFT_MIN_ORDER:
+            # diag(T Sigma T^T) by FFT: O(P (N + P) log) instead of O(N P^2)
+            mean = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
+            return mean, np.sqrt(convolution_variance(x, posterior.covariance()))
         # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
         block = max(1, _PREDICT_BLOCK_ENTRIES // coef.size)
         mean, var = np.empty(n), np.empty(n)
@@ -312,16 +317,23 @@ class FIRModelMixin:
             freqs = default_frequencies(self.observation_.n_samples, sample_time)
         freqs, sample_time = check_frequencies(freqs, sample_time)
         P = self._order
-        E = dft_matrix(freqs, sample_time, P)
-        # the DFT of input k's block of the input-major coefficients
-        A = np.zeros((E.shape[0], self.n_inputs_ * P), dtype=complex)
-        A[:, k * P : (k + 1) * P] = E
-        re, im = np.ascontiguousarray(A.real), np.ascontiguousarray(A.imag)
         posterior, scale = units.split(self.posterior_)
-        var_re, var_im, cov = posterior.pair_variances(re, im)
+        length = dft_bins(freqs, sample_time) if P >= _FFT_MIN_ORDER else None
+        if length is not None:  # the DFT bins of a length: E Sigma by FFT, E never formed
+            block = slice(k * P, (k + 1) * P)
+            mean, var_re, var_im, cov = dft_variances(
+                posterior.coef[block], posterior.covariance()[block, block], freqs.size, length)
+        else:
+            E = dft_matrix(freqs, sample_time, P)
+            # the DFT of input k's block of the input-major coefficients
+            A = np.zeros((E.shape[0], self.n_inputs_ * P), dtype=complex)
+            A[:, k * P : (k + 1) * P] = E
+            re, im = np.ascontiguousarray(A.real), np.ascontiguousarray(A.imag)
+            var_re, var_im, cov = posterior.pair_variances(re, im)
+            mean = A @ posterior.coef
         frf = FrequencyResponse.from_gaussian(
             freqs,
-            A @ posterior.coef,
+            mean,
             var_re,
             var_im,
             cov,
@@ -376,3 +388,6 @@ class FIRModelMixin:
 
 # entries of the convolution matrix formed at once by predict(..., return_std=True)
 _PREDICT_BLOCK_ENTRIES = 2**22
+# from this order on, the bands of predict and frequency_response come from the
+# P x P posterior covariance by FFT (gpmultirate.bands) rather than row by row
+_FFT_MIN_ORDER = 128
