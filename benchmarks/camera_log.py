@@ -195,8 +195,9 @@ def run_command(seconds=20.0, ticks=False, seed=0, extra=(), timeout=3600):
         command += list(extra)
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
+        # run from the temporary folder: the package is the one of PYTHONPATH, not of the cwd
         done = subprocess.run(command, capture_output=True, text=True, timeout=timeout,
-                              env=dict(os.environ))
+                              env=dict(os.environ), cwd=folder)
         seconds_taken = time.perf_counter() - start
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if done.returncode != 0:

@@ -14,7 +14,15 @@ structured matrix, and the structure gives them by FFT:
 * at the DFT bins ``k / (L T)`` of a length ``L``, ``E Sigma`` is the FFT of
   each column of ``Sigma`` (lags folded modulo ``L``), and the variances of
   ``Re`` and ``Im`` and their covariance are row sums of its products with
-  ``cos`` and ``-sin`` (:func:`dft_variances`).
+  ``cos`` and ``-sin`` (:func:`dft_variances`);
+* at any frequency ``w`` (radians per sample), with ``d_k`` the sums of the
+  diagonals ``i - j = k`` of ``Sigma`` and ``a_k`` those of its
+  anti-diagonals ``i + j = k``, ``cos(w i) cos(w j) = (cos(w (i - j)) +
+  cos(w (i + j))) / 2`` and its like give
+  ``Var(Re) = (sum_k d_k cos(w k) + sum_k a_k cos(w k)) / 2``,
+  ``Var(Im) = (sum_k d_k cos(w k) - sum_k a_k cos(w k)) / 2`` and
+  ``Cov(Re, Im) = -sum_k a_k sin(w k) / 2`` (``d`` is even): ``O(P)`` per
+  frequency after ``O(P^2)`` once (:func:`frequency_variances`).
 
 Memory stays ``O((N + P) B)`` with ``B`` columns of ``Sigma`` at a time.
 
@@ -35,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft
 
-__all__ = ["convolution_variance", "dft_bins", "dft_variances"]
+__all__ = ["convolution_variance", "dft_bins", "dft_variances", "frequency_variances"]
 
 # entries of an (FFT length x columns) block formed at once: memory O(2**22) floats
 _BLOCK_ENTRIES = 2**22
@@ -156,4 +164,66 @@ def dft_variances(mean: np.ndarray, cov: np.ndarray, n_freqs: int, length: int):
         var_re += np.einsum("kj,kj->k", Y.real, c)
         var_im += np.einsum("kj,kj->k", Y.imag, s)
         cov_re_im += np.einsum("kj,kj->k", Y.real, s)
+    return frf, np.maximum(var_re, 0.0), np.maximum(var_im, 0.0), cov_re_im
+
+
+def _diagonal_sums(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``d_k``, ``k = 0..P-1`` (the sums of the diagonals ``j - i = k``), and ``a_k``, ``k = 0..2P-2``.
+
+    ``a_k`` is the sum of the anti-diagonal ``i + j = k``.
+    """
+    order = cov.shape[0]
+    diagonal = np.array([np.trace(cov, offset=k) for k in range(order)])
+    flipped = cov[::-1]  # row i of the flipped matrix is row P-1-i: i + j = k is offset k-P+1
+    anti = np.array([np.trace(flipped, offset=k - order + 1) for k in range(2 * order - 1)])
+    return diagonal, anti
+
+
+def frequency_variances(mean: np.ndarray, cov: np.ndarray, angles: np.ndarray):
+    """The DFT of ``g ~ N(mean, cov)`` at any ``angles`` ``w`` (radians per sample).
+
+    With ``E[f, j] = exp(-i w_f j)``: the mean ``E mean`` and the variances of
+    ``Re(E g)`` and ``Im(E g)`` and their covariance, from the sums of the
+    diagonals and anti-diagonals of ``cov`` (see the module's notes).
+
+    Parameters
+    ----------
+    mean : ndarray of shape (P,)
+    cov : ndarray of shape (P, P)
+        Symmetric.
+    angles : ndarray of shape (n,)
+        ``2 pi f T``.
+
+    Returns
+    -------
+    frf : ndarray of shape (n,), complex
+    var_re, var_im, cov_re_im : ndarray of shape (n,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gpmultirate.bands import frequency_variances
+    >>> cov = np.array([[2.0, 0.5], [0.5, 1.0]])
+    >>> frf, var_re, var_im, c = frequency_variances(np.zeros(2), cov, np.array([np.pi / 2]))
+    >>> E = np.exp(-1j * np.pi / 2 * np.arange(2))  # (1, -i)
+    >>> [round(float(v[0]), 12) for v in (var_re, var_im, c)]  # E.real cov E.real, ...
+    [2.0, 1.0, -0.5]
+    """
+    order = cov.shape[0]
+    diagonal, anti = _diagonal_sums(0.5 * (cov + cov.T))
+    # sum over i - j = k of both signs: d_0 once, d_k (k > 0) twice
+    two_sided = np.concatenate([[diagonal[0]], 2.0 * diagonal[1:]])
+    frf = np.empty(angles.shape[0], dtype=complex)
+    var_re, var_im, cov_re_im = (np.empty(angles.shape[0]) for _ in range(3))
+    lags, wide = np.arange(order), np.arange(2 * order - 1)
+    block = _columns_per_block(2 * order, angles.shape[0])
+    for start in range(0, angles.shape[0], block):
+        rows = slice(start, start + block)
+        w = angles[rows, None]
+        near = two_sided @ np.cos(w * lags).T
+        cos_anti, sin_anti = np.cos(w * wide) @ anti, np.sin(w * wide) @ anti
+        var_re[rows] = 0.5 * (near + cos_anti)
+        var_im[rows] = 0.5 * (near - cos_anti)
+        cov_re_im[rows] = -0.5 * sin_anti
+        frf[rows] = np.exp(-1j * w * lags) @ mean
     return frf, np.maximum(var_re, 0.0), np.maximum(var_im, 0.0), cov_re_im

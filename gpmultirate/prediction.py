@@ -14,7 +14,12 @@ import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from gpmultirate import units
-from gpmultirate.bands import convolution_variance, dft_bins, dft_variances
+from gpmultirate.bands import (
+    convolution_variance,
+    dft_bins,
+    dft_variances,
+    frequency_variances,
+)
 from gpmultirate.deprecation import warn_deprecated
 from gpmultirate.inference import gaussian_samples
 from gpmultirate.metrics import goodness_of_fit
@@ -318,11 +323,14 @@ class FIRModelMixin:
         freqs, sample_time = check_frequencies(freqs, sample_time)
         P = self._order
         posterior, scale = units.split(self.posterior_)
-        length = dft_bins(freqs, sample_time) if P >= _FFT_MIN_ORDER else None
-        if length is not None:  # the DFT bins of a length: E Sigma by FFT, E never formed
+        if P >= _FFT_MIN_ORDER:  # from the posterior covariance, E never formed
             block = slice(k * P, (k + 1) * P)
-            mean, var_re, var_im, cov = dft_variances(
-                posterior.coef[block], posterior.covariance()[block, block], freqs.size, length)
+            mean, cov = posterior.coef[block], posterior.covariance()[block, block]
+            length = dft_bins(freqs, sample_time)
+            # the DFT bins of a length: E Sigma by FFT; else the (anti-)diagonal sums
+            mean, var_re, var_im, cov = (
+                dft_variances(mean, cov, freqs.size, length) if length is not None
+                else frequency_variances(mean, cov, 2.0 * np.pi * sample_time * freqs))
         else:
             E = dft_matrix(freqs, sample_time, P)
             # the DFT of input k's block of the input-major coefficients
@@ -389,5 +397,5 @@ class FIRModelMixin:
 # entries of the convolution matrix formed at once by predict(..., return_std=True)
 _PREDICT_BLOCK_ENTRIES = 2**22
 # from this order on, the bands of predict and frequency_response come from the
-# P x P posterior covariance by FFT (gpmultirate.bands) rather than row by row
+# P x P posterior covariance by FFT or its diagonal sums (gpmultirate.bands), not row by row
 _FFT_MIN_ORDER = 128

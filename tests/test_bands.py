@@ -93,3 +93,61 @@ def test_frequency_response_band_by_fft_equals_the_dense_band(long_model, monkey
     for name in ("real_std", "imag_std", "magnitude_lower", "magnitude_upper"):
         np.testing.assert_allclose(getattr(frf, name), getattr(dense, name), rtol=1e-6,
                                    atol=1e-9 * np.abs(dense.mean).max())
+
+
+@pytest.mark.parametrize("order", [1, 6, 40])
+def test_frequency_variances_at_any_frequency_equal_the_dense_pair_variances(order):
+    from gpmultirate.bands import frequency_variances
+
+    rng = np.random.default_rng(4)
+    mean, cov = rng.standard_normal(order), random_covariance(order, rng)
+    freqs = np.r_[0.0, np.geomspace(0.01, 50.0, 37)]  # no DFT bins
+    E = dft_matrix(freqs, 0.01, order)
+    dense = GaussianCoefficients(mean, cov, np.zeros((1, order)))
+    expected = dense.pair_variances(np.ascontiguousarray(E.real), np.ascontiguousarray(E.imag))
+    frf, *found = frequency_variances(mean, cov, 2 * np.pi * 0.01 * freqs)
+    np.testing.assert_allclose(frf, E @ mean, atol=1e-10)
+    for a, b in zip(found, expected):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-10)
+
+
+def test_frequency_response_band_at_log_frequencies_equals_the_dense_band(long_model,
+                                                                          monkeypatch):
+    model, _ = long_model
+    freqs = np.geomspace(0.05, 49.0, 200)  # at 50 Hz (Nyquist) Im G = 0: no correlation
+    frf = model.frequency_response(freqs)
+    monkeypatch.setattr(prediction, "_FFT_MIN_ORDER", 10**9)
+    dense = model.frequency_response(freqs)
+    np.testing.assert_allclose(frf.mean, dense.mean, atol=1e-10 * np.abs(dense.mean).max())
+    for name in ("real_std", "imag_std", "real_imag_corr", "magnitude_upper", "phase_lower"):
+        np.testing.assert_allclose(getattr(frf, name), getattr(dense, name), rtol=1e-6,
+                                   atol=1e-8)
+
+
+def test_draws_through_a_cholesky_factor_have_the_covariance():
+    from gpmultirate.covariance import posteriors
+
+    rng = np.random.default_rng(5)
+    size = posteriors.CHOLESKY_MIN_SIZE
+    # a covariance as a posterior's: a smooth prior less what the data explain, singular-ish
+    lags = np.arange(size)
+    prior = 0.99 ** np.maximum.outer(lags, lags)
+    Phi = rng.standard_normal((40, size))
+    PhiK = Phi @ prior
+    cov = prior - PhiK.T @ np.linalg.solve(PhiK @ Phi.T + 0.01 * np.eye(40), PhiK)
+    root = posteriors._cholesky_root(cov)
+    np.testing.assert_allclose(root @ root.T, cov, atol=1e-7 * np.max(np.diag(cov)))
+    mean = rng.standard_normal(size)
+    draws = posteriors.gaussian_samples(mean, cov, 4000, np.random.default_rng(6))
+    # the variance of a few projections, Monte Carlo (2.2 % standard error; 5 of them)
+    for a in (np.ones(size), lags / size, rng.standard_normal(size)):
+        sample = a @ (draws - mean[:, None])
+        assert np.var(sample) == pytest.approx(a @ cov @ a, rel=0.12)
+    assert np.abs(draws.mean(axis=1) - mean).max() < 5 * np.sqrt(np.diag(cov).max() / 4000)
+
+
+def test_cholesky_root_refuses_what_it_cannot_factor():
+    from gpmultirate.covariance import posteriors
+
+    assert posteriors._cholesky_root(np.zeros((3, 3))) is None
+    assert posteriors._cholesky_root(-np.eye(3)) is None
