@@ -233,6 +233,7 @@ class EvaluationClock:
     def __init__(self) -> None:
         self.runs: list[int] = []
         self.seconds: list[float] | None = None
+        self.evaluating = time.perf_counter()  # the start of the latest evaluation
         self._lock = threading.Lock()
 
     @contextlib.contextmanager
@@ -252,7 +253,7 @@ class EvaluationClock:
         """``function`` with each call's time recorded in the current run."""
 
         def timed_function(*args, **kwargs):
-            start = time.perf_counter()
+            start = self.evaluating = time.perf_counter()
             try:
                 return function(*args, **kwargs)
             finally:
@@ -269,10 +270,16 @@ class EvaluationClock:
         return runs[len(runs) // 2] if runs else TYPICAL_EVALUATIONS
 
     def summary(self) -> str | None:
-        """``"tuning: 12 evaluations, 1.9 s each, about 34 s left"``; None outside a run."""
+        """``"tuning: 12 evaluation(s) of the evidence, 1.9 s each, about 34 s left"``.
+
+        None outside a run.
+        """
         seconds = self.seconds
-        if not seconds:
+        if seconds is None:
             return None
+        if not seconds:
+            return (f"tuning: the first evaluation of the evidence under way "
+                    f"({time.perf_counter() - self.evaluating:.0f} s)")
         seconds = list(seconds)
         recent = seconds[-5:]
         return (f"tuning: {len(seconds)} evaluation(s) of the evidence, "
