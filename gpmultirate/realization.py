@@ -66,13 +66,18 @@ class Realization:
     C : ndarray of shape (n_outputs, n_states)
     D : ndarray of shape (n_outputs, n_inputs)
     hankel_singular_values : ndarray
-        All the Hankel singular values of the system that was reduced, in
-        decreasing order (the first ``n_states`` are kept).
+        The Hankel singular values of the system that was reduced, in
+        decreasing order (the first ``n_states`` are kept): all of them, or
+        for a long impulse response the leading ones down to below the
+        order rule's threshold, with ``tail_bound`` for the rest.
     n_states : int
         The order of the realization.
     complete : bool, default=True
         False when ``hankel_singular_values`` holds only the leading values
-        (:func:`leading_era`).
+        and nothing bounds the rest (:func:`leading_era`).
+    tail_bound : float, default=0.0
+        An upper bound of the sum of the Hankel singular values that
+        ``hankel_singular_values`` does not hold (0 when it holds all).
 
     Examples
     --------
@@ -91,10 +96,14 @@ class Realization:
     hankel_singular_values: np.ndarray
     n_states: int
     complete: bool = True
+    tail_bound: float = 0.0
 
     @property
     def error_bound(self) -> float:
         """Twice the sum of the discarded Hankel singular values (NaN unless ``complete``).
+
+        With ``tail_bound`` for the values not held: then an upper bound of
+        that sum.
 
         The H-infinity norm of the difference between the system that was
         reduced and this realization is at most this value when the
@@ -103,7 +112,8 @@ class Realization:
         """
         if not self.complete:
             return float("nan")
-        return float(2.0 * np.sum(self.hankel_singular_values[self.n_states:]))
+        return float(2.0 * (np.sum(self.hankel_singular_values[self.n_states:])
+                            + self.tail_bound))
 
     def markov_parameters(self, n_lags: int) -> np.ndarray:
         """Impulse response ``D, CB, CAB, ...`` of the realization.
@@ -460,6 +470,10 @@ def era(markov, n_states: int | None = None, *, n_block_rows: int | None = None,
     rows = n_lags - 1 if n_block_rows is None else check_int(n_block_rows, "n_block_rows", low=1)
     cols = n_lags - 1 if n_block_cols is None else check_int(n_block_cols, "n_block_cols", low=1)
     product = _HankelProduct(h, rows, cols)
+    if min(product.shape) > DENSE_SPECTRUM_SIZE:
+        leading = _leading_realization(h, product, n_states, threshold)
+        if leading is not None:
+            return leading
     # the values first (no vectors), then the leading triplets of the order chosen only
     s = hankel_singular_values(h, rows, cols)
     rank = _numerical_rank(s, product.shape)
@@ -470,6 +484,60 @@ def era(markov, n_states: int | None = None, *, n_block_rows: int | None = None,
     n = _check_order(n_states, rank, s, threshold)
     U, leading, Vt = _leading_triplets(h, product, n)
     return _realize(h, product, U, leading, Vt, n, values=s)
+
+
+#: above this many rows and columns, :func:`era` finds only the leading Hankel
+#: singular values (ARPACK on FFT products) and bounds the rest
+DENSE_SPECTRUM_SIZE = 1500
+
+
+def _frobenius_square(h: np.ndarray, product: _HankelProduct) -> float:
+    """``||H||_F^2``: each Markov parameter ``h(1 + k)`` appears once per ``i + j = k``."""
+    k = np.arange(product.rows + product.cols - 1)
+    counts = np.minimum(k, product.rows - 1) - np.maximum(0, k - product.cols + 1) + 1
+    kept = h[1 : 1 + k.size]
+    return float(np.sum(counts[: kept.shape[0]] * np.sum(kept ** 2, axis=(1, 2))))
+
+
+def _leading_realization(h, product: _HankelProduct, n_states, threshold):
+    """:func:`era` from the leading singular triplets only, or None where they do not suffice.
+
+    The leading triplets are found (ARPACK on the FFT products), more of
+    them each time, until the smallest is below ``threshold`` times the
+    largest (the values :func:`select_order` reads) and beyond ``n_states``
+    when it is given; the sum of the values not found is bounded through
+    the Frobenius norm, ``sum_{i > k} s_i <= sqrt((r - k) (||H||_F^2 -
+    sum_{i <= k} s_i^2))`` (Cauchy-Schwarz), ``r`` the smaller dimension.
+    None when a quarter of ``r`` is not enough (the dense route is then
+    as cheap).
+    """
+    from scipy.sparse.linalg import ArpackNoConvergence, svds
+
+    size = min(product.shape)
+    operator = product.operator()
+    start = np.full(product.shape[1], 1.0 / np.sqrt(product.shape[1]))  # deterministic
+    k = 32 if n_states is None else max(32, 2 * int(n_states) + 8)
+    while k < size // 4:
+        try:
+            U, s, Vt = svds(operator, k=k, v0=start, solver="arpack")
+        except ArpackNoConvergence:
+            return None
+        order = np.argsort(s)[::-1]
+        U, s, Vt = U[:, order], s[order], Vt[order]
+        if s[0] <= 0:
+            return None
+        enough = s[-1] < threshold * s[0] and s[-1] > size * np.finfo(float).eps * s[0]
+        if enough and (n_states is None or int(n_states) < k):
+            n = _check_order(n_states, k, s, threshold) if n_states is not None else \
+                select_order(s, threshold, zero_after=False)
+            rest = max(_frobenius_square(h, product) - float(np.sum(s ** 2)), 0.0)
+            tail = float(np.sqrt((size - k) * rest))
+            realization = _realize(h, product, U, s, Vt, n)
+            return Realization(A=realization.A, B=realization.B, C=realization.C,
+                               D=realization.D, hankel_singular_values=s, n_states=n,
+                               tail_bound=tail)
+        k *= 2
+    return None
 
 
 def _leading_triplets(h, product: _HankelProduct, n: int):

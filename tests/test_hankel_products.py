@@ -118,3 +118,41 @@ def test_values_of_a_symmetric_hankel_matrix_are_its_eigenvalue_magnitudes():
     H = linalg.hankel(c[:10], c[9:])
     np.testing.assert_allclose(np.sort(np.abs(np.linalg.eigvalsh(H)))[::-1],
                                np.linalg.svd(H, compute_uv=False), rtol=1e-12)
+
+
+@pytest.mark.parametrize("n_states", [None, 4, 7])
+def test_a_long_response_is_reduced_from_its_leading_values_with_a_true_bound(monkeypatch,
+                                                                              n_states):
+    from gpmultirate import realization
+
+    monkeypatch.setattr(realization, "DENSE_SPECTRUM_SIZE", 200)
+    rng = np.random.default_rng(9)
+    h = noisy_two_mode_response(420, rng, noise=1e-4)
+    r = era(h, n_states)
+    assert r.complete and r.tail_bound > 0  # the leading values only
+    s = np.linalg.svd(block_hankel(h), compute_uv=False)
+    monkeypatch.setattr(realization, "DENSE_SPECTRUM_SIZE", 10**9)
+    dense = era(h, n_states)
+    assert r.n_states == dense.n_states
+    k = r.hankel_singular_values.size
+    assert k < s.size // 4
+    np.testing.assert_allclose(r.hankel_singular_values, s[:k], rtol=1e-8, atol=1e-13 * s[0])
+    # the bound holds the dense one, and the reduced FRF lies within it
+    assert dense.error_bound <= r.error_bound
+    assert r.tail_bound >= s[k:].sum() * (1 - 1e-9)
+    np.testing.assert_allclose(r.markov_parameters(900)[:, 0, 0],
+                               dense.markov_parameters(900)[:, 0, 0],
+                               atol=1e-8 * np.abs(h).max())
+    freqs = np.linspace(0.0, 0.5, 501)
+    fir = np.exp(-2j * np.pi * freqs[:, None] * np.arange(h.size)) @ h
+    assert np.abs(r.frequency_response(freqs)[:, 0, 0] - fir).max() <= r.error_bound
+
+
+def test_an_exactly_low_order_long_response_takes_the_dense_route(monkeypatch):
+    from gpmultirate import realization
+
+    monkeypatch.setattr(realization, "DENSE_SPECTRUM_SIZE", 200)
+    h = np.r_[0.0, 0.9 ** np.arange(419)]  # rank 1 (up to the cut tail)
+    r = era(h, 1)
+    assert r.n_states == 1 and r.tail_bound == 0.0
+    assert r.hankel_singular_values.size == 419
