@@ -487,8 +487,10 @@ def era(markov, n_states: int | None = None, *, n_block_rows: int | None = None,
 
 
 #: above this many rows and columns, :func:`era` finds only the leading Hankel
-#: singular values (ARPACK on FFT products) and bounds the rest
+#: singular values (ARPACK on FFT products) and bounds the rest, when the
+#: ``LEADING_VALUES`` largest reach below the order rule's threshold
 DENSE_SPECTRUM_SIZE = 1500
+LEADING_VALUES = 64
 
 
 def _frobenius_square(h: np.ndarray, product: _HankelProduct) -> float:
@@ -502,22 +504,25 @@ def _frobenius_square(h: np.ndarray, product: _HankelProduct) -> float:
 def _leading_realization(h, product: _HankelProduct, n_states, threshold):
     """:func:`era` from the leading singular triplets only, or None where they do not suffice.
 
-    The leading triplets are found (ARPACK on the FFT products), more of
-    them each time, until the smallest is below ``threshold`` times the
-    largest (the values :func:`select_order` reads) and beyond ``n_states``
-    when it is given; the sum of the values not found is bounded through
+    The ``LEADING_VALUES`` leading triplets are found (ARPACK on the FFT
+    products; more when ``n_states`` is given); they suffice when the
+    smallest is below ``threshold`` times the largest (the values
+    :func:`select_order` reads) and beyond ``n_states``; the sum of the values not found is bounded through
     the Frobenius norm, ``sum_{i > k} s_i <= sqrt((r - k) (||H||_F^2 -
     sum_{i <= k} s_i^2))`` (Cauchy-Schwarz), ``r`` the smaller dimension.
-    None when a quarter of ``r`` is not enough (the dense route is then
-    as cheap).
+    None when they do not suffice (the values-only dense spectrum is then
+    the cheaper route).
     """
     from scipy.sparse.linalg import ArpackNoConvergence, svds
 
     size = min(product.shape)
     operator = product.operator()
     start = np.full(product.shape[1], 1.0 / np.sqrt(product.shape[1]))  # deterministic
-    k = 32 if n_states is None else max(32, 2 * int(n_states) + 8)
-    while k < size // 4:
+    # one attempt: ARPACK's cost grows as k^2 per restart, and beyond some 64 values the
+    # values-only dense spectrum is cheaper (an estimated FIR's values above the threshold
+    # can number hundreds, from the noise in its tail)
+    k = LEADING_VALUES if n_states is None else max(LEADING_VALUES, 2 * int(n_states) + 8)
+    if k < size // 4:
         try:
             U, s, Vt = svds(operator, k=k, v0=start, solver="arpack")
         except ArpackNoConvergence:
@@ -536,7 +541,6 @@ def _leading_realization(h, product: _HankelProduct, n_states, threshold):
             return Realization(A=realization.A, B=realization.B, C=realization.C,
                                D=realization.D, hankel_singular_values=s, n_states=n,
                                tail_bound=tail)
-        k *= 2
     return None
 
 
