@@ -313,14 +313,11 @@ def hankel_singular_values(markov, n_block_rows: int | None = None,
     """
     h = as_markov(markov, "markov")
     H = block_hankel(h, n_block_rows, n_block_cols)
+    # numpy's LAPACK calls release the interpreter lock, so the progress's heartbeat
+    # goes on during a long one (scipy's hold it)
     if H.shape[0] == H.shape[1] and h.shape[1:] == (1, 1):
-        values = np.abs(linalg.eigvalsh(H, check_finite=False, overwrite_a=True))
-        return np.sort(values)[::-1]
-    try:
-        return linalg.svd(H, compute_uv=False, check_finite=False, overwrite_a=True)
-    except linalg.LinAlgError:  # pragma: no cover - the divide-and-conquer driver rarely fails
-        return linalg.svd(block_hankel(h, n_block_rows, n_block_cols), compute_uv=False,
-                          check_finite=False, lapack_driver="gesvd")
+        return np.sort(np.abs(np.linalg.eigvalsh(H)))[::-1]
+    return np.linalg.svd(H, compute_uv=False)
 
 
 def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD,
