@@ -10,6 +10,8 @@ estimators of :mod:`gpmultirate.estimators` share it.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
@@ -186,7 +188,7 @@ class FIRModelMixin:
         if return_std and not periodic and coef.shape[1] >= _FFT_MIN_ORDER:
             # diag(T Sigma T^T) by FFT: O(P (N + P) log) instead of O(N P^2)
             mean = sum(np.convolve(x[:, k], coef[k])[:n] for k in range(x.shape[1]))
-            return mean, np.sqrt(convolution_variance(x, posterior.covariance()))
+            return mean, np.sqrt(convolution_variance(x, _covariance(posterior)))
         # rows of the convolution matrix in blocks: memory O(block P), not O(n P)
         block = max(1, _PREDICT_BLOCK_ENTRIES // coef.size)
         mean, var = np.empty(n), np.empty(n)
@@ -325,7 +327,7 @@ class FIRModelMixin:
         posterior, scale = units.split(self.posterior_)
         if P >= _FFT_MIN_ORDER:  # from the posterior covariance, E never formed
             block = slice(k * P, (k + 1) * P)
-            mean, cov = posterior.coef[block], posterior.covariance()[block, block]
+            mean, cov = posterior.coef[block], _covariance(posterior)[block, block]
             length = dft_bins(freqs, sample_time)
             # the DFT bins of a length: E Sigma by FFT; else the (anti-)diagonal sums
             mean, var_re, var_im, cov = (
@@ -392,6 +394,27 @@ class FIRModelMixin:
         if self.n_inputs_ > 1:
             return draws.reshape(self.n_inputs_, -1, n_samples)
         return draws
+
+
+# the P x P covariance of the latest posterior whose bands were asked for: the command's
+# predictions and Bode band share one (K - B^T B costs M P^2 flops, 3e10 at M = 2,000 and
+# P = 4,000), and it goes with its posterior
+_COVARIANCES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _covariance(posterior) -> np.ndarray:
+    """``posterior.covariance()``, kept while the posterior lives (the latest one only)."""
+    try:
+        return _COVARIANCES[posterior]
+    except (KeyError, TypeError):
+        pass
+    cov = posterior.covariance()
+    try:
+        _COVARIANCES.clear()
+        _COVARIANCES[posterior] = cov
+    except TypeError:  # not weakly referable or not hashable: not kept
+        pass
+    return cov
 
 
 # entries of the convolution matrix formed at once by predict(..., return_std=True)

@@ -151,3 +151,16 @@ def test_cholesky_root_refuses_what_it_cannot_factor():
 
     assert posteriors._cholesky_root(np.zeros((3, 3))) is None
     assert posteriors._cholesky_root(-np.eye(3)) is None
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_the_posterior_covariance_is_kept_for_its_posterior_only(long_model):
+    model, u = long_model
+    posterior = gm.prediction.units.split(model.posterior_)[0]
+    first = prediction._covariance(posterior)
+    assert prediction._covariance(posterior) is first
+    np.testing.assert_array_equal(first, posterior.covariance())
+    other = gm.FIRGaussianProcess(order=150, factor=3).fit(u, np.convolve(u, 0.5 ** np.arange(9))[
+        :900:3])
+    assert prediction._covariance(gm.prediction.units.split(other.posterior_)[0]) is not first
+    assert len(prediction._COVARIANCES) == 1
