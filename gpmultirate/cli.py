@@ -479,7 +479,8 @@ def _fit(parser, args) -> int:
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
         tuning=args.tuning, cv=args.cv, noise_kernel=args.noise, **samples.estimator_params)
     def progress():
-        return contextlib.nullcontext() if args.quiet else show_progress(prefix="gpmultirate fit")
+        return contextlib.nullcontext() if args.quiet else show_progress(
+            prefix="gpmultirate fit", since=started)  # one clock for the whole command
 
     steps = StepTimes()
     with warnings.catch_warnings(record=True) as caught, progress(), steps, steps.step("fit"):

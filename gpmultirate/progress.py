@@ -88,7 +88,7 @@ class ProgressHandler(logging.Handler):
 
 @contextlib.contextmanager
 def show_progress(stream=None, prefix: str = "gpmultirate", logger: str = FIT_LOGGER,
-                  interval: float | None = None):
+                  interval: float | None = None, since: float | None = None):
     """Show the progress of fits within a ``with`` block.
 
     Attaches a :class:`ProgressHandler` to the logger (``INFO`` and above)
@@ -105,6 +105,9 @@ def show_progress(stream=None, prefix: str = "gpmultirate", logger: str = FIT_LO
     logger : str, default=FIT_LOGGER
     interval : float, optional
         Seconds; default ``HEARTBEAT_SECONDS`` (10).
+    since : float, optional
+        The ``time.perf_counter()`` the elapsed times count from (default:
+        now), so that two blocks of one command share one clock.
 
     Yields
     ------
@@ -122,6 +125,8 @@ def show_progress(stream=None, prefix: str = "gpmultirate", logger: str = FIT_LO
     """
     interval = HEARTBEAT_SECONDS if interval is None else float(interval)
     handler = ProgressHandler(stream, prefix)
+    if since is not None:
+        handler.started = float(since)
     target = logging.getLogger(logger)
     level = target.level
     if target.getEffectiveLevel() > logging.INFO:
