@@ -11,7 +11,12 @@ the default fit (everything default, the paper's system at 40 dB, ``N`` of
 3,000 to 1,000,000, ``defaults_*``, with the order it chose); a camera record
 (N = 20,000, factor 10, modes at 30 and 120 Hz, ``camera_20k``: defaults with
 ``kernel="auto"``, the default kernel, and order 1,500) and ``gpmultirate fit``
-on it end to end against the library fit it wraps (``cli_camera_20k``); and the experiments beyond the paper's, each against the uniform one-input
+on it end to end against the library fit it wraps (``cli_camera_20k``); the camera log of
+``benchmarks/camera_log.py`` (``camera_log``: 20 s of a 1 kHz actuator, a 100 Hz camera on its
+own clock with a 2 ms exposure, ``gpmultirate fit`` with the documented options, each step's
+time, the command's peak memory, the validation fit and the share of the true ``|G|`` in the
+band above 55 Hz; ``camera_log_quick``, 5 s; ``camera_log_ticks``, frames on the ticks;
+``camera_log_60s``); and the experiments beyond the paper's, each against the uniform one-input
 fit of the same size in the same run: two inputs at paper size, the paper
 case with 20 % of the slow samples missing, four records of N = 600, and the
 long record with irregular instants (mean spacing 3, jitter +-1); and a
@@ -470,6 +475,20 @@ def wide_case(kind, implementation, n_samples=600, order=None):
     return {"seconds": seconds, "gof": goodness_of_fit(y_val, model.predict(u_val))}
 
 
+def camera_log_case(seconds, ticks, order=None):
+    """``gpmultirate fit`` on a camera log (:mod:`camera_log`): steps, memory and accuracy.
+
+    ``order`` (``--order`` of this script) is passed to the command; by
+    default the command chooses it.
+    """
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from camera_log import run_command
+
+    result = run_command(seconds, ticks, extra=() if order is None else ("--order", str(order)))
+    result.pop("progress")
+    return result
+
+
 def timed_case(kind, implementation, n_samples=600, order=300, exposure=0.5):
     """Frames of the paper's system (45 dB, factor 3, default kernel, ML-tuned).
 
@@ -577,7 +596,16 @@ CASES = {
     "camera_20k": ("camera N = 20,000, F = 10, defaults, kernel='auto'",
                    ["ours", "default_kernel", "order_1500"]),
     "cli_camera_20k": ("gpmultirate fit on the camera record (vs its library fit)", ["ours"]),
+    "camera_log": ("camera log 20 s, own clock, exposure 2 ms, command", ["ours"]),
+    "camera_log_quick": ("camera log 5 s, own clock, exposure 2 ms, command", ["ours"]),
+    "camera_log_ticks": ("camera log 20 s, frames on the ticks, command", ["ours"]),
+    "camera_log_ticks_quick": ("camera log 5 s, frames on the ticks, command", ["ours"]),
+    "camera_log_60s": ("camera log 60 s, own clock, exposure 2 ms, command", ["ours"]),
 }
+#: the record length (seconds) and frames on the ticks of each camera-log case
+CAMERA_LOGS = {"camera_log": (20.0, False), "camera_log_quick": (5.0, False),
+               "camera_log_ticks": (20.0, True), "camera_log_ticks_quick": (5.0, True),
+               "camera_log_60s": (60.0, False)}
 #: the record length of each case of the default fit
 DEFAULTS_SIZES = {"defaults_3k": 3000, "defaults_30k": 30_000, "defaults_300k": 300_000,
                   "defaults_1m": 1_000_000}
@@ -647,6 +675,8 @@ def run_case(name, implementation, n_samples=None, order=None):
         return camera_case(implementation, n_samples or 20_000, order)
     if name == "cli_camera_20k":
         return cli_camera_case(implementation, n_samples or 20_000)
+    if name in CAMERA_LOGS:
+        return camera_log_case(*CAMERA_LOGS[name], order=order)
     raise ValueError(f"unknown case {name!r}")
 
 
@@ -749,6 +779,12 @@ def main(argv=None):
             if "fit_seconds" in r:
                 print(f"{'':42s} {'':10s} library fit {r['fit_seconds']:.2f} s; the command "
                       f"takes {r['ratio_to_fit']:.2f} x that")
+            if "steps" in r:
+                steps = ", ".join(f"{k} {v:.1f} s" for k, v in r["steps"].items())
+                print(f"{'':42s} {'':10s} order {r['order']}, {r['frames']} frames; steps: "
+                      f"{steps}; CPU {r['cpu_seconds']:.1f} s; the command's peak memory "
+                      f"{r['command_peak_mb']:.0f} MB; true |G| in the band above 55 Hz "
+                      f"{100 * r['band_share_above_55hz']:.1f} %")
             if "workers_mb" in r:
                 print(f"{'':42s} {'':10s} peak MB of a worker process {r['workers_mb']:.0f}; "
                       f"lowest GoF of an output {r['gof_min']:.3f} %; CPU time of the "

@@ -431,7 +431,7 @@ def _fit(parser, args) -> int:
     from gpmultirate.io import (
         check_folder, read_record, read_slow_log, read_slow_samples, write_folder,
     )
-    from gpmultirate.progress import show_progress
+    from gpmultirate.progress import StepTimes, show_progress
     from gpmultirate.report import fit_files, kernel_option
 
     path, inputs, output = _fit_source(parser, args)
@@ -478,8 +478,12 @@ def _fit(parser, args) -> int:
         kernel=kernel_option(args.kernel), order=args.order,
         initial_conditions=args.initial_conditions, sample_time=args.sample_time,
         tuning=args.tuning, cv=args.cv, noise_kernel=args.noise, **samples.estimator_params)
-    progress = contextlib.nullcontext() if args.quiet else show_progress(prefix="gpmultirate fit")
-    with warnings.catch_warnings(record=True) as caught, progress:
+    def progress():
+        return contextlib.nullcontext() if args.quiet else show_progress(
+            prefix="gpmultirate fit", since=started)  # one clock for the whole command
+
+    steps = StepTimes()
+    with warnings.catch_warnings(record=True) as caught, progress(), steps, steps.step("fit"):
         warnings.simplefilter("always")
         try:
             loop = {} if excitation is None else {"excitation": excitation}
@@ -492,10 +496,11 @@ def _fit(parser, args) -> int:
     for message in messages:
         _say(args, f"warning: {message}")
     try:
-        files, report = fit_files(model, u, samples, file=path, inputs=inputs, output=output,
-                                  validation=validation, validation_file=args.validate,
-                                  warnings=messages, kernel_option=args.kernel,
-                                  xscale=args.xscale)
+        with progress(), steps:  # each step announced, none silent for ten seconds
+            files, report = fit_files(model, u, samples, file=path, inputs=inputs, output=output,
+                                      validation=validation, validation_file=args.validate,
+                                      warnings=messages, kernel_option=args.kernel,
+                                      xscale=args.xscale)
     except ValueError as error:
         parser.error(f"{path}: {error}")
     # the folder appears complete in one step (or not at all), see io.write_folder
@@ -506,7 +511,7 @@ def _fit(parser, args) -> int:
     print(report.headline())
     for note in report.notes:
         _say(args, f"note: {note}")
-    _say(args, f"done in {time.perf_counter() - started:.1f} s")
+    _say(args, f"done in {time.perf_counter() - started:.1f} s; {steps.line()}")
     return 0
 
 

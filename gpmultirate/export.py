@@ -60,6 +60,10 @@ class StateSpaceMixin:
         posterior-mean FIR (all its inputs together), decreasing.
     state_space_order_ : int
         Set by :meth:`to_state_space`: the order of the reduced model.
+    state_space_error_bound_ : float
+        Set by :meth:`to_state_space`: the bound of the difference between
+        the FRFs of the reduced model and of the FIR
+        (:attr:`gpmultirate.realization.Realization.error_bound`).
     """
 
     def _sample_time(self) -> float:
@@ -123,9 +127,11 @@ class StateSpaceMixin:
         of its impulse response (:func:`gpmultirate.realization.era`); for
         several inputs one model with ``n_inputs`` inputs.  Its frequency
         response is within ``2 * sum(hankel_singular_values_[n_states:])``
-        of the FIR's at every frequency.
+        of the FIR's at every frequency (for a long FIR the leading values
+        only are found: then within :attr:`state_space_error_bound_`).
 
-        Sets :attr:`hankel_singular_values_` and :attr:`state_space_order_`.
+        Sets :attr:`hankel_singular_values_`, :attr:`state_space_order_` and
+        :attr:`state_space_error_bound_`.
 
         Parameters
         ----------
@@ -167,6 +173,7 @@ class StateSpaceMixin:
         realization = era(self._markov(self.coef_), n_states, threshold=threshold)
         self.hankel_singular_values_ = realization.hankel_singular_values
         self.state_space_order_ = realization.n_states
+        self.state_space_error_bound_ = realization.error_bound
         return _state_space(realization, dt)
 
     def sample_state_spaces(self, n_states: int | None = None, n_samples: int = 10,

@@ -308,6 +308,9 @@ def modal_analysis(model, n_states: int | None = None, *, n_draws: int = 100,
     order = int(np.asarray(system.A).shape[0])
     singular = np.asarray(getattr(model, "hankel_singular_values_", []), dtype=float)
     error_bound = float(2 * singular[order:].sum()) if singular.size else float("nan")
+    # the leading values of a long FIR's reduction: their tail is bounded, not summed
+    if getattr(model, "state_space_order_", None) == order:
+        error_bound = float(getattr(model, "state_space_error_bound_", error_bound))
     mean_modes = modes_of(system.A, system.B, system.C, sample_time)
     # one set of draws for the modes and the peaks: each reduced as the mean was
     # (the reduction of sample_state_spaces)

@@ -36,7 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
+from scipy import fft, linalg
 
 from gpmultirate.validation import as_real_array, check_int, check_positive
 
@@ -46,6 +46,7 @@ __all__ = [
     "balanced_truncation",
     "block_hankel",
     "era",
+    "hankel_singular_values",
     "leading_era",
     "select_order",
 ]
@@ -65,13 +66,18 @@ class Realization:
     C : ndarray of shape (n_outputs, n_states)
     D : ndarray of shape (n_outputs, n_inputs)
     hankel_singular_values : ndarray
-        All the Hankel singular values of the system that was reduced, in
-        decreasing order (the first ``n_states`` are kept).
+        The Hankel singular values of the system that was reduced, in
+        decreasing order (the first ``n_states`` are kept): all of them, or
+        for a long impulse response the leading ones down to below the
+        order rule's threshold, with ``tail_bound`` for the rest.
     n_states : int
         The order of the realization.
     complete : bool, default=True
         False when ``hankel_singular_values`` holds only the leading values
-        (:func:`leading_era`).
+        and nothing bounds the rest (:func:`leading_era`).
+    tail_bound : float, default=0.0
+        An upper bound of the sum of the Hankel singular values that
+        ``hankel_singular_values`` does not hold (0 when it holds all).
 
     Examples
     --------
@@ -90,10 +96,14 @@ class Realization:
     hankel_singular_values: np.ndarray
     n_states: int
     complete: bool = True
+    tail_bound: float = 0.0
 
     @property
     def error_bound(self) -> float:
         """Twice the sum of the discarded Hankel singular values (NaN unless ``complete``).
+
+        With ``tail_bound`` for the values not held: then an upper bound of
+        that sum.
 
         The H-infinity norm of the difference between the system that was
         reduced and this realization is at most this value when the
@@ -102,7 +112,8 @@ class Realization:
         """
         if not self.complete:
             return float("nan")
-        return float(2.0 * np.sum(self.hankel_singular_values[self.n_states:]))
+        return float(2.0 * (np.sum(self.hankel_singular_values[self.n_states:])
+                            + self.tail_bound))
 
     def markov_parameters(self, n_lags: int) -> np.ndarray:
         """Impulse response ``D, CB, CAB, ...`` of the realization.
@@ -225,6 +236,88 @@ def block_hankel(markov, n_block_rows: int | None = None, n_block_cols: int | No
     padded = np.concatenate([h, np.zeros((1, p, m))])
     blocks = padded[np.minimum(index, n_lags)]  # (rows, cols, p, m); n_lags is the zero block
     return blocks.transpose(0, 2, 1, 3).reshape(rows * p, cols * m)
+
+
+class _HankelProduct:
+    """Products with the block Hankel matrix of :func:`block_hankel`, by FFT.
+
+    ``H[(i, a), (j, b)] = h(1 + shift + i + j)[a, b]``: each product is a
+    correlation of the Markov parameters with the vector, ``O((R + C) log(R + C))``
+    per column and output-input pair instead of ``O(R C)``, and ``H`` is
+    never formed.
+    """
+
+    def __init__(self, h: np.ndarray, rows: int, cols: int, shift: int = 0) -> None:
+        n_lags, p, m = h.shape
+        self.rows, self.cols, self.p, self.m = rows, cols, p, m
+        self.shape = (rows * p, cols * m)
+        c = np.zeros((rows + cols - 1, p, m))
+        kept = h[1 + shift : 1 + shift + rows + cols - 1]
+        c[: kept.shape[0]] = kept
+        self.length = fft.next_fast_len(rows + cols - 1, real=True)
+        self.spectrum = fft.rfft(c, self.length, axis=0)  # (L/2 + 1, p, m)
+
+    def _correlate(self, spectrum, v, n_out, n_in):
+        # (H v)[i] = sum_j c(i + j) v[j]: the convolution of c with v reversed, read from n_in - 1
+        q = v.shape[1]
+        v = v.reshape(n_in, -1, q)[::-1]
+        w = fft.irfft(np.einsum("fab,fbq->faq", spectrum, fft.rfft(v, self.length, axis=0)),
+                      self.length, axis=0)
+        return w[n_in - 1 : n_in - 1 + n_out].reshape(-1, q)
+
+    def matmat(self, v: np.ndarray) -> np.ndarray:
+        """``H v`` for ``v`` of shape ``(C m, q)``."""
+        return self._correlate(self.spectrum, v, self.rows, self.cols)
+
+    def rmatmat(self, x: np.ndarray) -> np.ndarray:
+        """``H^T x`` for ``x`` of shape ``(R p, q)``."""
+        return self._correlate(self.spectrum.transpose(0, 2, 1), x, self.cols, self.rows)
+
+    def operator(self):
+        """As a :class:`scipy.sparse.linalg.LinearOperator` (for ``svds``)."""
+        from scipy.sparse.linalg import LinearOperator
+
+        return LinearOperator(
+            self.shape, dtype=float,
+            matvec=lambda v: self.matmat(np.reshape(v, (-1, 1)))[:, 0],
+            rmatvec=lambda x: self.rmatmat(np.reshape(x, (-1, 1)))[:, 0],
+            matmat=self.matmat, rmatmat=self.rmatmat)
+
+
+def hankel_singular_values(markov, n_block_rows: int | None = None,
+                           n_block_cols: int | None = None) -> np.ndarray:
+    """All the singular values of the block Hankel matrix, in decreasing order.
+
+    Only the values are computed (no singular vectors, several times
+    cheaper); a square Hankel matrix of one input and one output is
+    symmetric, and its singular values are the magnitudes of its
+    eigenvalues (``eigvalsh``, cheaper still).
+
+    Parameters
+    ----------
+    markov : array-like of shape (n_lags,) or (n_lags, n_outputs, n_inputs)
+    n_block_rows, n_block_cols : int, optional
+        As for :func:`block_hankel`.
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = np.r_[0.0, 0.5 ** np.arange(40)]
+    >>> s = hankel_singular_values(h)
+    >>> bool(np.allclose(s, np.linalg.svd(block_hankel(h), compute_uv=False)))
+    True
+    """
+    h = as_markov(markov, "markov")
+    H = block_hankel(h, n_block_rows, n_block_cols)
+    # numpy's LAPACK calls release the interpreter lock, so the progress's heartbeat
+    # goes on during a long one (scipy's hold it)
+    if H.shape[0] == H.shape[1] and h.shape[1:] == (1, 1):
+        return np.sort(np.abs(np.linalg.eigvalsh(H)))[::-1]
+    return np.linalg.svd(H, compute_uv=False)
 
 
 def select_order(hankel_singular_values, threshold: float = DEFAULT_THRESHOLD,
@@ -370,28 +463,122 @@ def era(markov, n_states: int | None = None, *, n_block_rows: int | None = None,
     True
     """
     h = as_markov(markov, "markov")
-    p, m = h.shape[1:]
-    H = block_hankel(h, n_block_rows, n_block_cols)
-    U, s, Vt = _svd(H)
-    rank = _numerical_rank(s, H.shape)
+    n_lags = h.shape[0]
+    rows = n_lags - 1 if n_block_rows is None else check_int(n_block_rows, "n_block_rows", low=1)
+    cols = n_lags - 1 if n_block_cols is None else check_int(n_block_cols, "n_block_cols", low=1)
+    product = _HankelProduct(h, rows, cols)
+    if min(product.shape) > DENSE_SPECTRUM_SIZE:
+        leading = _leading_realization(h, product, n_states, threshold)
+        if leading is not None:
+            return leading
+    # the values first (no vectors), then the leading triplets of the order chosen only
+    s = hankel_singular_values(h, rows, cols)
+    rank = _numerical_rank(s, product.shape)
     if rank == 0:
         raise ValueError(
             "markov is zero after lag 0 (a static gain): there is no state to realize"
         )
     n = _check_order(n_states, rank, s, threshold)
-    return _realize(h, H, U, s, Vt, n)
+    U, leading, Vt = _leading_triplets(h, product, n)
+    return _realize(h, product, U, leading, Vt, n, values=s)
 
 
-def _realize(h, H, U, s, Vt, n: int) -> Realization:
-    """The order-``n`` realization from the leading singular triplets of ``H``."""
+#: above this many rows and columns, :func:`era` finds only the leading Hankel
+#: singular values (ARPACK on FFT products) and bounds the rest, when the
+#: ``LEADING_VALUES`` largest reach below the order rule's threshold
+DENSE_SPECTRUM_SIZE = 1500
+LEADING_VALUES = 64
+
+
+def _frobenius_square(h: np.ndarray, product: _HankelProduct) -> float:
+    """``||H||_F^2``: each Markov parameter ``h(1 + k)`` appears once per ``i + j = k``."""
+    k = np.arange(product.rows + product.cols - 1)
+    counts = np.minimum(k, product.rows - 1) - np.maximum(0, k - product.cols + 1) + 1
+    kept = h[1 : 1 + k.size]
+    return float(np.sum(counts[: kept.shape[0]] * np.sum(kept ** 2, axis=(1, 2))))
+
+
+def _leading_realization(h, product: _HankelProduct, n_states, threshold):
+    """:func:`era` from the leading singular triplets only, or None where they do not suffice.
+
+    The ``LEADING_VALUES`` leading triplets are found (ARPACK on the FFT
+    products; more when ``n_states`` is given); they suffice when the
+    smallest is below ``threshold`` times the largest (the values
+    :func:`select_order` reads) and beyond ``n_states``; the sum of the values not found is bounded through
+    the Frobenius norm, ``sum_{i > k} s_i <= sqrt((r - k) (||H||_F^2 -
+    sum_{i <= k} s_i^2))`` (Cauchy-Schwarz), ``r`` the smaller dimension.
+    None when they do not suffice (the values-only dense spectrum is then
+    the cheaper route).
+    """
+    from scipy.sparse.linalg import ArpackNoConvergence, svds
+
+    size = min(product.shape)
+    operator = product.operator()
+    start = np.full(product.shape[1], 1.0 / np.sqrt(product.shape[1]))  # deterministic
+    # one attempt: ARPACK's cost grows as k^2 per restart, and beyond some 64 values the
+    # values-only dense spectrum is cheaper (an estimated FIR's values above the threshold
+    # can number hundreds, from the noise in its tail)
+    k = LEADING_VALUES if n_states is None else max(LEADING_VALUES, 2 * int(n_states) + 8)
+    if k < size // 4:
+        try:
+            U, s, Vt = svds(operator, k=k, v0=start, solver="arpack")
+        except ArpackNoConvergence:
+            return None
+        order = np.argsort(s)[::-1]
+        U, s, Vt = U[:, order], s[order], Vt[order]
+        if s[0] <= 0:
+            return None
+        enough = s[-1] < threshold * s[0] and s[-1] > size * np.finfo(float).eps * s[0]
+        if enough and (n_states is None or int(n_states) < k):
+            n = _check_order(n_states, k, s, threshold) if n_states is not None else \
+                select_order(s, threshold, zero_after=False)
+            rest = max(_frobenius_square(h, product) - float(np.sum(s ** 2)), 0.0)
+            tail = float(np.sqrt((size - k) * rest))
+            realization = _realize(h, product, U, s, Vt, n)
+            return Realization(A=realization.A, B=realization.B, C=realization.C,
+                               D=realization.D, hankel_singular_values=s, n_states=n,
+                               tail_bound=tail)
+    return None
+
+
+def _leading_triplets(h, product: _HankelProduct, n: int):
+    """``(U_n, s_n, V_n^T)`` of the Hankel matrix: iteratively, or by the full SVD.
+
+    ARPACK on the FFT products (to machine precision) where ``n`` is small
+    against the size; after the full SVD every triplet is returned.
+    """
+    from scipy.sparse.linalg import ArpackNoConvergence, svds
+
+    size = min(product.shape)
+    if size >= _ITERATIVE_MIN_SIZE and n < size // 4:
+        start = np.full(product.shape[1], 1.0 / np.sqrt(product.shape[1]))  # deterministic
+        try:
+            U, s, Vt = svds(product.operator(), k=n, v0=start, solver="arpack")
+        except ArpackNoConvergence:
+            pass
+        else:
+            order = np.argsort(s)[::-1]
+            return U[:, order], s[order], Vt[order]
+    return _svd(block_hankel(h, product.rows, product.cols))
+
+
+def _realize(h, product: _HankelProduct, U, s, Vt, n: int, values=None,
+             complete: bool = True) -> Realization:
+    """The order-``n`` realization from the leading singular triplets of ``H``.
+
+    ``values``: the Hankel singular values the realization reports
+    (default ``s``).
+    """
     p, m = h.shape[1:]
-    H1 = block_hankel(h, H.shape[0] // p, H.shape[1] // m, shift=1)
+    shifted = _HankelProduct(h, product.rows, product.cols, shift=1)
     root = np.sqrt(s[:n])
     left, right = U[:, :n] / root, Vt[:n].T / root
-    A = left.T @ H1 @ right
+    A = left.T @ shifted.matmat(right)
     B = (root[:, None] * Vt[:n])[:, :m]
     C = (U[:, :n] * root)[:p, :]
-    return Realization(A=A, B=B, C=C, D=h[0].copy(), hankel_singular_values=s, n_states=n)
+    return Realization(A=A, B=B, C=C, D=h[0].copy(),
+                       hankel_singular_values=s if values is None else values, n_states=n,
+                       complete=complete)
 
 
 # below this many rows or columns of H a full SVD is as fast as an iterative one
@@ -429,29 +616,20 @@ def leading_era(markov, n_states: int) -> Realization:
     >>> r.hankel_singular_values.shape, np.isnan(r.error_bound)
     ((1,), np.True_)
     """
-    from scipy.sparse.linalg import ArpackNoConvergence, svds
-
     h = as_markov(markov, "markov")
-    H = block_hankel(h)
-    n = check_int(n_states, "n_states", low=1, high=min(H.shape))
-    if min(H.shape) < _ITERATIVE_MIN_SIZE or n >= min(H.shape) // 4:
+    product = _HankelProduct(h, h.shape[0] - 1, h.shape[0] - 1)
+    n = check_int(n_states, "n_states", low=1, high=min(product.shape))
+    if min(product.shape) < _ITERATIVE_MIN_SIZE or n >= min(product.shape) // 4:
         full = era(h, n)
         return Realization(A=full.A, B=full.B, C=full.C, D=full.D,
                            hankel_singular_values=full.hankel_singular_values[:n], n_states=n)
-    start = np.full(H.shape[1], 1.0 / np.sqrt(H.shape[1]))  # deterministic
-    try:
-        U, s, Vt = svds(H, k=n, v0=start, solver="arpack")
-    except ArpackNoConvergence:
-        U, s, Vt = _svd(H)
-    order = np.argsort(s)[::-1][:n]
-    U, s, Vt = U[:, order], s[order], Vt[order]
-    if s[0] == 0 or s[-1] <= max(H.shape) * np.finfo(float).eps * s[0]:
+    U, s, Vt = _leading_triplets(h, product, n)
+    s = s[:n]
+    if s[0] == 0 or s[-1] <= max(product.shape) * np.finfo(float).eps * s[0]:
         raise ValueError(
             f"n_states must be below the numerical rank of the Hankel matrix; got {n}"
         )
-    realization = _realize(h, H, U, s, Vt, n)
-    return Realization(A=realization.A, B=realization.B, C=realization.C, D=realization.D,
-                       hankel_singular_values=s, n_states=n, complete=False)
+    return _realize(h, product, U, s, Vt, n, complete=False)
 
 
 def _psd_root(gramian: np.ndarray) -> np.ndarray:

@@ -678,8 +678,8 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
 
     from gpmultirate.export import save_state_space
     from gpmultirate.persistence import save_model
-    from gpmultirate.plotting.report import _figure, fit_figures
-    from gpmultirate.plotting.residuals import plot_residuals
+    from gpmultirate.plotting.report import fit_figures
+    from gpmultirate.progress import step
     from gpmultirate.residuals import analyze_residuals
 
     if samples is None:
@@ -692,7 +692,8 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
         raise ValueError(f"the model cannot be saved: {error}") from None
     files["model.npz"] = buffer.getvalue()
     try:
-        system = model.to_state_space()
+        with step("state space"):
+            system = model.to_state_space()
     except ValueError as error:
         notes.append(f"state_space.npz was not written: {error}")
     if system is not None:
@@ -704,7 +705,8 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
         # MATLAB's 25 lags, fewer for a short record
         max_lag = min(25, samples.values.shape[0] // 2)
         times = getattr(samples, "stamps", None)  # a slow log: in seconds, as the model reads them
-        analysis = analyze_residuals(model, u, samples.values,
+        with step("residuals"):
+            analysis = analyze_residuals(model, u, samples.values,
                                      None if times is not None else samples.indices,
                                      sample_times=times, max_lag=max(max_lag, 1))
     except ValueError as error:
@@ -713,25 +715,44 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
     if analysis is not None:
         from gpmultirate.diagnosis import explain_residuals
 
-        explanation = explain_residuals(analysis, model, u=u)
+        with step("residuals"):
+            explanation = explain_residuals(analysis, model, u=u)
         if not explanation.white:
             notes.append(explanation.text)
     if system is not None and hasattr(model, "sample_impulse_responses"):
         from gpmultirate.modes import modal_analysis
 
         try:
-            modes = modal_analysis(model, system=system)
+            with step("modes"):
+                modes = modal_analysis(model, system=system)
         except (ValueError, np.linalg.LinAlgError) as error:
             notes.append(f"the modes were not analysed: {error}")
         else:
             if not modes.consistent:
                 notes.append(modes.text)
-    report = fit_report(model, samples, file=file, inputs=inputs, output=output,
-                        validation=validation, validation_file=validation_file,
-                        state_space=system, notes=notes, warnings=warnings,
-                        kernel_option=kernel_option, residuals=analysis,
-                        residual_explanation=explanation, modes=modes)
+    with step("summary"):
+        report = fit_report(model, samples, file=file, inputs=inputs, output=output,
+                            validation=validation, validation_file=validation_file,
+                            state_space=system, notes=notes, warnings=warnings,
+                            kernel_option=kernel_option, residuals=analysis,
+                            residual_explanation=explanation, modes=modes)
     figures = fit_figures(model, u, samples, inputs, xscale=xscale)
+    with step("figures"):
+        files.update(_drawn(figures, analysis))
+    with step("summary"):
+        files["summary.json"] = report.to_json().encode("utf-8")
+        files["summary.md"] = report.to_markdown().encode("utf-8")
+    return files, report
+
+
+def _drawn(figures, analysis) -> dict:
+    """The figures as PNG bytes, with that of the residuals when they were analysed."""
+    import io
+
+    from gpmultirate.plotting.report import _figure
+    from gpmultirate.plotting.residuals import plot_residuals
+
+    files = {}
     if analysis is not None:
         figure = _figure(figsize=(6.4, 2.4 * (1 + analysis.cross_correlation.shape[0])))
         plot_residuals(analysis, ax=figure.subplots(1 + analysis.cross_correlation.shape[0], 1,
@@ -741,9 +762,7 @@ def _fit_files(model, u, samples, *, file, inputs, output, validation, validatio
         buffer = io.BytesIO()
         figure.savefig(buffer, format="png", dpi=150)
         files[name] = buffer.getvalue()
-    files["summary.json"] = report.to_json().encode("utf-8")
-    files["summary.md"] = report.to_markdown().encode("utf-8")
-    return files, report
+    return files
 
 
 def readings_model(model, *, exposure=None, latency=None):

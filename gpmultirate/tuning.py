@@ -38,6 +38,7 @@ from sklearn.exceptions import ConvergenceWarning
 
 from gpmultirate.covariance import SpectralCovariance, relative_spectrum
 from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.progress import EVALUATIONS
 from gpmultirate.validation import check_rng
 
 __all__ = [
@@ -121,13 +122,16 @@ def maximize(evidence, n_restarts: int = 0, random_state=None, max_evaluations=N
                 evidence.n_outputs > PRECISION_LBFGS_ABOVE and evidence.by_precision):
 
             def run(start):
-                return fisher_scoring(_value_grad_fisher(evidence), start, bounds, transform)
+                with EVALUATIONS.run():  # the progress's measured cost of an evaluation
+                    return fisher_scoring(EVALUATIONS.timed(_value_grad_fisher(evidence)),
+                                          start, bounds, transform)
         else:
             coupled = CorrelationScaleTransform(transform.indices, evidence.amplitude_couplings())
 
             def run(start):
-                return minimize_lbfgs(_negative(evidence), start, bounds, coupled,
-                                      max_evaluations)
+                with EVALUATIONS.run():
+                    return minimize_lbfgs(EVALUATIONS.timed(_negative(evidence)), start,
+                                          bounds, coupled, max_evaluations)
 
         runs = [run(theta0)]
         rng = check_rng(random_state)

@@ -36,11 +36,37 @@ def gaussian_samples(mean: np.ndarray, cov: np.ndarray, n_samples: int, rng) -> 
     """Draws of ``N(mean, cov)`` as columns, for a positive semidefinite ``cov``.
 
     The covariance is decomposed by ``eigh`` (negative rounding eigenvalues
-    clipped to zero), which also serves singular covariances.
+    clipped to zero), which also serves singular covariances; from
+    ``CHOLESKY_MIN_SIZE`` on by a Cholesky factorization, about ten times
+    cheaper (a ``4,096 x 4,096`` ``eigh`` takes tens of seconds), with a
+    jitter of at most ``1e-8`` times the largest variance where rounding
+    leaves the covariance not quite positive definite (``eigh`` where even
+    that fails).  Both are roots ``R R^T = cov``: the draws have the same
+    distribution, not the same values for a seed.
     """
-    values, vectors = linalg.eigh(cov, check_finite=False)
-    root = vectors * np.sqrt(np.maximum(values, 0.0))
+    root = _cholesky_root(cov) if mean.shape[0] >= CHOLESKY_MIN_SIZE else None
+    if root is None:
+        values, vectors = linalg.eigh(cov, check_finite=False)
+        root = vectors * np.sqrt(np.maximum(values, 0.0))
     return mean[:, None] + root @ rng.standard_normal((mean.shape[0], n_samples))
+
+
+#: the size from which :func:`gaussian_samples` draws through a Cholesky factor
+CHOLESKY_MIN_SIZE = 512
+
+
+def _cholesky_root(cov: np.ndarray) -> np.ndarray | None:
+    """A lower factor ``L L^T = cov + jitter I`` (jitter 0, then up to 1e-8 of the largest variance)."""
+    largest = float(np.max(np.diag(cov))) if cov.size else 0.0
+    if not np.isfinite(largest) or largest <= 0.0:
+        return None
+    for jitter in (0.0, 1e-12, 1e-10, 1e-8):
+        try:
+            shifted = cov + (jitter * largest) * np.eye(cov.shape[0]) if jitter else cov
+            return linalg.cholesky(shifted, lower=True, check_finite=False)
+        except linalg.LinAlgError:
+            continue
+    return None
 
 
 class GaussianCoefficients:

@@ -101,6 +101,7 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
     >>> figures["bode.png"].savefig(__import__("io").BytesIO(), format="png")
     """
     from gpmultirate.io import model_slow_samples
+    from gpmultirate.progress import step
 
     if samples is None:
         samples = model_slow_samples(model)
@@ -117,7 +118,8 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
     xscale = check_choice(xscale, "xscale", ("auto", "linear", "log"))
     freqs = _bode_frequencies(model)
     for k in range(n_inputs):
-        frf = model.frequency_response(freqs, input=k if n_inputs > 1 else None)
+        with step("FRF"):
+            frf = model.frequency_response(freqs, input=k if n_inputs > 1 else None)
         scale = bode_xscale(frf.freqs) if xscale == "auto" else xscale
         plot_bode(frf, axes=(axes[0, k], axes[1, k]), label="GP posterior mean", xscale=scale)
         axes[0, k].set_title(f"input {names[k]}", fontsize="medium", loc="left")
@@ -128,7 +130,8 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
     shown = min(order, max(60, prediction_length // 4))
     per_sample = max(1, min(4, (IMPULSE_POINTS - 1) // max(1, shown - 1)))
     lags = np.linspace(0.0, shown - 1.0, per_sample * (shown - 1) + 1)
-    mean, std = model.impulse_response(lags, return_std=True)
+    with step("bands"):
+        mean, std = model.impulse_response(lags, return_std=True)
     mean, std = mean.reshape(n_inputs, -1), std.reshape(n_inputs, -1)
     if per_sample > 1 and not _smooth_between_lags(mean, per_sample):
         # a prior with little correlation between neighbouring lags pulls the curve
@@ -156,9 +159,10 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
 
     # fast-rate output on the record, all of it and a zoom on 20 slow periods
     instants = getattr(samples, "sample_times", None)  # a slow log: readings off the ticks
-    prediction = OutputPrediction.from_model(
-        model, u, y_slow=None if instants is not None else values,
-        sample_indices=indices if instants is None else np.unique(indices))
+    with step("bands"):
+        prediction = OutputPrediction.from_model(
+            model, u, y_slow=None if instants is not None else values,
+            sample_indices=indices if instants is None else np.unique(indices))
     n = prediction.time.shape[0]
     spacing = (max(1, int(round(float(np.median(np.diff(indices))))))
                if indices.size > 1 else 1)
@@ -180,8 +184,9 @@ def fit_figures(model, u, samples=None, inputs=None, *, xscale: str = "auto") ->
         plot_intersample(prediction, ax=zoom, window=(start, start + width),
                          label="prediction (95 % band)")
     else:  # the band between the ticks, the readings at their instants
-        plot_intersample(model, u, y_slow=values, sample_times=samples.stamps, ax=zoom,
-                         window=(start, start + width), label="sensor reading (95 % band)")
+        with step("bands"):
+            plot_intersample(model, u, y_slow=values, sample_times=samples.stamps, ax=zoom,
+                             window=(start, start + width), label="sensor reading (95 % band)")
     zoom.set_title(f"fast samples {start}..{start + width - 1}", fontsize="medium", loc="left")
     for ax in (full, zoom):
         ax.legend(fontsize="small")
