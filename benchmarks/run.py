@@ -1,6 +1,7 @@
 """Benchmarks of marginal-likelihood tuning, against plain reference implementations.
 
-Run ``python benchmarks/run.py`` (all cases) or ``--cases paper_dc paper_pk``.
+Run ``python benchmarks/run.py`` (every case but the camera logs, which take minutes each)
+or ``--cases paper_dc paper_pk camera_log``.
 The long-record cases also run ``previous``, the same fit with the reduction
 reading the rows of ``Phi`` (QR) instead of the Gram matrix by FFT, and the
 reduction alone is timed both ways (``reduction_50k``, ``reduction_1m``).
@@ -714,7 +715,10 @@ def repeated(name, implementation, repeat):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    parser.add_argument("--cases", nargs="+", default=[c for c in CASES if c not in CAMERA_LOGS],
+                        choices=list(CASES),
+                        help="by default every case but the camera logs (minutes each: "
+                             "name them)")
     parser.add_argument("--scaling", action="store_true", help="also time against N")
     parser.add_argument("--repeat", type=int, default=1,
                         help="runs per case and implementation (min/median/max printed)")
