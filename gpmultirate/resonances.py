@@ -159,6 +159,8 @@ _LOG = logging.getLogger("gpmultirate.fit")
 EVIDENCE_THRESHOLD = 12.0
 #: gain (nats) a new term must bring in the search, with the base kernel's shape fixed
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
+#: the joint refinement stops when an L-BFGS-B step raises the log evidence by less (nats)
+REFINE_TOLERANCE = 1e-4
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
 #: held-out fit (points of fit percent) a term must add to be kept
@@ -1367,10 +1369,15 @@ class _ResonantModel:
         if not np.all(np.isfinite(bounds)):  # scipy refuses them: the start, untuned
             trial.value = -objective(x0)[0]
             return trial
-        best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds)
-        x = best.x if np.isfinite(best.fun) and best.fun <= objective(x0)[0] else x0
+        # stop when a step gains less than REFINE_TOLERANCE nats: the decisions compare
+        # gains of several nats, the terms' values move by far less than their spread
+        start = objective(x0)[0]
+        ftol = REFINE_TOLERANCE / max(abs(start), 1.0) if np.isfinite(start) else None
+        best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+                                 options=None if ftol is None else {"ftol": ftol})
+        x, fun = (best.x, best.fun) if np.isfinite(best.fun) and best.fun <= start else (x0, start)
         trial._unpack(x)
-        trial.value = -objective(x)[0]
+        trial.value = -float(fun)
         return trial
 
     def term_spreads(self, step: float = 1e-4):
