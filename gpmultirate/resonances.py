@@ -1193,17 +1193,13 @@ class _ResonantModel:
         self._s = self._spectral.eigenvalues
         self._y = self._spectral.rotated_y
         self._blocks = {}
-        # the frequency's coordinate in units of the scan's grid spacing: the evidence
-        # curves about as much in it as in the log decay and amplitudes (L-BFGS-B
-        # converges in fewer steps than in radians)
-        self._omega_unit = np.pi / max(data.order, 256)
         self.value = self._log_evidence(self._pack())
 
     # ---------------------------------------------------------- parameters
     def _pack(self):
         x = [self.log_scale, np.log(self.noise_level)]
         for _, term in self.terms:
-            x += [np.log(max(-0.5 * np.log(term.alpha), 1e-10)), term.omega / self._omega_unit,
+            x += [np.log(max(-0.5 * np.log(term.alpha), 1e-10)), term.omega,
                   np.log(term.sigma1), np.log(term.sigma2)]
         return np.array(x)
 
@@ -1216,8 +1212,7 @@ class _ResonantModel:
         for _, term in self.terms:
             rates = sorted(-0.5 * np.log(b) for b in term.alpha_bounds)
             bounds += [(np.log(max(rates[0], 1e-10)), np.log(max(rates[1], 1e-10))),
-                       tuple(np.asarray(term.omega_bounds) / self._omega_unit),
-                       tuple(np.log(term.sigma1_bounds)),
+                       tuple(term.omega_bounds), tuple(np.log(term.sigma1_bounds)),
                        tuple(np.log(term.sigma2_bounds))]
         return np.array(bounds, dtype=float)
 
@@ -1246,7 +1241,7 @@ class _ResonantModel:
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((root.size, 2 * len(self.terms)))
         for r, (k, _) in enumerate(self.terms):
-            rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r] * self._omega_unit
+            rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
             rotated = self._observed_basis(k, lags, rate, omega, False)
             W[:, 2 * r] = np.exp(x[4 + 4 * r]) * rotated[:, 0]
             W[:, 2 * r + 1] = np.exp(x[5 + 4 * r]) * rotated[:, 1]
@@ -1296,7 +1291,7 @@ class _ResonantModel:
         W = np.empty((y.shape[0], 2 * r_terms))
         raw = []  # per term: rotated [e cos, e sin, t e cos, t e sin] and parameters
         for r, (k, _) in enumerate(self.terms):
-            rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r] * self._omega_unit
+            rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
             s1, s2 = np.exp(x[4 + 4 * r]), np.exp(x[5 + 4 * r])
             rotated = self._observed_basis(k, lags, rate, omega, eval_gradient)
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
@@ -1329,8 +1324,7 @@ class _ResonantModel:
 
             c_, s_, tc, ts = rotated.T
             grad[2 + 4 * r] = contribution(np.column_stack([-rate * s1 * tc, -rate * s2 * ts]))
-            grad[3 + 4 * r] = self._omega_unit * contribution(
-                np.column_stack([-s1 * ts, s2 * tc]))
+            grad[3 + 4 * r] = contribution(np.column_stack([-s1 * ts, s2 * tc]))
             grad[4 + 4 * r] = contribution(np.column_stack([s1 * c_, np.zeros_like(c_)]))
             grad[5 + 4 * r] = contribution(np.column_stack([np.zeros_like(s_), s2 * s_]))
         return value, grad
@@ -1341,7 +1335,7 @@ class _ResonantModel:
         for r, (k, term) in enumerate(self.terms):
             rate, omega, log_s1, log_s2 = x[2 + 4 * r : 6 + 4 * r]
             terms.append((k, clone(term).set_params(
-                alpha=float(np.exp(-2.0 * np.exp(rate))), omega=float(omega * self._omega_unit),
+                alpha=float(np.exp(-2.0 * np.exp(rate))), omega=float(omega),
                 sigma1=float(np.exp(log_s1)), sigma2=float(np.exp(log_s2)),
             )))
         self.terms = terms
@@ -1417,8 +1411,7 @@ class _ResonantModel:
         spreads = []
         for r in range(len(self.terms)):
             rate = np.exp(x[2 + 4 * r])
-            spreads.append((self._omega_unit
-                            * float(np.sqrt(max(variance.get(3 + 4 * r, 0.0), 0.0))),
+            spreads.append((float(np.sqrt(max(variance.get(3 + 4 * r, 0.0), 0.0))),
                             float(rate * np.sqrt(max(variance.get(2 + 4 * r, 0.0), 0.0)))))
         return spreads
 
