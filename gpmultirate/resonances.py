@@ -96,11 +96,16 @@ base kernel's shape tuned without resonances, terms that only make up for
 that shape gained 15-18 nats when it was tuned again with them; the
 pruning, against the other terms re-tuned, asks for the 12 nats.
 
-Cost: one tuning of the base kernel; per found resonance one scan
-(``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
-refinement; the last, unsuccessful scan and refinement; one re-tuning per
-subset of terms judged (``O(M P r)`` per evaluation); the held-out check,
-one ``M x M`` factorization per kernel compared (skipped beyond
+Cost: one tuning of the base kernel and one eigendecomposition of its data
+covariance, shared by the scans and the refinements (the regressor rotated
+into its eigenvectors once per input, ``O(M^2 P)``); per found resonance
+one scan (``O(M P log P)`` per decay rate: the data whitened by that
+decomposition, the terms found so far as a low-rank update, no
+factorization of its own) and one joint refinement (stopped when a step
+gains less than :data:`REFINE_TOLERANCE` nats); the last, unsuccessful
+scan and refinement; one re-tuning per subset of terms judged
+(``O(M P r)`` per evaluation); the held-out check, one ``M x M``
+factorization per kernel compared (skipped beyond
 :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
 spreads, ``2 (2 + 4 r)`` gradient evaluations.  Without resonances, one
 tuning of the base kernel (the default fit), a scan and a refinement.
@@ -146,7 +151,8 @@ from gpmultirate.validation import check_positive
 
 __all__ = [
     "EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
-    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
+    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "REFINE_TOLERANCE",
+    "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
     "search_resonances", "slowest_decay",
