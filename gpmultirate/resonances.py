@@ -101,9 +101,8 @@ covariance, shared by the scans and the refinements (the regressor rotated
 into its eigenvectors once per input, ``O(M^2 P)``); per found resonance
 one scan (``O(M P log P)`` per decay rate: the data whitened by that
 decomposition, the terms found so far as a low-rank update, no
-factorization of its own) and one joint refinement (stopped when a step
-gains less than :data:`REFINE_TOLERANCE` nats); the last, unsuccessful
-scan and refinement; one re-tuning per subset of terms judged
+factorization of its own) and one joint refinement; the last,
+unsuccessful scan and refinement; one re-tuning per subset of terms judged
 (``O(M P r)`` per evaluation); the held-out check, one ``M x M``
 factorization per kernel compared (skipped beyond
 :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
@@ -151,8 +150,7 @@ from gpmultirate.validation import check_positive
 
 __all__ = [
     "EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
-    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "REFINE_TOLERANCE",
-    "SEARCH_THRESHOLD",
+    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
     "search_resonances", "slowest_decay",
@@ -165,8 +163,6 @@ _LOG = logging.getLogger("gpmultirate.fit")
 EVIDENCE_THRESHOLD = 12.0
 #: gain (nats) a new term must bring in the search, with the base kernel's shape fixed
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
-#: the joint refinement stops when an L-BFGS-B step raises the log evidence by less (nats)
-REFINE_TOLERANCE = 1e-4
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
 #: held-out fit (points of fit percent) a term must add to be kept
@@ -1369,12 +1365,8 @@ class _ResonantModel:
         if not np.all(np.isfinite(bounds)):  # scipy refuses them: the start, untuned
             trial.value = -objective(x0)[0]
             return trial
-        # stop when a step gains less than REFINE_TOLERANCE nats: the decisions compare
-        # gains of several nats, the terms' values move by far less than their spread
         start = objective(x0)[0]
-        ftol = REFINE_TOLERANCE / max(abs(start), 1.0) if np.isfinite(start) else None
-        best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds,
-                                 options=None if ftol is None else {"ftol": ftol})
+        best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds)
         x, fun = (best.x, best.fun) if np.isfinite(best.fun) and best.fun <= start else (x0, start)
         trial._unpack(x)
         trial.value = -float(fun)
