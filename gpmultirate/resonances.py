@@ -259,6 +259,10 @@ class ResonanceSearch:
         the terms that earned their place (``"base"`` when none did), the
         same of the outputs themselves (``"raw_base"``, ``"raw_found"``,
         ``"raw_kept"``) and ``"dropped"``, the number of terms it removed.
+    evidence : LogEvidence or None
+        The log evidence of the data at ``kernel`` and ``noise_level``: the
+        search's reduction of the data, which the fit goes on with instead
+        of reducing the data again.
     """
 
     kernel: Kernel
@@ -268,6 +272,7 @@ class ResonanceSearch:
     log_marginal_likelihood: float = float("nan")
     history: list = field(default_factory=list)
     held_out: dict | None = None
+    evidence: object = None
 
 
 def _check_max_resonances(value) -> int:
@@ -686,6 +691,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             for (k, term), gain in zip(terms, gains)
         ],
         log_marginal_likelihood=value, history=history,
+        evidence=evidence.moved_to(kernel, noise),
         held_out=None if check is None else {
             name: check[name] for name in ("base", "found", "kept", "raw_base", "raw_found",
                                            "raw_kept", "dropped")},
