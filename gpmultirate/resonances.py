@@ -96,11 +96,15 @@ base kernel's shape tuned without resonances, terms that only make up for
 that shape gained 15-18 nats when it was tuned again with them; the
 pruning, against the other terms re-tuned, asks for the 12 nats.
 
-Cost: one tuning of the base kernel; per found resonance one scan
-(``O(M^2 P)`` once, then ``O(M P log P)`` per decay rate) and one joint
-refinement; the last, unsuccessful scan and refinement; one re-tuning per
-subset of terms judged (``O(M P r)`` per evaluation); the held-out check,
-one ``M x M`` factorization per kernel compared (skipped beyond
+Cost: one tuning of the base kernel and one eigendecomposition of its data
+covariance, shared by the scans and the refinements (the regressor rotated
+into its eigenvectors once per input, ``O(M^2 P)``); per found resonance
+one scan (``O(M P log P)`` per decay rate: the data whitened by that
+decomposition, the terms found so far as a low-rank update, no
+factorization of its own) and one joint refinement; the last,
+unsuccessful scan and refinement; one re-tuning per subset of terms judged
+(``O(M P r)`` per evaluation); the held-out check, one ``M x M``
+factorization per kernel compared (skipped beyond
 :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
 spreads, ``2 (2 + 4 r)`` gradient evaluations.  Without resonances, one
 tuning of the base kernel (the default fit), a scan and a refinement.
@@ -255,6 +259,10 @@ class ResonanceSearch:
         the terms that earned their place (``"base"`` when none did), the
         same of the outputs themselves (``"raw_base"``, ``"raw_found"``,
         ``"raw_kept"``) and ``"dropped"``, the number of terms it removed.
+    evidence : LogEvidence or None
+        The log evidence of the data at ``kernel`` and ``noise_level``: the
+        search's reduction of the data, which the fit goes on with instead
+        of reducing the data again.
     """
 
     kernel: Kernel
@@ -264,6 +272,7 @@ class ResonanceSearch:
     log_marginal_likelihood: float = float("nan")
     history: list = field(default_factory=list)
     held_out: dict | None = None
+    evidence: object = None
 
 
 def _check_max_resonances(value) -> int:
@@ -356,13 +365,28 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     >>> round(float(omegas[np.argmax(gain.max(axis=0))]), 1)
     2.0
     """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        covariance = DenseCovariance.of(kernel, observation, WhiteNoise(noise_level))
+    return _scan(observation, y, input, covariance.whiten, omegas, alphas, amplitudes)
+
+
+def _scan(observation, y, input, whiten, omegas=None, alphas=None, amplitudes=None,
+          white_regressor=None, seen=None):
+    """:func:`resonance_scan` with the data covariance given by ``whiten``.
+
+    ``whiten(B)``: ``F B`` for any ``F`` with ``F^T F = Ky^{-1}`` (the gain
+    depends on ``Ky^{-1}`` only).  ``white_regressor``: ``F Phi`` when it is
+    at hand; ``seen``: a dict of the :func:`excitation` on the default grid
+    per input, filled here: it does not change from one scan to the next.
+    """
     # readings at their own instants see the bases between the integer lags: observed
     # through the readings' functionals; their regressor at the ticks gauges the excitation
     timed = hasattr(observation, "damped_spectrum")
     Phi = _tick_regressor(observation, input) if timed else observation.input_block(input).matrix
     P = Phi.shape[1]
     lags = np.arange(P, dtype=float)
-    n_fft = None
+    n_fft = index = None
     if omegas is None:
         # the grid pi j / n, j = 1..n: the products of every row with the
         # bases are then one real FFT of length 2 n
@@ -370,15 +394,19 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         index = np.arange(1, n_fft + 1)
         index = index[index * P >= 4 * n_fft]  # at least two periods over the lags
         omegas = np.pi * index / n_fft
+    else:
+        seen = None  # the cache holds the default grid's
     if alphas is None:
         alphas = np.exp(-2.0 * np.asarray(_SCAN_DECAYS) / P)
     omegas = np.asarray(omegas, dtype=float)
     alphas = np.asarray(alphas, dtype=float)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NumericalWarning)
-        covariance = DenseCovariance.of(kernel, observation, WhiteNoise(noise_level))
-    w = covariance.whiten(y)
-    white = None if timed else covariance.whiten(Phi)  # L^{-1} Phi
+    w = whiten(y)
+    if timed:
+        white = None
+    elif white_regressor is not None:
+        white = white_regressor
+    else:
+        white = whiten(Phi)  # L^{-1} Phi
     if amplitudes is None:
         # the size of an impulse response that explains the data's power
         power_u = float(np.mean(Phi**2)) * P or 1.0
@@ -389,8 +417,7 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
     for a, alpha in enumerate(alphas):
         envelope = alpha ** (0.5 * lags)
         if timed:
-            Ac, As = _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft,
-                                      None if n_fft is None else index)
+            Ac, As = _timed_sinusoids(observation, whiten, input, alpha, omegas, n_fft, index)
         elif n_fft is None:
             cos, sin = damped_sinusoids(lags, omegas, envelope)  # PK's basis, per frequency
             Ac, As = white @ cos, white @ sin
@@ -417,8 +444,14 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         sigma[a] = np.sqrt(s2[best])
     # where the input has (almost) no power the data cannot locate a resonance:
     # a large amplitude there only fits noise, and the response beyond the record
-    seen = excitation(Phi, omegas) if n_fft is None else _excitation_on_grid(Phi, n_fft, index)
-    gain[:, seen < MIN_EXCITATION] = 0.0
+    if seen is None or input not in seen:
+        seen_here = (excitation(Phi, omegas) if n_fft is None
+                     else _excitation_on_grid(Phi, n_fft, index))
+        if seen is not None:
+            seen[input] = seen_here
+    else:
+        seen_here = seen[input]
+    gain[:, seen_here < MIN_EXCITATION] = 0.0
     return gain, sigma, omegas, alphas
 
 
@@ -428,18 +461,18 @@ def _tick_regressor(observation, input: int) -> np.ndarray:
     return observation.weighted_rows()[:, input * P:(input + 1) * P]
 
 
-def _timed_sinusoids(observation, covariance, input, alpha, omegas, n_fft, index):
+def _timed_sinusoids(observation, whiten, input, alpha, omegas, n_fft, index):
     """Whitened readings of PK's cosine and sine bases at every frequency (timed readings)."""
     if index is not None:
         spectrum = observation.damped_spectrum(alpha, n_fft, index, input)
-        return covariance.whiten(spectrum.real), covariance.whiten(-spectrum.imag)
+        return whiten(spectrum.real), whiten(-spectrum.imag)
     cos, sin = [], []
     for part in np.array_split(omegas, max(1, omegas.size // 8)):  # bounded memory
         observed = observation.lag_functionals(
             lambda x: np.hstack(damped_sinusoids(x, part, alpha ** (0.5 * x))), input)
         cos.append(observed[:, :part.size])
         sin.append(observed[:, part.size:])
-    return covariance.whiten(np.hstack(cos)), covariance.whiten(np.hstack(sin))
+    return whiten(np.hstack(cos)), whiten(np.hstack(sin))
 
 
 def excitation(Phi: np.ndarray, omegas) -> np.ndarray:
@@ -576,12 +609,21 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
     model = _ResonantModel(evidence.moved_to(base, noise))
     n_inputs = len(input_kernels(base_kernel))
     kernel = base
+    timed = hasattr(evidence.data, "damped_spectrum")
+    seen = {}  # the excitation per input, the same for every scan
     for _ in range(max_resonances):
         best = None
+        # the scan whitens by the model's own decomposition: the base kernel's
+        # eigenvectors, and the terms as a low-rank update (no new factorization)
+        rotated_whiten = model.whitener()
+
+        def whiten(B):
+            return rotated_whiten(model.rotate(B))
+
         for k in range(n_inputs):
-            gain, sigma, omegas, alphas = resonance_scan(
-                evidence.data, evidence.z, kernel, model.noise_level, input=k
-            )
+            gain, sigma, omegas, alphas = _scan(
+                evidence.data, evidence.z, k, whiten, seen=seen,
+                white_regressor=None if timed else rotated_whiten(model.rotated_regressor(k)))
             a, j = np.unravel_index(np.argmax(gain), gain.shape)
             if best is None or gain[a, j] > best[0]:
                 best = (gain[a, j], k, alphas[a], omegas[j], sigma[a, j])
@@ -649,6 +691,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             for (k, term), gain in zip(terms, gains)
         ],
         log_marginal_likelihood=value, history=history,
+        evidence=evidence.moved_to(kernel, noise),
         held_out=None if check is None else {
             name: check[name] for name in ("base", "found", "kept", "raw_base", "raw_found",
                                            "raw_kept", "dropped")},
@@ -1181,6 +1224,44 @@ class _ResonantModel:
                        tuple(np.log(term.sigma2_bounds))]
         return np.array(bounds, dtype=float)
 
+    def rotate(self, B):
+        """``Q^T B``: a matrix of the data space in the base kernel's eigenvectors."""
+        return self._spectral.rotate(B)
+
+    def rotated_regressor(self, k):
+        """``Q^T Phi_k``, computed once per input and shared by the model's copies."""
+        return self._rotated_regressor(k)
+
+    def whitener(self):
+        """``X -> F X`` for rotated ``X``, with ``F^T F`` the inverse of the model's covariance.
+
+        The rotated covariance is ``D + W W^T`` (``D = diag(c s + gamma)``,
+        ``W`` the terms' observed bases times their amplitudes).  With
+        ``Z = D^{-1/2} W = U S V^T`` (thin SVD),
+        ``F = (I + Z Z^T)^{-1/2} D^{-1/2} = (I + U ((1 + S^2)^{-1/2} - 1) U^T) D^{-1/2}``:
+        ``O(M r)`` per column instead of a factorization of the ``M x M``
+        data covariance.
+        """
+        x = self._pack()
+        root = np.sqrt(self._spectral.diagonal(np.exp(x[0]), np.exp(x[1])))
+        if not self.terms:
+            return lambda X: X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
+        lags = np.arange(self.evidence.data.order, dtype=float)
+        W = np.empty((root.size, 2 * len(self.terms)))
+        for r, (k, _) in enumerate(self.terms):
+            rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
+            rotated = self._observed_basis(k, lags, rate, omega, False)
+            W[:, 2 * r] = np.exp(x[4 + 4 * r]) * rotated[:, 0]
+            W[:, 2 * r + 1] = np.exp(x[5 + 4 * r]) * rotated[:, 1]
+        U, S, _ = np.linalg.svd(W / root[:, None], full_matrices=False)
+        shrink = 1.0 / np.sqrt(1.0 + S**2) - 1.0
+
+        def whiten(X):
+            X = X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
+            return X + U @ (shrink.reshape((-1,) + (1,) * (np.ndim(X) - 1)) * (U.T @ X))
+
+        return whiten
+
     def _rotated_regressor(self, k):
         if k not in self._blocks:
             self._blocks[k] = self._spectral.rotate(self.evidence.data.input_block(k).matrix)
@@ -1290,10 +1371,11 @@ class _ResonantModel:
         if not np.all(np.isfinite(bounds)):  # scipy refuses them: the start, untuned
             trial.value = -objective(x0)[0]
             return trial
+        start = objective(x0)[0]
         best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds)
-        x = best.x if np.isfinite(best.fun) and best.fun <= objective(x0)[0] else x0
+        x, fun = (best.x, best.fun) if np.isfinite(best.fun) and best.fun <= start else (x0, start)
         trial._unpack(x)
-        trial.value = -objective(x)[0]
+        trial.value = -float(fun)
         return trial
 
     def term_spreads(self, step: float = 1e-4):

@@ -776,3 +776,29 @@ def test_excitation_on_the_scan_grid_is_the_dense_excitation():
     index = index[index * 90 >= 4 * n_fft]
     np.testing.assert_allclose(_excitation_on_grid(Phi, n_fft, index),
                                excitation(Phi, np.pi * index / n_fft), rtol=1e-9, atol=1e-12)
+
+
+def test_the_search_scan_whitened_by_its_model_is_the_scan_of_the_dense_covariance():
+    # the search whitens by the base kernel's eigenvectors and its terms as a low-rank
+    # update; the public scan factors the dense data covariance of the same kernel
+    from gpmultirate.inference import LogEvidence
+    from gpmultirate.resonances import _ResonantModel, _scan, _tune
+
+    rng = np.random.default_rng(1)
+    op = gm.DownsampledConvolution(rng.standard_normal(600), factor=3, order=200)
+    t = np.arange(200)
+    g = 0.9**t + 0.98**t * np.sin(2.4 * t) + 0.97**t * np.cos(0.7 * t)
+    y = op.matvec(g) + 0.01 * rng.standard_normal(op.n_outputs)
+    evidence = LogEvidence(op, y, C(1.0) * DC(), 1e-4, (1e-8, 1.0))
+    base, noise, _, _ = _tune(evidence, C(1.0) * DC(), 1e-4, 0)
+    model = _ResonantModel(evidence.moved_to(base, noise))
+    for _ in range(2):  # without a term, then with one
+        dense, _, omegas, alphas = resonance_scan(op, y, model.kernel(), model.noise_level)
+        whiten = model.whitener()
+        mine = _scan(op, y, 0, lambda B: whiten(model.rotate(B)), seen={},
+                     white_regressor=whiten(model.rotated_regressor(0)))[0]
+        np.testing.assert_allclose(mine, dense, rtol=1e-7, atol=1e-7)
+        a, j = np.unravel_index(np.argmax(dense), dense.shape)
+        model = model.with_term(0, PK(alpha=alphas[a], omega=omegas[j], sigma1=0.1, sigma2=0.1,
+                                      alpha_bounds=(1e-4, 0.999)))
+    assert len(model.terms) == 2

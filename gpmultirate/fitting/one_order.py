@@ -88,7 +88,9 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
             searched = auto_kernel.search(observation, y, kernel, noise, noise_bounds, settings)
             kernel, noise = searched.kernel, searched.noise_level
             optimizer_result, found = searched.optimizer_result, searched.resonances
-        evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
+            evidence = searched.evidence  # the search's reduction of the data
+        else:
+            evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
         objective = evidence
         if settings.criterion == "cross_validation":
             check_fit_memory(y.shape[0], y.shape[0], kernel.theta.shape[0] + 1)
