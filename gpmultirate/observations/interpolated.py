@@ -40,6 +40,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import sparse
 from scipy.linalg import blas
 
+from gpmultirate.kernels.hold import HOLD_POINTS, lagrange_weights, stencil
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.gram import extended_input
 from gpmultirate.observations.timed import TimedConvolution
@@ -47,43 +48,8 @@ from gpmultirate.observations.timed import TimedConvolution
 __all__ = ["DEFAULT_POINTS", "InterpolatedConvolution", "interpolation_error",
            "lagrange_weights", "stencil"]
 
-#: the interpolation nodes of a reading by default (a polynomial of degree eleven)
-DEFAULT_POINTS = 12
-
-
-def stencil(points: int) -> np.ndarray:
-    """The ``points`` interpolation nodes, relative to the tick before the instant.
-
-    Examples
-    --------
-    >>> stencil(4)
-    array([-1,  0,  1,  2])
-    >>> stencil(2)
-    array([0, 1])
-    """
-    if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or (
-            points < 2 or points % 2):
-        raise ValueError(f"points must be an even integer of at least 2; got {points!r}")
-    return np.arange(1 - points // 2, points // 2 + 1)
-
-
-def lagrange_weights(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The Lagrange weights of integer ``nodes`` at the points ``x``: ``(len(x), len(nodes))``.
-
-    Examples
-    --------
-    >>> w = lagrange_weights(np.array([-1, 0, 1, 2]), np.array([0.5]))
-    >>> w * 16
-    array([[-1.,  9.,  9., -1.]])
-    """
-    nodes = np.asarray(nodes, dtype=float)
-    x = np.asarray(x, dtype=float)
-    out = np.ones((x.shape[0], nodes.shape[0]))
-    for j, node in enumerate(nodes):
-        for other in nodes:
-            if other != node:
-                out[:, j] *= (x - other) / (node - other)
-    return out
+#: the interpolation nodes of a reading by default: the hold's (a polynomial of degree eleven)
+DEFAULT_POINTS = HOLD_POINTS
 
 
 class InterpolatedConvolution(Observation):

@@ -67,7 +67,7 @@ from scipy import linalg, sparse
 
 from gpmultirate.exceptions import MemoryLimitError
 from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
-from gpmultirate.kernels.offsets import offset_structure
+from gpmultirate.kernels.hold import HOLD_POINTS
 from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
@@ -635,6 +635,22 @@ class TimedConvolution(Observation):
         return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
 
     # -------------------------------------------------------- with a kernel
+    def on_integer_lags(self):
+        """These readings as rows on the integer lags, by the hold's interpolation.
+
+        The :class:`~gpmultirate.observations.InterpolatedConvolution` of
+        :data:`~gpmultirate.kernels.hold.HOLD_POINTS` nodes: for TC, DC and
+        SS, whose values between integer lags are that interpolation
+        (:mod:`gpmultirate.kernels.hold`), the readings exactly; None where a
+        record is shorter than the nodes.  Kept: the evidence asks for it at
+        every evaluation.
+        """
+        if "_on_lags" not in self.__dict__:
+            from gpmultirate.observations.interpolated import InterpolatedConvolution
+            short = min(part._inputs.shape[0] for part in self._parts) < HOLD_POINTS
+            self._on_lags = None if short else InterpolatedConvolution(self, HOLD_POINTS)
+        return self._on_lags
+
     def structured_term(self, kernel, path: str = "") -> ObservedTerm:
         """A structured leaf through these readings: the kernel's ``observed_at_instants``."""
         return kernel.observed_at_instants(self, path)
@@ -665,56 +681,14 @@ class TimedConvolution(Observation):
     def cross_covariance(self, kernel, lags) -> np.ndarray:
         """``Cov(g(lags), y)``, shape ``(n, M)``.
 
-        From the kernel at the real lags of the quadrature points; for TC, DC
-        and SS under an exposure, the integral over the lag of the window that
-        meets ``lags`` is split at its kink (exact to rounding).
+        Each kernel's term answers: TC, DC and SS by their rows on the
+        integer lags, other kernels from their values at the real lags of
+        the quadrature points.
         """
         lags = np.asarray(lags, dtype=float)
         if lags.ndim == 1:
             lags = lags[:, None]
         return observe(kernel, self).cross_covariance(lags)
-
-    def kink_correction(self, kernel, lags) -> np.ndarray:
-        """Exact minus quadrature, for the window lags on the same integer lag as ``lags``."""
-        values = {h.name: float(getattr(kernel, h.name)) for h in kernel.hyperparameters}
-        found = offset_structure(kernel, values, self.order)
-        whole = np.floor(lags).astype(np.int64)
-        frac = lags - whole
-        inside = np.flatnonzero(whole < self.order)
-        out = np.zeros((lags.shape[0], self.n_outputs))
-        if inside.size == 0:
-            return out
-        whole, frac = whole[inside], frac[inside]
-        rows = self.unique_rows()
-        scale = np.real(found.scale) ** whole.astype(float)
-        # the quadrature's own value of the k = whole term
-        point_u = rows[self._row_id][:, whole]  # (points, n)
-        base = np.real(found.base(frac, self._offsets))  # (n, points)
-        approx = (point_u.T * base) * self._weights
-        # its exact value, piece by piece: k(d, x) = sum_r A_r f_r(max) h_r(min)
-        xi, w = np.polynomial.legendre.leggauss(self.nodes)
-        start, stop = self._piece_start, self._piece_stop
-        first_point = np.searchsorted(self._piece, np.arange(start.shape[0]))
-        piece_u = rows[self._row_id[first_point]][:, whole].T  # (n, pieces)
-        d = frac[:, None]
-        exact = 0.0
-        for p_r, q_r, _, f, h in found.lower:
-            A00 = float(np.real(p_r[0] * q_r[0]))
-            for low, high, after in ((start[None, :], np.minimum(stop[None, :], d), False),
-                                     (np.maximum(start[None, :], d), stop[None, :], True)):
-                half = 0.5 * np.maximum(high - low, 0.0)
-                x = low[..., None] + half[..., None] * (xi + 1.0)
-                if after:  # x > d
-                    part = (np.real(f(x)) @ w) * np.real(h(d))
-                else:
-                    part = (np.real(h(x)) @ w) * np.real(f(d))
-                exact = exact + A00 * part * half
-        exact = exact * piece_u / self.exposure
-        correction = np.zeros((inside.size, self.n_outputs))
-        np.add.at(correction.T, self._reading[first_point], exact.T)
-        np.add.at(correction.T, self._reading, -approx.T)
-        out[inside] = correction * scale[:, None]
-        return out
 
     def dense_cross_covariance(self, kernel, lags) -> np.ndarray:
         """``Cov(g(lags), y)`` from the kernel at the real lags of the readings' points."""
@@ -745,6 +719,7 @@ class TimedConvolution(Observation):
         if k not in blocks:
             block = copy.copy(self)
             block.__dict__.pop("_blocks", None)
+            block.__dict__.pop("_on_lags", None)
             if len(self._parts) == 1 and self._parts[0] is self:
                 block._parts = [block]
             else:
@@ -776,6 +751,7 @@ class TimedConvolution(Observation):
         state = self.__dict__.copy()
         state["_rows"] = None
         state.pop("_blocks", None)
+        state.pop("_on_lags", None)
         return state
 
     def __repr__(self) -> str:
