@@ -14,7 +14,9 @@ from sklearn.gaussian_process.kernels import RBF, Hyperparameter, Kernel
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from gpmultirate.kernels import DC, PK, StructuredKernel, TC, observe
-from gpmultirate.kernels.instants import DenseTimedTerm, ShiftScaledTimedTerm
+from gpmultirate.kernels.instants import DenseTimedTerm
+from gpmultirate.kernels.lag import ShiftScaledKernel
+from gpmultirate.observations import InterpolatedConvolution
 from gpmultirate.kernels.structure import ProductTerm, ScaledTerm, SumTerm
 from gpmultirate.observations import SampledConvolution, TimedConvolution
 
@@ -33,10 +35,30 @@ def dense_readings_covariance(kernel, u, times, order):
     rows, lags = np.array(rows), np.array(lags)
     M = len(times)
     S = np.empty((M, M))
+    if isinstance(kernel, ShiftScaledKernel):
+        # between integer lags the hold's prior: Lagrange on the lags n - 5 .. n + 6,
+        # zero below lag 0, the nodes cut at order - 1
+        maps = [_interpolation(lag, order) for lag in lags]
+        K = kernel(np.arange(order, dtype=float)[:, None])
+        return np.array([[rows[a] @ maps[a] @ K @ maps[b].T @ rows[b] for b in range(M)]
+                         for a in range(M)])
     for a in range(M):
         for b in range(M):
             S[a, b] = rows[a] @ kernel(lags[a][:, None], lags[b][:, None]) @ rows[b]
     return S
+
+
+def _interpolation(lags, order):
+    """The map from ``g(0..order-1)`` to ``g(lags)`` of the hold's prior, term by term."""
+    out = np.zeros((len(lags), order))
+    for i, x in enumerate(lags):
+        n = int(np.floor(x))
+        nodes = [n + s for s in range(-5, 7) if n + s <= order - 1]
+        for node in nodes:
+            weight = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+            if node >= 0:
+                out[i, node] += weight
+    return out
 
 
 class Exponential(StructuredKernel, Kernel):
@@ -86,7 +108,9 @@ def test_the_walker_keeps_sums_and_constants_and_asks_the_leaves():
     term = observe(C(2.0) * DC(0.8, 0.6) + RBF(2.0) * TC(0.9), timed)
     assert isinstance(term, SumTerm)
     assert isinstance(term.first, ScaledTerm)
-    assert isinstance(term.first.inner, ShiftScaledTimedTerm)
+    # DC answers on the integer lags: the readings' rows by the hold's interpolation
+    assert isinstance(term.first.inner.observation, InterpolatedConvolution)
+    assert term.first.observation is term.first.inner.observation
     assert isinstance(term.second, DenseTimedTerm)  # a product needs a regressor
     ticks = SampledConvolution(U, np.arange(10, 59, 3), order=12)
     assert isinstance(observe(RBF(2.0) * TC(0.9), ticks), ProductTerm)
@@ -98,7 +122,7 @@ def test_a_subclass_of_a_lag_kernel_keeps_its_timed_term():
 
     timed = TimedConvolution(U, TIMES, order=12)
     kernel = Mine(0.8, -0.5)
-    assert isinstance(observe(kernel, timed), ShiftScaledTimedTerm)
+    assert observe(kernel, timed).observation is timed.on_integer_lags()
     np.testing.assert_allclose(timed.covariance(kernel),
                                dense_readings_covariance(kernel, U, TIMES, 12),
                                rtol=1e-10, atol=1e-12)

@@ -137,7 +137,10 @@ def hold_weights(lags, order: int | None = None, points: int = HOLD_POINTS):
 
 
 def _sandwich(Wt, K, Ws):
-    return np.asarray(Ws @ np.asarray(Wt @ K).T).T
+    out = np.asarray(Ws @ np.asarray(Wt @ K).T).T
+    if Ws is Wt:  # symmetric to rounding, as the kernel on the lags themselves
+        out = 0.5 * (out + out.T)
+    return out
 
 
 def hold_covariance(integer_covariance, t, s, eval_gradient: bool = False):
@@ -175,7 +178,8 @@ def hold_covariance(integer_covariance, t, s, eval_gradient: bool = False):
     used_s = used_t if s is t else np.unique(Ws.indices)
     grid_t = used_t.astype(float)
     grid_s = grid_t if s is t else used_s.astype(float)
-    Wt, Ws = Wt[:, used_t], Ws[:, used_s]
+    Wt = Wt[:, used_t]
+    Ws = Wt if s is t else Ws[:, used_s]
     if not eval_gradient:
         return _sandwich(Wt, integer_covariance(grid_t, grid_s), Ws)
     K, gradients = integer_covariance(grid_t, grid_s, eval_gradient=True)
