@@ -48,9 +48,18 @@ def held(formula):
                 out.append((node, weight))
         return out
 
+    def bridge(a, b, *args, **kwargs):
+        # independent on each cell: 0.05^2 sin(pi d) sin(pi e) k(n, n)
+        n = np.floor(a)
+        if np.floor(b) != n:
+            return 0.0
+        return (0.05**2 * np.sin(np.pi * (a - n)) * np.sin(np.pi * (b - n))
+                * formula(n, n, *args, **kwargs))
+
     def kernel(t, s, *args, **kwargs):
         return np.array([[sum(wa * wb * formula(na, nb, *args, **kwargs)
                               for na, wa in expand(a) for nb, wb in expand(b))
+                          + bridge(a, b, *args, **kwargs)
                           for b in s] for a in t])
 
     return kernel
@@ -598,10 +607,14 @@ def test_invalid_hyperparameters_raise_naming_the_argument(kernel, match):
 def test_boundary_values_are_accepted():
     # alpha = beta = 1 is the closed end of (0, 1]
     # (from lag 5 on: below, the interpolation reads the zeros before lag 0)
-    later = X[X[:, 0] >= 5.0]
+    later = np.array([[5.0], [7.0], [9.0]])
     K = DC(alpha=1.0, beta=1.0)(later)
-    np.testing.assert_allclose(K, np.ones_like(K), rtol=1e-12)
-    np.testing.assert_allclose(TC(alpha=1.0)(later), np.ones((later.shape[0],) * 2), rtol=1e-12)
+    np.testing.assert_array_equal(K, np.ones_like(K))
+    np.testing.assert_array_equal(TC(alpha=1.0)(later), np.ones((3, 3)))
+    # between the ticks, a constant interpolates to itself; the bridge adds 0.05^2 sin^2
+    between = np.array([[5.5], [8.25]])
+    expected = np.ones((2, 2)) + np.diag(0.05**2 * np.sin(np.pi * np.array([0.5, 0.25])) ** 2)
+    np.testing.assert_allclose(DC(alpha=1.0, beta=1.0)(between), expected, rtol=1e-12)
 
 
 # ----------------------------------------------------------------------------

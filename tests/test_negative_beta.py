@@ -102,14 +102,20 @@ def test_values_against_the_formula_on_integer_and_real_lags(beta):
                 out[node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
         return out
 
+    def bridge(t, s):  # independent on each cell: 0.05^2 sin(pi d) sin(pi e) k(n, n)
+        n, m = np.floor(t)[:, None], np.floor(s)[None, :]
+        return (0.05**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
+                * (n == m) * 0.85**n)
+
     W = np.array([weights(x) for x in REAL_LAGS])
     V = np.array([weights(x) for x in (0.5, 2.0, 6.0)])
-    expected = W @ formula @ W.T
+    expected = W @ formula @ W.T + bridge(REAL_LAGS, REAL_LAGS)
     np.testing.assert_allclose(kernel(REAL_LAGS[:, None]), expected, rtol=1e-11, atol=1e-14)
     np.testing.assert_allclose(kernel.diag(REAL_LAGS[:, None]), np.diag(expected), rtol=1e-11,
                                atol=1e-14)
     np.testing.assert_allclose(kernel(REAL_LAGS[:, None], np.array([[0.5], [2.0], [6.0]])),
-                               W @ formula @ V.T, rtol=1e-11, atol=1e-14)
+                               W @ formula @ V.T + bridge(REAL_LAGS, np.array([0.5, 2.0, 6.0])),
+                               rtol=1e-11, atol=1e-14)
 
 
 def test_negative_beta_alternates_exactly_on_integer_lags():

@@ -40,11 +40,15 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-__all__ = ["HOLD_POINTS", "hold_covariance", "hold_diagonal", "hold_weights",
-           "lagrange_weights", "stencil"]
+from gpmultirate.kernels.structure import ObservedTerm
+
+__all__ = ["BRIDGE_SCALE", "HOLD_POINTS", "HoldTerm", "bridge_shape", "bridge_variances",
+           "hold_covariance", "hold_diagonal", "hold_weights", "lagrange_weights", "stencil"]
 
 #: the integer lags each value between them is interpolated from (a polynomial of degree 11)
 HOLD_POINTS = 12
+#: ``kappa``: the bridge's standard deviation at mid-cell, relative to the prior's at its lag
+BRIDGE_SCALE = 0.05
 
 
 def stencil(points: int) -> np.ndarray:
@@ -136,6 +140,42 @@ def hold_weights(lags, order: int | None = None, points: int = HOLD_POINTS):
     return W, size
 
 
+def bridge_shape(offsets) -> np.ndarray:
+    """``s(d) = sin(pi d)``: the shape of the bridge between two ticks, zero on them.
+
+    Examples
+    --------
+    >>> bridge_shape(np.array([0.0, 0.5])).round(12)
+    array([0., 1.])
+    """
+    return np.sin(np.pi * np.asarray(offsets, dtype=float))
+
+
+def bridge_variances(kernel, order: int, eval_gradient: bool = False):
+    """``v_n = BRIDGE_SCALE^2 k(n, n)``, ``n = 0..order-1`` (and ``{name: dv}``)."""
+    lags = np.arange(order, dtype=float)
+    if not eval_gradient:
+        return BRIDGE_SCALE**2 * kernel.integer_diagonal(lags)
+    v, gradients = kernel.integer_diagonal(lags, eval_gradient=True)
+    return BRIDGE_SCALE**2 * v, {name: BRIDGE_SCALE**2 * d for name, d in gradients.items()}
+
+
+def _bridge(kernel, t, s, eval_gradient):
+    """``k_b(t, s)``: ``s(d) s(e) v_n`` where ``t = n + d`` and ``s = n + e`` share a cell."""
+    whole_t, whole_s = np.floor(t), np.floor(s)
+    same = whole_t[:, None] == whole_s[None, :]
+    shape = np.outer(bridge_shape(t - whole_t), bridge_shape(s - whole_s)) * same
+    cells = np.unique(np.concatenate([whole_t, whole_s]))
+    index_t, index_s = np.searchsorted(cells, whole_t), np.searchsorted(cells, whole_s)
+    if not eval_gradient:
+        v = BRIDGE_SCALE**2 * kernel.integer_diagonal(cells)
+        return shape * v[index_t][:, None]
+    v, gradients = kernel.integer_diagonal(cells, eval_gradient=True)
+    return (BRIDGE_SCALE**2 * shape * v[index_t][:, None],
+            {name: BRIDGE_SCALE**2 * shape * d[index_t][:, None]
+             for name, d in gradients.items()})
+
+
 def _sandwich(Wt, K, Ws):
     out = np.asarray(Ws @ np.asarray(Wt @ K).T).T
     if Ws is Wt:  # symmetric to rounding, as the kernel on the lags themselves
@@ -143,14 +183,15 @@ def _sandwich(Wt, K, Ws):
     return out
 
 
-def hold_covariance(integer_covariance, t, s, eval_gradient: bool = False):
-    """``k(t, s) = w(t)^T K w(s)`` from the kernel at integer lags (see the module).
+def hold_covariance(kernel, t, s, eval_gradient: bool = False):
+    """``k(t, s) = w(t)^T K w(s) + k_b(t, s)`` from the kernel at integer lags (see the module).
 
     Parameters
     ----------
-    integer_covariance : callable
-        ``(a, b, eval_gradient) -> K`` (and ``{name: dK}``), the kernel's
-        formula at integer lag vectors ``a`` and ``b``.
+    kernel : ShiftScaledKernel
+        Its formula at integer lags, ``integer_covariance(a, b,
+        eval_gradient)`` (and ``{name: dK}``), and its diagonal there,
+        ``integer_diagonal(a, eval_gradient)``.
     t, s : ndarray of shape (n,) and (m,)
         Real lags; ``s`` may be ``t`` itself.
     eval_gradient : bool, default=False
@@ -163,11 +204,12 @@ def hold_covariance(integer_covariance, t, s, eval_gradient: bool = False):
     Examples
     --------
     >>> import numpy as np
-    >>> tc = lambda a, b, eval_gradient=False: 0.8 ** np.maximum.outer(a, b)
-    >>> hold_covariance(tc, np.array([1.0, 2.0]), np.array([1.0]))  # integer lags: the formula
+    >>> from gpmultirate.kernels import TC
+    >>> hold_covariance(TC(0.8), np.array([1.0, 2.0]), np.array([1.0]))  # the formula
     array([[0.8 ],
            [0.64]])
     """
+    integer_covariance = kernel.integer_covariance
     integer = (np.all(t == np.round(t)) and (s is t or np.all(s == np.round(s))))
     if integer:
         return integer_covariance(t, s, eval_gradient=eval_gradient)
@@ -181,24 +223,28 @@ def hold_covariance(integer_covariance, t, s, eval_gradient: bool = False):
     Wt = Wt[:, used_t]
     Ws = Wt if s is t else Ws[:, used_s]
     if not eval_gradient:
-        return _sandwich(Wt, integer_covariance(grid_t, grid_s), Ws)
+        return _sandwich(Wt, integer_covariance(grid_t, grid_s), Ws) + _bridge(
+            kernel, t, s, False)
     K, gradients = integer_covariance(grid_t, grid_s, eval_gradient=True)
-    return _sandwich(Wt, K, Ws), {name: _sandwich(Wt, dK, Ws) for name, dK in gradients.items()}
+    bridge, d_bridge = _bridge(kernel, t, s, True)
+    return _sandwich(Wt, K, Ws) + bridge, {
+        name: _sandwich(Wt, dK, Ws) + d_bridge[name] for name, dK in gradients.items()}
 
 
-def hold_diagonal(integer_covariance, shift_scale: float, t) -> np.ndarray:
+def hold_diagonal(kernel, t) -> np.ndarray:
     """``k(t_i, t_i)`` for a shift-scaled kernel (``K(i + 1, j + 1) = a K(i, j)``).
 
     The nodes of a lag ``n + d`` with ``n`` at least the stencil's reach
-    below are ``n + s``, all non-negative: its value is ``a^(n - r)`` times
-    that of ``r + d`` (``r`` the reach), from one local block of the kernel.
+    below are ``n + s``, all non-negative: its interpolated value is
+    ``a^(n - r)`` times that of ``r + d`` (``r`` the reach), from one local
+    block of the kernel; the bridge adds ``s(d)^2 v_n``.
 
     Examples
     --------
     >>> import numpy as np
-    >>> tc = lambda a, b, eval_gradient=False: 0.8 ** np.maximum.outer(a, b)
+    >>> from gpmultirate.kernels import TC
     >>> t = np.array([0.5, 7.25, 30.0])
-    >>> bool(np.allclose(hold_diagonal(tc, 0.8, t), np.diag(hold_covariance(tc, t, t))))
+    >>> bool(np.allclose(hold_diagonal(TC(0.8), t), np.diag(hold_covariance(TC(0.8), t, t))))
     True
     """
     t = np.asarray(t, dtype=float)
@@ -209,12 +255,109 @@ def hold_diagonal(integer_covariance, shift_scale: float, t) -> np.ndarray:
     far = whole >= reach
     near = np.flatnonzero(~far)
     if near.size:
-        out[near] = np.diag(hold_covariance(integer_covariance, t[near], t[near]))
+        out[near] = np.diag(hold_covariance(kernel, t[near], t[near]))
     if np.any(far):
         local = np.arange(reach + nodes[0], reach + nodes[-1] + 1, dtype=float)
-        block = integer_covariance(local, local)
+        block = kernel.integer_covariance(local, local)
         w = lagrange_weights(nodes, t[far] - whole[far])
         with np.errstate(under="ignore"):
-            scale = shift_scale ** (whole[far] - reach)
-        out[far] = scale * np.einsum("ij,jk,ik->i", w, block, w)
+            scale = kernel.shift_scale()[0] ** (whole[far] - reach)
+        bridge = BRIDGE_SCALE**2 * bridge_shape(t[far] - whole[far]) ** 2 * (
+            kernel.integer_diagonal(whole[far]))
+        out[far] = scale * np.einsum("ij,jk,ik->i", w, block, w) + bridge
     return out
+
+
+class HoldTerm(ObservedTerm):
+    """A shift-scaled kernel through readings at their own instants: rows plus the bridge.
+
+    The readings are ``Phi_w g(0..P-1) + Psi b`` with ``Phi_w`` their rows on
+    the integer lags by the interpolation (``inner``: the kernel's own term
+    through them, with every route of the integer lags) and ``Psi`` the
+    same rows with each point weighted by the bridge's shape ``s(d)``
+    (``readings.bridge_rows()``); ``b`` independent across cells with
+    variances ``v_n`` (:func:`bridge_variances`).  So
+    ``S = Phi_w K Phi_w^T + Psi diag(v) Psi^T``: the bridge costs
+    ``O(M^2 P)`` and the covariance is formed in the data space.
+
+    Parameters
+    ----------
+    kernel : ShiftScaledKernel
+    inner : ObservedTerm
+        The kernel through the readings' rows on the integer lags.
+    readings : TimedConvolution
+    path : str
+    """
+
+    def __init__(self, kernel, inner, readings, path: str = ""):
+        super().__init__(kernel, readings, path)
+        self.inner, self.readings = inner, readings
+
+    def _free(self):
+        return [h.name for h in self.kernel.hyperparameters if not h.fixed]
+
+    def _bridge(self, gradient: bool):
+        Psi = self.readings.bridge_rows()
+        found = bridge_variances(self.kernel, self.readings.order, gradient)
+        if not gradient:
+            return (Psi * found) @ Psi.T
+        v, dv = found
+        return (Psi * v) @ Psi.T, [(Psi * dv[name]) @ Psi.T for name in self._free()]
+
+    # the parameter space and the roles are the inner term's: the bridge is zero at integer lags
+    def kernel_matrix(self):
+        return self.inner.kernel_matrix()
+
+    def kernel_with_gradient(self):
+        return self.inner.kernel_with_gradient()
+
+    def parameter_contractor(self):
+        return self.inner.parameter_contractor()
+
+    def regressor_times_kernel(self):
+        return self.inner.regressor_times_kernel()
+
+    def roles(self):
+        return self.inner.roles()
+
+    def scale_roles(self):
+        return self.inner.scale_roles()
+
+    def amplitude_couplings(self):
+        return self.inner.amplitude_couplings()
+
+    def low_rank(self):
+        return None
+
+    def precision(self):
+        return None
+
+    def covariance(self):
+        if getattr(self, "_covariance", None) is None:
+            self._covariance = self.inner.covariance() + self._bridge(False)
+        return self._covariance
+
+    def covariance_with_derivatives(self):
+        S, items = self.inner.covariance_with_derivatives()
+        B, d_bridge = self._bridge(True)
+        dense = [item[0] @ item[1] @ item[0].T if isinstance(item, tuple) else item
+                 for item in items]
+        return S + B, [d + e for d, e in zip(dense, d_bridge)]
+
+    def covariance_with_contractor(self):
+        S, contract = self.inner.covariance_with_contractor()
+        B, d_bridge = self._bridge(True)
+        return S + B, lambda W: contract(W) + np.array([np.sum(W * d) for d in d_bridge])
+
+    def cross_covariance(self, lags):
+        # the bridge of g(n + d) meets the readings' bridge on the cell n
+        out = self.inner.cross_covariance(lags)
+        x = np.asarray(lags, dtype=float)[:, -1]
+        whole = np.floor(x).astype(np.int64)
+        inside = np.flatnonzero((whole < self.readings.order) & (x != whole))
+        if inside.size:
+            v = bridge_variances(self.kernel, self.readings.order)
+            Psi = self.readings.bridge_rows()
+            shape = bridge_shape(x[inside] - whole[inside])
+            out[inside] += (shape * v[whole[inside]])[:, None] * Psi[:, whole[inside]].T
+        return out

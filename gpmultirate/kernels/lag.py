@@ -30,7 +30,7 @@ from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
-from gpmultirate.kernels.hold import hold_covariance, hold_diagonal
+from gpmultirate.kernels.hold import HoldTerm, hold_covariance, hold_diagonal
 from gpmultirate.kernels.instants import PKTimedTerm
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
@@ -312,18 +312,18 @@ class ShiftScaledKernel(LagKernel):
     def lag_covariance(self, t, s, eval_gradient=False):
         """The formula at integer lags; between them its interpolation by the hold
         (:func:`~gpmultirate.kernels.hold.hold_covariance`)."""
-        return hold_covariance(self.integer_covariance, t, s, eval_gradient)
+        return hold_covariance(self, t, s, eval_gradient)
 
     def diag(self, X) -> np.ndarray:
         """Return ``k(X, X)`` on the diagonal only."""
         t = check_lags(X, "X")
         if np.all(t == np.round(t)):
             return self.integer_diagonal(t)
-        return hold_diagonal(self.integer_covariance, self.shift_scale()[0], t)
+        return hold_diagonal(self, t)
 
-    def integer_diagonal(self, t: np.ndarray) -> np.ndarray:
-        """``k(t_i, t_i)`` at integer lags, by the formula."""
-        return np.diag(self.integer_covariance(t, t)).copy()
+    def integer_diagonal(self, t: np.ndarray, eval_gradient: bool = False):
+        """``k(t_i, t_i)`` at integer lags by the formula (and ``{name: d/d theta_name}``)."""
+        raise NotImplementedError
 
     def right_multiply(self, X: np.ndarray) -> np.ndarray:
         """``X @ K`` for ``X`` of shape ``(r, P)`` and ``K`` at lags ``0..P-1``, in ``O(r P)``."""
@@ -338,17 +338,19 @@ class ShiftScaledKernel(LagKernel):
         return ShiftScaledTerm(self, observation, path, self.unshifted_term(observation, path))
 
     def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
-        """Readings at their own instants: rows on the integer lags (one input).
+        """Readings at their own instants: rows on the integer lags plus the bridge (one input).
 
         Between integer lags the kernel is the hold's interpolation of its
-        integer-lag values (:mod:`gpmultirate.kernels.hold`), so a reading at
-        any instant is a row on the integer lags (the observation's
-        ``on_integer_lags``) and every route of the integer lags applies.
+        integer-lag values plus an independent bridge on each cell
+        (:mod:`gpmultirate.kernels.hold`), so a reading at any instant is a
+        row on the integer lags (the observation's ``on_integer_lags``, with
+        every route of the integer lags) plus the bridge's rows
+        (:class:`~gpmultirate.kernels.hold.HoldTerm`).
         """
         rows = observation.on_integer_lags() if observation.n_inputs == 1 else None
         if rows is None:
             return observation.dense_term(self, path)
-        return self.observed(rows, path)
+        return HoldTerm(self, self.observed(rows, path), observation, path)
 
 
 class _DecayKernel(ShiftScaledKernel):
@@ -469,9 +471,10 @@ class TC(_DecayKernel):
             return K
         return K, {"alpha": longest * K}
 
-    def integer_diagonal(self, t):
+    def integer_diagonal(self, t, eval_gradient=False):
         (alpha,) = self.checked_values().values()
-        return alpha**t
+        values = alpha**t
+        return (values, {"alpha": t * values}) if eval_gradient else values
 
     def shift_scale(self):
         return self.checked_values()["alpha"], {"alpha": 1.0}
@@ -590,9 +593,11 @@ class DC(ShiftScaledKernel):
         d_beta *= self.theta_transform("beta").derivative(beta)  # d beta / d theta
         return K, {"alpha": mean_lag * K, "beta": d_beta}
 
-    def integer_diagonal(self, t):
+    def integer_diagonal(self, t, eval_gradient=False):
         alpha, _ = self.checked_values().values()
-        return alpha**t
+        values = alpha**t
+        return (values, {"alpha": t * values, "beta": np.zeros_like(values)}) if (
+            eval_gradient) else values
 
     def shift_scale(self):
         return self.checked_values()["alpha"], {"alpha": 1.0, "beta": 0.0}
@@ -655,9 +660,10 @@ class SS(_DecayKernel):
         # d/d(log alpha) of alpha**e is e * alpha**e
         return K, {"alpha": first_exponent * first - 3.0 * longest * second}
 
-    def integer_diagonal(self, t):
+    def integer_diagonal(self, t, eval_gradient=False):
         (alpha,) = self.checked_values().values()
-        return alpha ** (3.0 * t) / 3.0
+        values = alpha ** (3.0 * t) / 3.0
+        return (values, {"alpha": 3.0 * t * values}) if eval_gradient else values
 
 
     def shift_scale(self):

@@ -703,20 +703,20 @@ def observe(kernel: Kernel, observation=None, path: str = "") -> ObservedTerm:
     >>> [role.kind for role in term.roles()]
     ['amplitude', 'decay', 'correlation', 'decay', 'frequency', 'amplitude', 'amplitude']
     """
-    # a leaf may answer through another observation of the same readings (readings
-    # between the ticks as rows on the integer lags): a sum or a multiple of such
-    # leaves is seen through that one, and its routes follow
     if isinstance(kernel, Sum):
-        first = observe(kernel.k1, observation, path + "k1__")
-        second = observe(kernel.k2, observation, path + "k2__")
-        shared = first.observation if first.observation is second.observation else observation
-        return SumTerm(kernel, first, second, shared, path)
+        return SumTerm(
+            kernel,
+            observe(kernel.k1, observation, path + "k1__"),
+            observe(kernel.k2, observation, path + "k2__"),
+            observation,
+            path,
+        )
     if isinstance(kernel, Product):
         split = split_constant(kernel)
         if split is not None:
             constant, other, first = split
             inner = observe(other, observation, path + ("k2__" if first else "k1__"))
-            return ScaledTerm(kernel, constant, inner, first, inner.observation, path)
+            return ScaledTerm(kernel, constant, inner, first, observation, path)
         if observation is not None and not observation.has_regressor:
             # the product rule is applied in parameter space, through the regressor
             return observation.dense_term(kernel, path)

@@ -67,7 +67,7 @@ from scipy import linalg, sparse
 
 from gpmultirate.exceptions import MemoryLimitError
 from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
-from gpmultirate.kernels.hold import HOLD_POINTS
+from gpmultirate.kernels.hold import HOLD_POINTS, bridge_shape
 from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
@@ -651,6 +651,16 @@ class TimedConvolution(Observation):
             self._on_lags = None if short else InterpolatedConvolution(self, HOLD_POINTS)
         return self._on_lags
 
+    def bridge_rows(self) -> np.ndarray:
+        """``Psi``: the regressor rows of the points weighted by the bridge's shape ``s(d)``.
+
+        Reading ``m``'s row is ``sum_points weight * s(offset) * row``, shape
+        ``(M, n_inputs P)`` (:func:`~gpmultirate.kernels.hold.bridge_shape`); kept.
+        """
+        if "_bridge_rows" not in self.__dict__:
+            self._bridge_rows = self.weighted_rows(bridge_shape(self._offsets))
+        return self._bridge_rows
+
     def structured_term(self, kernel, path: str = "") -> ObservedTerm:
         """A structured leaf through these readings: the kernel's ``observed_at_instants``."""
         return kernel.observed_at_instants(self, path)
@@ -720,6 +730,7 @@ class TimedConvolution(Observation):
             block = copy.copy(self)
             block.__dict__.pop("_blocks", None)
             block.__dict__.pop("_on_lags", None)
+            block.__dict__.pop("_bridge_rows", None)
             if len(self._parts) == 1 and self._parts[0] is self:
                 block._parts = [block]
             else:
@@ -752,6 +763,7 @@ class TimedConvolution(Observation):
         state["_rows"] = None
         state.pop("_blocks", None)
         state.pop("_on_lags", None)
+        state.pop("_bridge_rows", None)
         return state
 
     def __repr__(self) -> str:
