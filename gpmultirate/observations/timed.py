@@ -14,19 +14,18 @@ exposure ``E`` and latency ``L`` reports, at its stamp ``t``,
 the posterior and its bands stay exact Gaussian computations;
 :class:`TimedConvolution` is that observation.
 
-Its readings are not a matrix on the integer lags, so the routes of the
-integer-lag observations (the long-record reduction, the diagonal recursion,
-the filters of DC) do not apply.  The covariance of the readings is formed by
-the kernel's terms for readings at their own instants
-(:mod:`gpmultirate.kernels.instants`): the walker
-(:func:`~gpmultirate.kernels.observe`) asks this observation for each leaf,
-and the observation asks a structured kernel for its
-:meth:`~gpmultirate.kernels.StructuredKernel.observed_at_instants`:
+The covariance of the readings is formed by the kernel's terms for readings
+at their own instants: the walker (:func:`~gpmultirate.kernels.observe`)
+asks this observation for each leaf, and the observation asks a structured
+kernel for its :meth:`~gpmultirate.kernels.StructuredKernel.observed_at_instants`:
 
-* TC, DC and SS by their semiseparable structure between integer lags
-  (:mod:`gpmultirate.kernels.offsets`): ``O(M P + M^2 P)``, the products
-  with the pieces being first-order recursions;
-* PK and constants, of rank two and one at any lag, by their bases;
+* TC, DC and SS by their rows on the integer lags (:meth:`TimedConvolution.on_integer_lags`:
+  between integer lags these kernels are the hold's interpolation of their
+  integer values) plus the bridge (:meth:`TimedConvolution.bridge_rows`,
+  :mod:`gpmultirate.kernels.hold`), every route of the integer lags applying
+  to the first;
+* PK and constants, of rank two and one at any lag, by their bases
+  (:mod:`gpmultirate.kernels.instants`);
 * sums and constant multiples through the walker's own terms;
 * independent inputs (:class:`~gpmultirate.kernels.PerInputKernel`) as the
   sum of each input's term on that input's readings (:meth:`TimedConvolution.input_block`);
@@ -35,26 +34,11 @@ and the observation asks a structured kernel for its
   offsets (as cheap as on the ticks for ``G = 1``, meant for small problems
   otherwise).
 
-The derivatives of the structured terms are exact to rounding: the complex
-step on the hyperparameter values.
-
 The exposure integral is Gauss-Legendre quadrature with
 :data:`QUADRATURE_NODES` nodes on each piece of the window between fast
-ticks, where the output is smooth.  The covariance of TC, DC and SS has a
-kink where two lags meet.  Where their pieces are single exponentials (TC,
-DC with ``beta > 0``, SS), the double integral of two windows on the same
-integer lag is in closed form
-(:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`, a
-divided difference of ``exp``; it agrees with the quadrature to ``1e-12``);
-DC with ``beta < 0`` splits the double integral at the kink
-(:func:`~gpmultirate.kernels.instants._ordered_integral`), and the
-cross-covariance with ``g`` at real lags likewise, so with an exposure they
-are exact to rounding (8 and 16 nodes agree to ``1e-10``; a brute-force
-double sum with 96 nodes agrees to its own error, about ``1e-6``).  PK and
-constants are smooth: exact to rounding as well.  The dense route integrates
-by the points; for smooth kernels (RBF) its error is below ``1e-8``, for a
-kinked kernel inside a product, or TC/DC of several inputs, it falls as the
-square of the nodes (about ``5e-4`` of the covariance with 16 nodes).
+ticks, where the output is smooth: exact for TC, DC and SS (a polynomial and
+a sine on each piece), PK and constants; the dense route's error is below
+``1e-8`` for smooth kernels (RBF).
 """
 
 from __future__ import annotations
