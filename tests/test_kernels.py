@@ -49,11 +49,11 @@ def held(formula):
         return out
 
     def bridge(a, b, *args, **kwargs):
-        # independent on each cell: 0.05^2 sin(pi d) sin(pi e) k(n, n)
+        # independent on each cell: 0.1^2 sin(pi d) sin(pi e) k(n, n)
         n = np.floor(a)
         if np.floor(b) != n:
             return 0.0
-        return (0.05**2 * np.sin(np.pi * (a - n)) * np.sin(np.pi * (b - n))
+        return (0.1**2 * np.sin(np.pi * (a - n)) * np.sin(np.pi * (b - n))
                 * formula(n, n, *args, **kwargs))
 
     def kernel(t, s, *args, **kwargs):
@@ -611,9 +611,9 @@ def test_boundary_values_are_accepted():
     K = DC(alpha=1.0, beta=1.0)(later)
     np.testing.assert_array_equal(K, np.ones_like(K))
     np.testing.assert_array_equal(TC(alpha=1.0)(later), np.ones((3, 3)))
-    # between the ticks, a constant interpolates to itself; the bridge adds 0.05^2 sin^2
+    # between the ticks, a constant interpolates to itself; the bridge adds 0.1^2 sin^2
     between = np.array([[5.5], [8.25]])
-    expected = np.ones((2, 2)) + np.diag(0.05**2 * np.sin(np.pi * np.array([0.5, 0.25])) ** 2)
+    expected = np.ones((2, 2)) + np.diag(0.1**2 * np.sin(np.pi * np.array([0.5, 0.25])) ** 2)
     np.testing.assert_allclose(DC(alpha=1.0, beta=1.0)(between), expected, rtol=1e-12)
 
 

@@ -102,9 +102,9 @@ def test_values_against_the_formula_on_integer_and_real_lags(beta):
                 out[node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
         return out
 
-    def bridge(t, s):  # independent on each cell: 0.05^2 sin(pi d) sin(pi e) k(n, n)
+    def bridge(t, s):  # independent on each cell: 0.1^2 sin(pi d) sin(pi e) k(n, n)
         n, m = np.floor(t)[:, None], np.floor(s)[None, :]
-        return (0.05**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
+        return (0.1**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
                 * (n == m) * 0.85**n)
 
     W = np.array([weights(x) for x in REAL_LAGS])

@@ -117,13 +117,13 @@ def _pair(kernel, a, b, order=P):
 
 
 def _bridge(kernel, xa, ca, xb, cb):
-    """The bridge of the hold's prior: ``0.05^2 sin(pi d) sin(pi e) k(n, n)`` on a shared cell."""
+    """The bridge of the hold's prior: ``0.1^2 sin(pi d) sin(pi e) k(n, n)`` on a shared cell."""
     total = 0.0
     for x, c in zip(xa, ca):
         for z, e in zip(xb, cb):
             n = np.floor(x)
             if np.floor(z) == n:
-                total += (c * e * 0.05**2 * np.sin(np.pi * (x - n)) * np.sin(np.pi * (z - n))
+                total += (c * e * 0.1**2 * np.sin(np.pi * (x - n)) * np.sin(np.pi * (z - n))
                           * kernel(np.array([[n]]))[0, 0])
     return total
 

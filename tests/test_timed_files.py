@@ -325,7 +325,7 @@ def _brute_force_covariance(kernel, u, stamps, latency):
     inside = (lags >= 0) & (lags < P)
     # the kernel is c * DC: between integer lags its values are the Lagrange interpolation
     # of the integer lags n - 5 .. n + 6 (zero below 0, cut at P - 1) plus the bridge
-    # 0.05^2 sin(pi d) sin(pi e) k(n, n) on a shared cell n
+    # 0.1^2 sin(pi d) sin(pi e) k(n, n) on a shared cell n
     K = kernel(np.arange(P, dtype=float)[:, None])
     rows, bridges = [], []
     for m in range(ends.shape[0]):
@@ -342,7 +342,7 @@ def _brute_force_covariance(kernel, u, stamps, latency):
         rows.append(row)
         bridges.append(bridge)
     rows, bridges = np.array(rows), np.array(bridges)
-    return rows @ K @ rows.T + bridges @ np.diag(0.05**2 * np.diag(K)) @ bridges.T
+    return rows @ K @ rows.T + bridges @ np.diag(0.1**2 * np.diag(K)) @ bridges.T
 
 
 @pytest.mark.parametrize("exposure", [0.0, 0.5])

@@ -45,10 +45,10 @@ def dense_readings_covariance(kernel, u, times, order):
         # zero below lag 0, the nodes cut at order - 1
         maps = [_interpolation(lag, order) for lag in lags]
         K = kernel(np.arange(order, dtype=float)[:, None])
-        # the bridge: independent on each cell, 0.05^2 sin(pi d)^2 k(n, n), the same d for
+        # the bridge: independent on each cell, 0.1^2 sin(pi d)^2 k(n, n), the same d for
         # every lag of one reading
         bridge = [rows[a] * np.sin(np.pi * (lags[a][0] % 1.0)) for a in range(M)]
-        v = 0.05**2 * np.diag(K)
+        v = 0.1**2 * np.diag(K)
         return np.array([[rows[a] @ maps[a] @ K @ maps[b].T @ rows[b]
                           + bridge[a] @ (v * bridge[b]) for b in range(M)] for a in range(M)])
     for a in range(M):
@@ -150,7 +150,7 @@ def test_the_cross_covariance_walks_the_same_terms():
         at = (np.arange(12) + t - tick)
         held = _interpolation(at, 12)
         dc, pk = kernel.k1, kernel.k2
-        bridge = (0.05**2 * 1.7 * np.sin(np.pi * (lags[:, None] % 1.0))
+        bridge = (0.1**2 * 1.7 * np.sin(np.pi * (lags[:, None] % 1.0))
                   * np.sin(np.pi * (t - tick)) * (np.floor(lags)[:, None] == integer[:, 0])
                   * 0.85 ** integer[:, 0])
         expected[:, m] = (dc(lags[:, None], integer) @ held.T + bridge

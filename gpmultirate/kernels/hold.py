@@ -27,12 +27,32 @@ between the ticks is a row on the integer lags: every route of the integer-lag
 observations applies to it.
 
 What the interpolation from integer lags cannot see (content of ``h`` near and
-above the fast Nyquist frequency, aliased at the integer lags) is left to the
-noise, as the calibration benchmark shows it is absorbed there
-(:doc:`/cameras`).  The interpolation of the held pulse response of a
-continuous-time mode at ``p`` fast samples per period, away from lag 0, errs
-by about 3 % of its rms at ``p = 3``, 1 % at ``p = 5`` and 0.1 % at
-``p = 20`` (``tests/test_hold.py``).
+above the fast Nyquist frequency, aliased at the integer lags, and the kinks
+of ``g`` at lags 0 and 1 where ``h`` starts) is the bridge: independent on
+each cell ``[n, n + 1)``, of the shape ``s(d) = sin(pi d)`` (zero on the
+ticks),
+
+.. math::
+
+    g(n + d) = \sum_s w_s(d)\, g(n + s) + s(d)\, b_n, \qquad
+    b_n \sim N(0, \kappa^2 k(n, n)),
+
+    k(n + d, m + e) = w(n + d)^T K\, w(m + e) + [n = m]\, \kappa^2 s(d) s(e) k(n, n),
+
+with ``kappa =`` :data:`BRIDGE_SCALE`.  The twelve-node interpolation of the
+held pulse response of a continuous-time mode, away from lag 0, errs by 3 %
+of its rms at 3 fast samples per period, 1 % at 5 and 0.1 % at 20; with the
+start included by 4.4 % at 3; a first-order response, whose kinks at lags
+0 and 1 no polynomial follows, by 2-8 % (time constants of 12 and 1.5 fast
+periods; ``tests/test_hold.py``).  ``kappa = 0.1`` covers these, and modes
+nearer the fast Nyquist frequency in part (a resonance there is PK's, exact at real lags): on the
+calibration benchmark 0.05 left the band between the ticks of fits on the
+ticks too narrow for the two-mass systems (modes at 2-5 fast samples per
+period), 0.1 did not, and neither changed the tuned noise of fits between
+the ticks.  A reading
+sees the bridge through its regressor rows weighted by ``s(d)``
+(:class:`HoldTerm`): an observation on the integer lags too, with no
+quadrature over pairs of readings.
 """
 
 from __future__ import annotations
@@ -48,7 +68,8 @@ __all__ = ["BRIDGE_SCALE", "HOLD_POINTS", "HoldTerm", "bridge_shape", "bridge_va
 #: the integer lags each value between them is interpolated from (a polynomial of degree 11)
 HOLD_POINTS = 12
 #: ``kappa``: the bridge's standard deviation at mid-cell, relative to the prior's at its lag
-BRIDGE_SCALE = 0.05
+#: (twice the interpolation error of a held mode at 3 fast samples per period)
+BRIDGE_SCALE = 0.1
 
 
 def stencil(points: int) -> np.ndarray:
