@@ -133,7 +133,7 @@ def hold_weights(lags, order: int | None = None, points: int = HOLD_POINTS):
     >>> L, (W.toarray() * 16).round(6).tolist()
     (5, [[0.0, 0.0, 16.0, 0.0, 0.0], [0.0, -1.0, 9.0, 9.0, -1.0]])
     >>> hold_weights([0.5, 3.5], order=4, points=4)[0].toarray().round(4)
-    array([[ 0.3125,  0.9375, -0.3125,  0.0625],
+    array([[ 0.5625,  0.5625, -0.0625,  0.    ],
            [ 0.    ,  0.    , -0.5   ,  1.5   ]])
     """
     t = np.asarray(lags, dtype=float).reshape(-1)

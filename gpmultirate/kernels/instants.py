@@ -24,10 +24,9 @@ The derivatives of the terms here are exact to rounding: the complex step
 on the hyperparameter values.
 
 The terms read the readings' points (their regressor rows, offsets from
-their ticks, quadrature weights and window pieces: ``unique_rows``,
-``point_offsets``, ``point_readings``, ``point_weights``, ``point_row_ids``,
-``pieces``) from the observation; how those are formed is the observation's
-business.
+their ticks and quadrature weights: ``unique_rows``, ``point_offsets``,
+``point_readings``, ``point_weights``) from the observation; how those are
+formed is the observation's business.
 """
 
 from __future__ import annotations

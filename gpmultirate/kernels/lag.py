@@ -457,10 +457,10 @@ class TC(_DecayKernel):
     --------
     >>> import numpy as np
     >>> from gpmultirate.kernels import TC
-    >>> TC(alpha=0.5)(np.array([[0.0], [1.0], [2.5]])).round(3)
-    array([[1.   , 0.5  , 0.177],
-           [0.5  , 0.5  , 0.177],
-           [0.177, 0.177, 0.177]])
+    >>> TC(alpha=0.5)(np.array([[0.0], [1.0], [2.5]])).round(3)  # 2.5: between the ticks
+    array([[1.   , 0.5  , 0.192],
+           [0.5  , 0.5  , 0.17 ],
+           [0.192, 0.17 , 0.178]])
     """
 
     def integer_covariance(self, t, s, eval_gradient=False):

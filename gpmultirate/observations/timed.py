@@ -162,17 +162,16 @@ def check_windows(times, n_samples: int, exposure: float, latency: float,
 
 
 def _window_points(times, exposure: float, latency: float, nodes: int):
-    """The quadrature points of every reading, and the pieces of its window between ticks.
+    """The quadrature points of every reading: ``(reading, instant, weight)`` per point.
 
-    Returns ``(reading, instant, weight, piece)`` per point and
-    ``(start, stop)`` per piece (one piece per reading without exposure).
+    Gauss-Legendre nodes on each piece of the window between ticks (one
+    point per reading without exposure).
     """
     ends = times - latency
     if exposure == 0.0:
-        index = np.arange(times.shape[0])
-        return index, ends, np.ones(times.shape[0]), index, (ends, ends)
+        return np.arange(times.shape[0]), ends, np.ones(times.shape[0])
     xi, w = np.polynomial.legendre.leggauss(nodes)
-    readings, instants, weights, starts, stops = [], [], [], [], []
+    readings, instants, weights = [], [], []
     for m, end in enumerate(ends):
         start = end - exposure
         cuts = np.arange(np.floor(start) + 1.0, np.ceil(end))
@@ -182,11 +181,7 @@ def _window_points(times, exposure: float, latency: float, nodes: int):
             instants.append(low + half * (xi + 1.0))
             weights.append(w * half / exposure)
             readings.append(np.full(nodes, m))
-            starts.append(low)
-            stops.append(high)
-    piece = np.repeat(np.arange(len(starts)), nodes)
-    return (np.concatenate(readings), np.concatenate(instants), np.concatenate(weights), piece,
-            (np.array(starts), np.array(stops)))
+    return np.concatenate(readings), np.concatenate(instants), np.concatenate(weights)
 
 
 class TimedConvolution(Observation):
@@ -262,7 +257,7 @@ class TimedConvolution(Observation):
         self.nodes = check_int(nodes, "nodes", low=1)
         given = check_sample_times(sample_times, n_samples)
         check_windows(given, n_samples, self.exposure, self.latency, self.nodes)
-        reading, instant, weight, piece, (starts, stops) = _window_points(
+        reading, instant, weight = _window_points(
             given, self.exposure, self.latency, self.nodes)
         ticks = np.floor(instant).astype(np.int64)
         if self.initial_conditions == "discard":
@@ -286,19 +281,12 @@ class TimedConvolution(Observation):
         self.sample_times = given[late]
         self.sample_times.setflags(write=False)
         self._parts = [self]
-        kept_pieces = np.unique(piece[keep])
-        piece_ticks = ticks[np.searchsorted(piece, kept_pieces)]
         self._set_points(renumber[reading[keep]], ticks[keep], instant[keep] - ticks[keep],
-                         weight[keep], np.zeros(int(keep.sum()), dtype=np.int64),
-                         np.searchsorted(kept_pieces, piece[keep]),
-                         starts[kept_pieces] - piece_ticks, stops[kept_pieces] - piece_ticks)
+                         weight[keep], np.zeros(int(keep.sum()), dtype=np.int64))
 
-    def _set_points(self, reading, ticks, offsets, weights, record, piece, piece_start,
-                    piece_stop):
+    def _set_points(self, reading, ticks, offsets, weights, record):
         self._reading, self._ticks, self._offsets = reading, ticks, offsets
         self._weights, self._record = weights, record
-        # the windows' pieces between ticks, as offsets from their tick
-        self._piece, self._piece_start, self._piece_stop = piece, piece_start, piece_stop
         self.n_outputs = int(reading.max()) + 1 if reading.size else 0
         # one regressor row per distinct (record, tick): the points of a window share them
         keys = record * (int(ticks.max()) + 2 + self.order) + ticks if ticks.size else ticks
@@ -339,16 +327,14 @@ class TimedConvolution(Observation):
         stacked.u, stacked._inputs = first.u, first._inputs
         stacked.used = np.concatenate([r.used for r in records])
         stacked.sample_times = np.concatenate([r.sample_times for r in records])
-        shift, part_shift, piece_shift = 0, 0, 0
-        pieces = []
+        shift, part_shift = 0, 0
+        points = []
         for record in records:
-            pieces.append((record._reading + shift, record._ticks, record._offsets,
-                           record._weights, record._record + part_shift,
-                           record._piece + piece_shift, record._piece_start, record._piece_stop))
+            points.append((record._reading + shift, record._ticks, record._offsets,
+                           record._weights, record._record + part_shift))
             shift += record.n_outputs
             part_shift += len(record._parts)
-            piece_shift += record._piece_start.shape[0]
-        stacked._set_points(*(np.concatenate(column) for column in zip(*pieces)))
+        stacked._set_points(*(np.concatenate(column) for column in zip(*points)))
         return stacked
 
     # ------------------------------------------------------------ the data
@@ -394,11 +380,6 @@ class TimedConvolution(Observation):
         """Each point's row in :meth:`unique_rows` (its record and tick)."""
         return self._row_id
 
-    @property
-    def pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(piece, start, stop)``: each point's piece of its window between two ticks,
-        and each piece's ends as offsets from its tick."""
-        return self._piece, self._piece_start, self._piece_stop
 
     @property
     def matrix(self):
