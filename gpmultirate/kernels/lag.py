@@ -381,12 +381,12 @@ def correlation(distance, beta: float, eval_gradient: bool = False):
         \rho(d) = \beta^d \quad (\beta \ge 0), \qquad
         \rho(d) = |\beta|^d \cos(\pi d) \quad (\beta < 0).
 
-    On integer distances both are ``beta**d``.  For a negative ``beta`` the
-    second form extends it to real distances as the product of the
-    exponential correlation ``|beta|^|d|`` and ``cos(pi d)``, both positive
-    semidefinite, so the kernel stays positive semidefinite on continuous
-    lag (the Gaussian process is an exponentially correlated one modulated at
-    the fast Nyquist frequency).  The wave is ``cos(pi (d mod 2))``, exactly
+    On integer distances both are ``beta**d``, which is where DC reads it;
+    between integer lags DC is the hold's interpolation
+    (:mod:`gpmultirate.kernels.hold`).  For a negative ``beta`` the second
+    form extends the correlation itself to real distances as the product of
+    the exponential correlation ``|beta|^|d|`` and ``cos(pi d)``, both
+    positive semidefinite.  The wave is ``cos(pi (d mod 2))``, exactly
     ``+-1`` on integers.
 
     Parameters
