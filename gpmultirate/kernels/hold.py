@@ -181,20 +181,37 @@ def bridge_variances(kernel, order: int, eval_gradient: bool = False):
     return BRIDGE_SCALE**2 * v, {name: BRIDGE_SCALE**2 * d for name, d in gradients.items()}
 
 
-def _bridge(kernel, t, s, eval_gradient):
-    """``k_b(t, s)``: ``s(d) s(e) v_n`` where ``t = n + d`` and ``s = n + e`` share a cell."""
-    whole_t, whole_s = np.floor(t), np.floor(s)
-    same = whole_t[:, None] == whole_s[None, :]
-    shape = np.outer(bridge_shape(t - whole_t), bridge_shape(s - whole_s)) * same
-    cells = np.unique(np.concatenate([whole_t, whole_s]))
-    index_t, index_s = np.searchsorted(cells, whole_t), np.searchsorted(cells, whole_s)
-    if not eval_gradient:
-        v = BRIDGE_SCALE**2 * kernel.integer_diagonal(cells)
-        return shape * v[index_t][:, None]
-    v, gradients = kernel.integer_diagonal(cells, eval_gradient=True)
-    return (BRIDGE_SCALE**2 * shape * v[index_t][:, None],
-            {name: BRIDGE_SCALE**2 * shape * d[index_t][:, None]
-             for name, d in gradients.items()})
+def _cells(lags):
+    """The bridge's rows: ``s(d)`` at ``(i, cell)`` for the lags between ticks, and the cells."""
+    whole = np.floor(lags)
+    between = np.flatnonzero(lags != whole)
+    cells, index = np.unique(whole[between], return_inverse=True)
+    rows = sparse.csr_matrix(
+        (bridge_shape(lags[between] - whole[between]), (between, index.reshape(-1))),
+        shape=(lags.shape[0], cells.shape[0]))
+    return rows, cells
+
+
+def _add_bridge(out, kernel, t, s, gradients=None):
+    """Add ``k_b(t, s)`` (and its derivatives) in place: ``s(d) s(e) v_n`` on a shared cell ``n``.
+
+    Only the pairs of lags between ticks in the same cell are touched (sparse
+    products), so lags on the ticks cost nothing.
+    """
+    Bt, cells_t = _cells(t)
+    Bs, cells_s = (Bt, cells_t) if s is t else _cells(s)
+    cells = np.intersect1d(cells_t, cells_s)
+    if cells.size == 0:
+        return
+    Bt = Bt[:, np.searchsorted(cells_t, cells)]
+    Bs = Bs[:, np.searchsorted(cells_s, cells)]
+    if gradients is None:
+        found = (kernel.integer_diagonal(cells), {})
+    else:
+        found = kernel.integer_diagonal(cells, eval_gradient=True)
+    for target, v in [(out, found[0])] + [(gradients[name], d) for name, d in found[1].items()]:
+        pairs = (Bt @ sparse.diags(BRIDGE_SCALE**2 * v) @ Bs.T).tocoo()
+        target[pairs.row, pairs.col] += pairs.data
 
 
 def _sandwich(Wt, K, Ws):
@@ -244,12 +261,14 @@ def hold_covariance(kernel, t, s, eval_gradient: bool = False):
     Wt = Wt[:, used_t]
     Ws = Wt if s is t else Ws[:, used_s]
     if not eval_gradient:
-        return _sandwich(Wt, integer_covariance(grid_t, grid_s), Ws) + _bridge(
-            kernel, t, s, False)
+        out = _sandwich(Wt, integer_covariance(grid_t, grid_s), Ws)
+        _add_bridge(out, kernel, t, s)
+        return out
     K, gradients = integer_covariance(grid_t, grid_s, eval_gradient=True)
-    bridge, d_bridge = _bridge(kernel, t, s, True)
-    return _sandwich(Wt, K, Ws) + bridge, {
-        name: _sandwich(Wt, dK, Ws) + d_bridge[name] for name, dK in gradients.items()}
+    out = _sandwich(Wt, K, Ws)
+    gradients = {name: _sandwich(Wt, dK, Ws) for name, dK in gradients.items()}
+    _add_bridge(out, kernel, t, s, gradients)
+    return out, gradients
 
 
 def hold_diagonal(kernel, t) -> np.ndarray:
