@@ -496,6 +496,9 @@ class _TCTerm(ObservedTerm):
     """TC off the recursion: the gradient contraction without the gradient array."""
 
     def parameter_contractor(self):
+        if not np.array_equal(self.lags, np.round(self.lags)):
+            # between integer lags the values are the hold's, not the formula's
+            return super().parameter_contractor()
         K = self.kernel_matrix()
         longest = np.maximum.outer(self.lags, self.lags)
         free = not self.kernel.hyperparameter_alpha.fixed
