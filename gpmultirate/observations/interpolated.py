@@ -43,7 +43,6 @@ from scipy.linalg import blas
 from gpmultirate.kernels.hold import HOLD_POINTS, lagrange_weights, stencil
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.gram import extended_input
-from gpmultirate.observations.timed import TimedConvolution
 
 __all__ = ["DEFAULT_POINTS", "InterpolatedConvolution", "interpolation_error",
            "lagrange_weights", "stencil"]
@@ -92,7 +91,8 @@ class InterpolatedConvolution(Observation):
 
     def __init__(self, timed, points: int = DEFAULT_POINTS):
         nodes = stencil(points)
-        if not isinstance(timed, TimedConvolution):
+        # readings at their own instants (the TimedConvolution, which imports this module)
+        if not (isinstance(timed, Observation) and hasattr(timed, "point_offsets")):
             raise ValueError(f"timed must be a TimedConvolution; got {type(timed).__name__}")
         self.points = int(points)
         self.timed = timed
@@ -320,7 +320,7 @@ def interpolation_error(observation: InterpolatedConvolution, coef,
     times = record.sample_times
     middle = max(0, (times.shape[0] - max_readings) // 2)
     times = times[middle:middle + max_readings]
-    readings = TimedConvolution(record.u, times, P, exposure=observation.exposure,
+    readings = type(record)(record.u, times, P, exposure=observation.exposure,
                                 latency=observation.latency,
                                 initial_conditions=observation.initial_conditions)
     interpolated = InterpolatedConvolution(readings, observation.points).matrix @ coef.reshape(-1)

@@ -56,6 +56,7 @@ from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
+from gpmultirate.observations.interpolated import InterpolatedConvolution
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.validation import as_real_array, check_inputs, check_int
 
@@ -611,7 +612,6 @@ class TimedConvolution(Observation):
         every evaluation.
         """
         if "_on_lags" not in self.__dict__:
-            from gpmultirate.observations.interpolated import InterpolatedConvolution
             short = min(part._inputs.shape[0] for part in self._parts) < HOLD_POINTS
             self._on_lags = None if short else InterpolatedConvolution(self, HOLD_POINTS)
         return self._on_lags
