@@ -96,10 +96,21 @@ def test_predicted_impulse_response_is_the_dense_posterior_on_and_between_the_la
     phi = brute_regressor(u, instants, ORDER)
     lags = np.array([0.0, 0.5, 3.0, 7.25, 23.0])
     k_lags = dc_matrix(np.arange(ORDER))
-    cross = SCALE * ALPHA ** ((lags[:, None] + np.arange(ORDER)[None, :]) / 2) * BETA ** np.abs(
-        lags[:, None] - np.arange(ORDER)[None, :])
+    # between integer lags the hold's prior: Lagrange on the lags n - 5 .. n + 6 (zero
+    # below 0) plus the bridge 0.1^2 sin(pi d)^2 k(n, n)
+    grid = np.arange(ORDER + 8)
+    W = np.zeros((lags.shape[0], grid.shape[0]))
+    for i, x in enumerate(lags):
+        n = int(np.floor(x))
+        nodes = [n] if x == n else list(range(n - 5, n + 7))
+        for node in nodes:
+            if node >= 0:
+                W[i, node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+    k_grid = dc_matrix(grid)
+    cross = W @ k_grid[:, :ORDER]
     Ky = phi @ k_lags @ phi.T + NOISE * np.eye(len(instants))
-    prior_var = SCALE * ALPHA ** lags
+    prior_var = np.diag(W @ k_grid @ W.T) + 0.1**2 * np.sin(np.pi * lags) ** 2 * (
+        SCALE * ALPHA ** np.floor(lags))
     var = prior_var - np.einsum("ij,ji->i", cross @ phi.T, np.linalg.solve(Ky, phi @ cross.T))
     got_lags, std = design.predicted_impulse_response(KERNEL, u, FACTOR, noise_level=NOISE,
                                                       lags=lags, order=ORDER)

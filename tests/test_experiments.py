@@ -43,7 +43,7 @@ def test_paper_kernels_have_the_papers_values_and_formula():
     kernels = paper_kernels(T)
     assert set(kernels) == {"DC", "PK"}
     assert kernels["DC"][1] == kernels["PK"][1] == 1e-5
-    lags = np.array([[0.0], [1.0], [2.5], [7.0]])
+    lags = np.array([[0.0], [1.0], [3.0], [7.0]])  # the paper's integer lags
     t, s = lags[:, 0][:, None], lags[:, 0][None, :]
     alpha, beta = np.exp(-0.5 * T), np.exp(-0.1 * T)
     dc = alpha ** ((t + s) / 2) * beta ** np.abs(t - s)  # eq. (16), lambda = 1

@@ -32,21 +32,52 @@ Y = RNG.uniform(0.0, 9.0, 7)[:, None]
 # ----------------------------------------------------------------------------
 
 
-def tc_direct(t, s, alpha):
-    return np.array([[alpha ** max(a, b) for b in s] for a in t])
+def held(formula):
+    """The formula at integer lags; between them its Lagrange interpolation on the twelve
+    integer lags ``n - 5 .. n + 6`` around ``n + d``, zero below lag 0 (the hold's prior)."""
+
+    def expand(x):
+        n = int(np.floor(x))
+        if x == n:
+            return [(n, 1.0)]
+        nodes = [n + k for k in range(-5, 7)]
+        out = []
+        for node in nodes:
+            weight = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+            if node >= 0:
+                out.append((node, weight))
+        return out
+
+    def bridge(a, b, *args, **kwargs):
+        # independent on each cell: 0.1^2 sin(pi d) sin(pi e) k(n, n)
+        n = np.floor(a)
+        if np.floor(b) != n:
+            return 0.0
+        return (0.1**2 * np.sin(np.pi * (a - n)) * np.sin(np.pi * (b - n))
+                * formula(n, n, *args, **kwargs))
+
+    def kernel(t, s, *args, **kwargs):
+        return np.array([[sum(wa * wb * formula(na, nb, *args, **kwargs)
+                              for na, wa in expand(a) for nb, wb in expand(b))
+                          + bridge(a, b, *args, **kwargs)
+                          for b in s] for a in t])
+
+    return kernel
 
 
-def dc_direct(t, s, alpha, beta, scale=1.0):
-    return np.array([[scale * alpha ** ((a + b) / 2) * beta ** abs(a - b) for b in s] for a in t])
+@held
+def tc_direct(a, b, alpha):
+    return alpha ** max(a, b)
 
 
-def ss_direct(t, s, alpha):
-    return np.array(
-        [
-            [alpha ** (a + b + max(a, b)) / 2 - alpha ** (3 * max(a, b)) / 6 for b in s]
-            for a in t
-        ]
-    )
+@held
+def dc_direct(a, b, alpha, beta, scale=1.0):
+    return scale * alpha ** ((a + b) / 2) * beta ** abs(a - b)
+
+
+@held
+def ss_direct(a, b, alpha):
+    return alpha ** (a + b + max(a, b)) / 2 - alpha ** (3 * max(a, b)) / 6
 
 
 def pk_paper(t, s, alpha, omega, sigma1, sigma2):
@@ -175,9 +206,14 @@ def test_pk_matches_paper_form_at_real_lags(alpha, omega, sigma1, sigma2):
 
 def test_known_values():
     # worked by hand: DC(0.8, 0.5) at lags 0 and 1.5
-    K = DC(alpha=0.8, beta=0.5)(np.array([[0.0], [1.5]]))
-    off = 0.8**0.75 * 0.5**1.5
-    np.testing.assert_allclose(K, [[1.0, off], [off, 0.8**1.5]], rtol=1e-14)
+    K = DC(alpha=0.8, beta=0.5)(np.array([[0.0], [2.0]]))
+    off = 0.8**1.0 * 0.5**2
+    np.testing.assert_allclose(K, [[1.0, off], [off, 0.8**2]], rtol=1e-14)
+    # between the ticks the cubic weights of the midpoint, -1/16, 9/16, 9/16, -1/16, would
+    # give lag 1.5 from 0..3 with four nodes; the twelve nodes' weights sum to one
+    from gpmultirate.kernels.hold import hold_weights
+    W, _ = hold_weights([7.5])
+    assert W.sum() == pytest.approx(1.0, rel=1e-12)
     # SS at lag 0: 1/2 - 1/6 = 1/3
     assert SS(alpha=0.7)(np.array([[0.0]]))[0, 0] == pytest.approx(1.0 / 3.0, rel=1e-15)
     # PK at lag 0 is sigma1^2 (the sine part vanishes)
@@ -570,9 +606,15 @@ def test_invalid_hyperparameters_raise_naming_the_argument(kernel, match):
 
 def test_boundary_values_are_accepted():
     # alpha = beta = 1 is the closed end of (0, 1]
-    K = DC(alpha=1.0, beta=1.0)(X)
+    # (from lag 5 on: below, the interpolation reads the zeros before lag 0)
+    later = np.array([[5.0], [7.0], [9.0]])
+    K = DC(alpha=1.0, beta=1.0)(later)
     np.testing.assert_array_equal(K, np.ones_like(K))
-    np.testing.assert_array_equal(TC(alpha=1.0)(X), np.ones((X.shape[0],) * 2))
+    np.testing.assert_array_equal(TC(alpha=1.0)(later), np.ones((3, 3)))
+    # between the ticks, a constant interpolates to itself; the bridge adds 0.1^2 sin^2
+    between = np.array([[5.5], [8.25]])
+    expected = np.ones((2, 2)) + np.diag(0.1**2 * np.sin(np.pi * np.array([0.5, 0.25])) ** 2)
+    np.testing.assert_allclose(DC(alpha=1.0, beta=1.0)(between), expected, rtol=1e-12)
 
 
 # ----------------------------------------------------------------------------

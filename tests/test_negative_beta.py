@@ -81,17 +81,41 @@ def random_symmetric(size, seed):
 # ------------------------------------------------------------------ values
 @pytest.mark.parametrize("beta", NEGATIVE + [0.0, 0.4])
 def test_values_against_the_formula_on_integer_and_real_lags(beta):
+    # the formula at integer lags; between them its interpolation by the hold: Lagrange
+    # on the lags n - 5 .. n + 6 around n + d, zero below lag 0
     kernel = DC(alpha=0.85, beta=beta)
-    for lags in (INTEGER_LAGS, REAL_LAGS):
-        X = lags[:, None]
-        expected = dc_elementwise(lags, lags, 0.85, beta)
-        np.testing.assert_allclose(kernel(X), expected, rtol=1e-13, atol=1e-14)
-        np.testing.assert_allclose(kernel.diag(X), np.diag(expected), rtol=1e-13)
-    Y = np.array([[0.5], [2.0], [6.0]])
-    np.testing.assert_allclose(
-        kernel(REAL_LAGS[:, None], Y), dc_elementwise(REAL_LAGS, Y[:, 0], 0.85, beta),
-        rtol=1e-13, atol=1e-14,
-    )
+    X = INTEGER_LAGS[:, None]
+    expected = dc_elementwise(INTEGER_LAGS, INTEGER_LAGS, 0.85, beta)
+    np.testing.assert_allclose(kernel(X), expected, rtol=1e-13, atol=1e-14)
+    np.testing.assert_allclose(kernel.diag(X), np.diag(expected), rtol=1e-13)
+    grid = np.arange(40.0)
+    formula = dc_elementwise(grid, grid, 0.85, beta)
+
+    def weights(x):
+        n, out = int(np.floor(x)), np.zeros(40)
+        if x == n:
+            out[n] = 1.0
+            return out
+        nodes = range(n - 5, n + 7)
+        for node in nodes:
+            if node >= 0:
+                out[node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+        return out
+
+    def bridge(t, s):  # independent on each cell: 0.1^2 sin(pi d) sin(pi e) k(n, n)
+        n, m = np.floor(t)[:, None], np.floor(s)[None, :]
+        return (0.1**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
+                * (n == m) * 0.85**n)
+
+    W = np.array([weights(x) for x in REAL_LAGS])
+    V = np.array([weights(x) for x in (0.5, 2.0, 6.0)])
+    expected = W @ formula @ W.T + bridge(REAL_LAGS, REAL_LAGS)
+    np.testing.assert_allclose(kernel(REAL_LAGS[:, None]), expected, rtol=1e-11, atol=1e-14)
+    np.testing.assert_allclose(kernel.diag(REAL_LAGS[:, None]), np.diag(expected), rtol=1e-11,
+                               atol=1e-14)
+    np.testing.assert_allclose(kernel(REAL_LAGS[:, None], np.array([[0.5], [2.0], [6.0]])),
+                               W @ formula @ V.T + bridge(REAL_LAGS, np.array([0.5, 2.0, 6.0])),
+                               rtol=1e-11, atol=1e-14)
 
 
 def test_negative_beta_alternates_exactly_on_integer_lags():
@@ -154,9 +178,17 @@ def test_lag_covariance_gradient_off_the_diagonal_matches_finite_differences():
         np.testing.assert_allclose(gradients[name], numeric, rtol=1e-6, atol=1e-10)
 
 
-def test_gradient_at_beta_zero_on_real_lags_below_one_raises():
-    with pytest.raises(ValueError, match="beta"):
-        DC(alpha=0.9, beta=0.0)(np.array([[0.0], [0.5]]), eval_gradient=True)
+def test_gradient_at_beta_zero_on_real_lags_is_finite():
+    # between integer lags the values interpolate the integer ones: a finite derivative
+    # in beta at beta = 0 (the formula's |beta|^d had an infinite one for 0 < d < 1)
+    kernel = DC(alpha=0.9, beta=0.0)
+    X = np.array([[0.0], [0.5], [3.25]])
+    _, gradient = kernel(X, eval_gradient=True)
+    step = 1e-6
+    moved = [kernel.clone_with_theta(kernel.theta + sign * np.array([0.0, step]))(X)
+             for sign in (1, -1)]
+    np.testing.assert_allclose(gradient[..., 1], (moved[0] - moved[1]) / (2 * step),
+                               rtol=1e-6, atol=1e-10)
 
 
 # ----------------------------------------------- theta, bounds, the algebra

@@ -168,7 +168,18 @@ def test_cross_covariance_equals_formula():
     Phi = explicit_regressor(u, 4, 15, 3)
     kernel = C(0.8) * DC(alpha=0.9, beta=0.7)
     lags = np.array([0.0, 0.25, 3.5, 7.0, 14.9, 20.3])
-    expected = dc_direct(lags, np.arange(15), 0.9, 0.7, 0.8) @ Phi.T
+    # between integer lags the hold's prior: the Lagrange interpolation on the lags
+    # n - 5 .. n + 6 (zero below lag 0) of the formula at integer lags; the bridge is
+    # zero against the integer lags
+    grid = np.arange(30)
+    W = np.zeros((lags.shape[0], grid.shape[0]))
+    for i, x in enumerate(lags):
+        n = int(np.floor(x))
+        nodes = [n] if x == n else list(range(n - 5, n + 7))
+        for node in nodes:
+            if node >= 0:
+                W[i, node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+    expected = W @ dc_direct(grid, np.arange(15), 0.9, 0.7, 0.8) @ Phi.T
     np.testing.assert_allclose(
         op.cross_covariance(kernel, lags[:, None]), expected, rtol=1e-12, atol=1e-14
     )

@@ -45,12 +45,37 @@ def convolution(u, order):
 
 
 def dc(constant, alpha, beta):
-    """``c alpha^((t+s)/2) rho(|t-s|)``: ``rho(d) = beta^d``, ``|beta|^d cos(pi d)`` if beta < 0."""
+    """``c alpha^((t+s)/2) beta^|t-s|`` at integer lags; between them the hold's prior.
+
+    The Lagrange interpolation on the lags ``n - 5 .. n + 6`` around ``n + d`` (zero
+    below lag 0) plus the bridge ``0.1^2 sin(pi d) sin(pi e) k(n, n)`` on a shared cell.
+    """
+
+    def formula(t, s):
+        return (constant * alpha ** (np.add.outer(t, s) / 2.0)
+                * beta ** np.abs(np.subtract.outer(t, s)))
+
+    def weights(x, size):
+        n, out = int(np.floor(x)), np.zeros(size)
+        if x == n:
+            out[n] = 1.0
+            return out
+        nodes = range(n - 5, n + 7)
+        for node in nodes:
+            if node >= 0:
+                out[node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+        return out
 
     def k(t, s):
-        d = np.abs(np.subtract.outer(t, s))
-        rho = np.abs(beta) ** d * (np.cos(np.pi * d) if beta < 0 else 1.0)
-        return constant * alpha ** (np.add.outer(t, s) / 2.0) * rho
+        t, s = np.asarray(t, float), np.asarray(s, float)
+        size = int(max(t.max(), s.max())) + 8
+        grid = np.arange(size, dtype=float)
+        Wt = np.array([weights(x, size) for x in t])
+        Ws = np.array([weights(x, size) for x in s])
+        n, m = np.floor(t)[:, None], np.floor(s)[None, :]
+        bridge = (0.1**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
+                  * (n == m) * constant * alpha**n)
+        return Wt @ formula(grid, grid) @ Ws.T + bridge
 
     return k
 

@@ -580,6 +580,26 @@ def _reading_functionals(u, times, exposure, latency, order, nodes=48):
     return out
 
 
+def _held_functional(lags, coefs, order, spec):
+    """``sum c g(x)`` under the hold's prior: integer lags and their coefficients (Lagrange on
+    ``n - 5 .. n + 6``, zero below 0, cut at ``order - 1`` unless None), and the bridge's
+    part as a vector over the cells whose inner products give its covariance
+    (``0.1^2 sin(pi d) sin(pi e) k(n, n)``)."""
+    out, bridge = {}, np.zeros(32)  # lags below the order, at most 6
+    for x, c in zip(lags, coefs):
+        n = int(np.floor(x))
+        nodes = [n] if x == n else [n + k for k in range(-5, 7)
+                                    if order is None or n + k <= order - 1]
+        for node in nodes:
+            weight = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+            if node >= 0:
+                out[node] = out.get(node, 0.0) + c * weight
+        bridge[n] += c * np.sin(np.pi * (x - n)) * 0.1 * np.sqrt(
+            spec.dense([float(n)], [float(n)])[0, 0])
+    keys = sorted(out)
+    return np.array(keys, dtype=float), np.array([out[k] for k in keys]), bridge
+
+
 @st.composite
 def noisy_problems(draw):
     n = draw(st.integers(8, 16))
@@ -618,10 +638,21 @@ def test_every_noise_model_and_timing_is_the_dense_gaussian_conditional(problem,
     X = times[:, None]
     noise = (0.1 * np.eye(len(y)) if noise_name == "white" else model.noise_kernel_(X))
     funcs = _reading_functionals(u, times, exposure, latency, order)
-    S = np.array([[ca @ spec.dense(xa, xb) @ cb for xb, cb in funcs] for xa, ca in funcs])
+    funcs = [(x, c, None) for x, c in funcs]
+    if not on_ticks:
+        funcs = [(x, c) for x, c, _ in funcs]
+        # between integer lags the hold's prior: the readings as combinations of the
+        # integer lags (nodes cut at order - 1; a record shorter than the twelve nodes
+        # takes the kernel's own values, not cut) plus the bridge
+        cut = order if len(u) >= 12 else None
+        funcs = [_held_functional(x, c, cut, spec) for x, c in funcs]
+    S = np.array([[ca @ spec.dense(xa, xb) @ cb for xb, cb, _ in funcs]
+                   for xa, ca, _ in funcs])
+    if not on_ticks:
+        S = S + np.array([[ba @ bb for _, _, bb in funcs] for _, _, ba in funcs])
     lags = np.arange(order, dtype=float)
     cross = np.column_stack([spec.dense(lags, x) @ c if x.size else np.zeros(order)
-                             for x, c in funcs])
+                             for x, c, _ in funcs])
     dense = cross @ np.linalg.solve(S + noise, y)
     # quadrature of the kernel's kink inside a window: 1e-4; on the ticks, rounding
     assert_close(model.coef_, dense, 1e-6 if exposure == 0.0 else 1e-3, "coef_")

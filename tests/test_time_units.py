@@ -114,7 +114,7 @@ def test_plot_intersample_takes_stamps_in_seconds():
     b = plot_intersample(seconds, u, y_slow=y, sample_times=times * T, window=window,
                          between=4)
     np.testing.assert_allclose(b.mean_line.get_xdata(), a.mean_line.get_xdata(), rtol=1e-12)
-    np.testing.assert_allclose(b.mean_line.get_ydata(), a.mean_line.get_ydata(), rtol=1e-9,
+    np.testing.assert_allclose(b.mean_line.get_ydata(), a.mean_line.get_ydata(), rtol=1e-8,
                                atol=1e-12)
     shown = (times >= window[0]) & (times < window[1])
     np.testing.assert_allclose(b.slow_markers.get_xdata(), times[shown] * T, rtol=1e-12)

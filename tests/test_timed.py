@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 from scipy.stats import multivariate_normal
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel as C
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel as C, Product, Sum
 
 import gpmultirate as gm
 
@@ -59,32 +59,87 @@ def _nodes(times, exposure, latency, n):
     return out
 
 
-def _functionals(u, times, exposure, latency, n):
+def _functionals(u, times, exposure, latency, n, order=P):
     """Each reading as ``sum_q c_q g(x_q)``: lags ``x`` and coefficients ``c`` (lags < P)."""
     out = []
     for instants, weights in _nodes(times, exposure, latency, n):
         lags, coefs = [], []
         for s, w in zip(instants, weights):
-            for j in range(N):
-                if 0 <= s - j < P:
+            for j in range(len(u)):
+                if 0 <= s - j < order:
                     lags.append(s - j)
                     coefs.append(w * u[j])
         out.append((np.array(lags), np.array(coefs)))
     return out
 
 
-def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None):
+def _on_integer_lags(lags, coefs, order=None):
+    """``sum_q c_q g(x_q)`` as a combination of ``g`` at integer lags: the hold's prior.
+
+    Between integer lags TC, DC and SS are the Lagrange interpolation of the
+    twelve integer lags ``n - 5 .. n + 6`` around ``x = n + d``, zero below
+    lag 0, the nodes cut at ``order - 1`` (written out here term by term).
+    """
+    out = {}
+    for x, c in zip(lags, coefs):
+        n = int(np.floor(x))
+        if x == n:
+            out[n] = out.get(n, 0.0) + c
+            continue
+        nodes = [n + s for s in range(-5, 7) if order is None or n + s <= order - 1]
+        for node in nodes:
+            weight = 1.0
+            for other in nodes:
+                if other != node:
+                    weight *= (x - other) / (node - other)
+            if node >= 0:
+                out[node] = out.get(node, 0.0) + c * weight
+    keys = np.array(sorted(out), dtype=float)
+    return keys, np.array([out[k] for k in sorted(out)])
+
+
+def _pair(kernel, a, b, order=P):
+    """``Cov(sum a_c g(a_x), sum b_c g(b_x))`` under ``kernel``, by its leaves.
+
+    ``a`` or ``b`` with ``order=None`` is ``g`` at real lags outside the readings: the
+    nodes of the kernel itself, not cut."""
+    (xa, ca, cut_a), (xb, cb, cut_b) = a, b
+    if isinstance(kernel, Sum):
+        return _pair(kernel.k1, a, b, order) + _pair(kernel.k2, a, b, order)
+    if isinstance(kernel, Product) and isinstance(kernel.k1, C):
+        return kernel.k1.constant_value * _pair(kernel.k2, a, b, order)
+    if isinstance(kernel, (DC, TC, SS)):
+        bridge = _bridge(kernel, xa, ca, xb, cb)
+        xa, ca = _on_integer_lags(xa, ca, order if cut_a else None)
+        xb, cb = _on_integer_lags(xb, cb, order if cut_b else None)
+        return ca @ kernel(xa[:, None], xb[:, None]) @ cb + bridge
+    return ca @ kernel(xa[:, None], xb[:, None]) @ cb
+
+
+def _bridge(kernel, xa, ca, xb, cb):
+    """The bridge of the hold's prior: ``0.1^2 sin(pi d) sin(pi e) k(n, n)`` on a shared cell."""
+    total = 0.0
+    for x, c in zip(xa, ca):
+        for z, e in zip(xb, cb):
+            n = np.floor(x)
+            if np.floor(z) == n:
+                total += (c * e * 0.1**2 * np.sin(np.pi * (x - n)) * np.sin(np.pi * (z - n))
+                          * kernel(np.array([[n]]))[0, 0])
+    return total
+
+
+def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None, order=P):
     """The covariance of the readings (and with ``g(at)``) by explicit double sums."""
-    funcs = _functionals(u, times, exposure, latency, n)
+    funcs = _functionals(u, times, exposure, latency, n, order)
     M = len(funcs)
     S = np.empty((M, M))
     for a in range(M):
         for b in range(M):
-            K = kernel(funcs[a][0][:, None], funcs[b][0][:, None])
-            S[a, b] = funcs[a][1] @ K @ funcs[b][1]
+            S[a, b] = _pair(kernel, (*funcs[a], True), (*funcs[b], True), order)
     if at is None:
         return S
-    cross = np.column_stack([kernel(at[:, None], x[:, None]) @ c for x, c in funcs])
+    cross = np.array([[_pair(kernel, (np.array([x]), np.ones(1), False), (*f, True))
+                       for f in funcs] for x in at])
     return S, cross
 
 
@@ -203,8 +258,8 @@ def test_records_stack_shares_the_response():
     # the records' readings as one experiment: explicit sums over both inputs
     funcs = _functionals(u[:12].tolist() + [0.0] * 12, [2.5, 7.25], 0, 0, 1)
     funcs += _functionals(u[12:].tolist() + [0.0] * 12, [1.5, 9.75], 0, 0, 1)
-    reference = np.array([[c1 @ kernel(x1[:, None], x2[:, None]) @ c2 for x2, c2 in funcs]
-                          for x1, c1 in funcs])
+    reference = np.array([[_pair(kernel, (*f1, True), (*f2, True)) for f2 in funcs]
+                          for f1 in funcs])
     assert np.allclose(S, reference, rtol=1e-10)
     assert stacked.n_outputs == 4 and len(stacked.records) == 2
 
@@ -482,70 +537,6 @@ def test_multioutput_passes_the_instants_through():
 
 
 # ------------------------------------------- exposure windows in closed form
-def test_ordered_exponential_integral_against_the_quadrature():
-    from gpmultirate.kernels.offsets import ordered_exponential_integral
-    from gpmultirate.kernels.instants import _ordered_integral
-
-    rng = np.random.default_rng(5)
-    n = 400
-    ends = np.sort(rng.uniform(0, 1, (4, n)), axis=0)
-    a1, b1 = ends[0], ends[2]
-    a2, b2 = ends[1], ends[3]
-    # equal, nested, disjoint and empty intervals among them
-    a2[:20], b2[:20] = a1[:20], b1[:20]
-    a1[20:40], b1[20:40] = b2[20:40], np.minimum(b2[20:40] + 0.1, 1.0)
-    b1[40:60] = a1[40:60]
-    xi, w = np.polynomial.legendre.leggauss(16)
-    for lam, mu in [(-0.2, 0.0), (0.3, -0.25), (-1e-9, 1e-9), (0.0, 0.0), (-2.5, 1.7),
-                    (np.log(0.9), np.log(0.9) / 2)]:
-        value = ordered_exponential_integral(lam, mu, a1, b1, a2, b2)
-        reference = _ordered_integral(lambda x: np.exp(lam * x), lambda y: np.exp(mu * y),
-                                      a1, b1, a2, b2, xi, w)
-        assert np.allclose(value, reference, rtol=1e-8, atol=1e-12)
-        # the complex step: the derivative in lam, against the quadrature's own
-        step = 1e-30
-        d_value = np.imag(ordered_exponential_integral(lam + 1j * step, mu, a1, b1, a2, b2))
-        d_reference = _ordered_integral(lambda x: x * np.exp(lam * x), lambda y: np.exp(mu * y),
-                                        a1, b1, a2, b2, xi, w)
-        assert np.allclose(d_value / step, d_reference, rtol=1e-8, atol=1e-12)
-
-
-def test_exp_divided_difference_on_both_sides_of_the_series():
-    from gpmultirate.kernels.offsets import exp_divided_difference
-
-    z = np.array([[0.1, 0.3, 0.35], [0.0, 0.49, -0.01], [-3.0, 0.2, 1.0], [0.2, 0.2, 0.2]])
-    xi, w = np.polynomial.legendre.leggauss(40)
-    for z0, z1, z2 in z:
-        # the integral over the triangle 0 <= v <= u <= 1 of exp(z0 + (z1 - z0) u + (z2 - z1) v)
-        u = (xi + 1) / 2
-        inner = [np.sum(w / 2 * np.exp(z0 + (z1 - z0) * uu + (z2 - z1) * uu * (xi + 1) / 2)) * uu
-                 for uu in u]
-        reference = np.sum(w / 2 * np.array(inner))
-        assert np.isclose(exp_divided_difference(z0, z1, z2), reference, rtol=1e-12)
-
-
-@pytest.mark.parametrize("name", ["DC", "TC", "SS"])
-def test_closed_form_windows_match_the_quadrature(name, monkeypatch):
-    import gpmultirate.kernels.offsets as offsets
-
-    u = _input()
-    timed = TimedConvolution(u, TIMES, order=P, exposure=0.7, latency=0.2)
-    kernel = KERNELS[name]
-    closed, closed_grad = observe_covariance(kernel, timed)
-    original = offsets.offset_structure
-    monkeypatch.setattr(
-        "gpmultirate.kernels.instants.offset_structure",
-        lambda *args: original(*args)._replace(rates=None))
-    quadrature, quadrature_grad = observe_covariance(kernel, timed)
-    assert np.allclose(closed, quadrature, rtol=1e-8, atol=1e-10 * np.abs(quadrature).max())
-    assert np.allclose(closed_grad, quadrature_grad, rtol=1e-8,
-                       atol=1e-10 * np.abs(quadrature_grad).max())
-
-
-def observe_covariance(kernel, observation):
-    return observation.covariance(kernel, eval_gradient=True)
-
-
 def test_independent_inputs_sum_each_inputs_structured_readings():
     # PerInputKernel: the readings' covariance is the sum of each input's, each by its own
     # structure (semiseparable DC and TC, exact with an exposure) instead of the dense
@@ -572,16 +563,16 @@ def test_independent_inputs_sum_each_inputs_structured_readings():
             assert np.allclose(d, e, rtol=1e-12, atol=1e-14 * np.abs(e).max())
         cross = observe(kernel, op).regressor_times_kernel()
         assert np.allclose(cross, np.hstack([s.regressor_times_kernel() for s in singles]))
-        if exposure == 0.0:
-            dense, dense_items = DenseTimedTerm(kernel, op).covariance_with_derivatives()
-            assert np.allclose(S, dense, rtol=1e-10)
-            for d, e in zip(items, dense_items):
-                assert np.allclose(d, e, rtol=1e-9, atol=1e-12 * np.abs(e).max())
+        if exposure == 0.0:  # each input's readings by explicit sums, added
+            reference = sum(_dense_reference(k, u[:, i], t, 0.0, 0.2, order=12)
+                            for i, k in enumerate(kernels))
+            assert np.allclose(S, reference, rtol=1e-10)
     # a fit of two inputs at its own instants, evidence against the dense route
     y = rng.standard_normal(20)
     model = gm.FIRGaussianProcess(kernel, optimizer=None, noise_level=0.1, order=12).fit(
         u, y, sample_times=t)
-    S = DenseTimedTerm(kernel, TimedConvolution(u, t, 12)).covariance() + 0.1 * np.eye(20)
+    S = sum(_dense_reference(k, u[:, i], t, order=12) for i, k in enumerate(kernels))
+    S = S + 0.1 * np.eye(20)
     reference = multivariate_normal(np.zeros(20), S).logpdf(y)
     assert model.log_marginal_likelihood_value_ == pytest.approx(reference, rel=1e-9)
 
@@ -607,7 +598,7 @@ def test_order_too_short_is_named_at_own_instants():
     u, y, t = u[:300], y[:100], t[:100]
     model = gm.FIRGaussianProcess(DC(0.9, 0.8), optimizer=None, noise_level=0.01,
                                   order=40, between_ticks="exact").fit(u, y, sample_times=t)
-    S = DenseTimedTerm(model.kernel_, TimedConvolution(u, t, 40)).covariance()
+    S = _dense_reference(model.kernel_, u, t, order=40)
     fitted = y - 0.01 * np.linalg.solve(S + 0.01 * np.eye(100), y)
     mean = model.predict(u, sample_times=t)
     assert np.allclose(fitted, mean, rtol=1e-7, atol=1e-9 * np.abs(mean).max())
@@ -639,11 +630,15 @@ def test_independent_inputs_over_several_records():
                                 np.arange(1, n, 3) + rng.uniform(0, 1, len(range(1, n, 3))), 10)
                for n in (40, 31)]
     op = TimedConvolution.stack(records)
-    S, items = observe(kernel, op).covariance_with_derivatives()
-    dense, dense_items = DenseTimedTerm(kernel, op).covariance_with_derivatives()
-    assert np.allclose(S, dense, rtol=1e-10)
-    for d, e in zip(items, dense_items):
-        assert np.allclose(d, e, rtol=1e-9, atol=1e-12 * np.abs(e).max())
+    S = observe(kernel, op).covariance()
+    # the readings of both records, of each input, by explicit sums (one response)
+    reference = 0.0
+    for i, k in enumerate(kernel.kernels):
+        funcs = [f for r in records
+                 for f in _functionals(r._inputs[:, i], r.sample_times, 0, 0, 1, order=10)]
+        reference = reference + np.array(
+            [[_pair(k, (*f1, True), (*f2, True), 10) for f2 in funcs] for f1 in funcs])
+    assert np.allclose(S, reference, rtol=1e-10, atol=1e-12)
     assert op.input_block(1).input_block(0) is op.input_block(1)  # one input: itself
 
 

@@ -4,7 +4,10 @@ Readings at their own instants (``fit(..., sample_times=t)``) are observed
 exactly (:class:`~gpmultirate.observations.TimedConvolution`, an ``M x M``
 data covariance), or interpolated on the integer lags
 (:class:`~gpmultirate.observations.InterpolatedConvolution`, a regressor, so
-a long record takes the ``P x P`` route).  The steps here:
+a long record takes the ``P x P`` route).  For TC, DC and SS both routes
+read the same prior between integer lags (:mod:`gpmultirate.kernels.hold`):
+the exact one with its bridge, the interpolated one leaving the bridge to
+the noise.  The steps here:
 
 * :func:`readings_of`: what a fit observes, the fast samples of some
   indices (readings on the ticks) or the readings at their own instants;

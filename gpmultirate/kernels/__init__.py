@@ -7,8 +7,8 @@ with :func:`observe`, the one walker over ``Sum``, ``Product`` and
 ``ConstantKernel``), the diagonal recursion of shift-scaled kernels
 (:mod:`gpmultirate.kernels.recursion`), the filter form of DC
 (:mod:`gpmultirate.kernels.filters`), the terms of readings at their own
-instants (:mod:`gpmultirate.kernels.instants`, with the semiseparable pieces
-of :mod:`gpmultirate.kernels.offsets`) and independent priors for several
+instants (:mod:`gpmultirate.kernels.instants`, and the prior between integer
+lags, :mod:`gpmultirate.kernels.hold`) and independent priors for several
 inputs (:mod:`gpmultirate.kernels.inputs`).
 
 A new kernel subclasses :class:`StructuredKernel` and, to get a fast path,

@@ -110,8 +110,11 @@ class DCFilterTerm(ObservedTerm):
         return self.kernel.theta_transform("beta").derivative(beta)
 
     def parameter_contractor(self):
-        K = self.kernel_matrix()
         lags = self.lags
+        if not np.array_equal(lags, np.round(lags)):
+            # between integer lags the values are the hold's, not the formula's
+            return super().parameter_contractor()
+        K = self.kernel_matrix()
         _, gradients = self.kernel.lag_covariance(lags, lags, eval_gradient=True)
         d_beta = gradients["beta"]
         free = self._free()

@@ -2,9 +2,13 @@
 
 Each kernel is a :class:`sklearn.gaussian_process.kernels.Kernel` whose
 inputs ``X`` are lags ``t >= 0`` in fast samples, of shape ``(n, 1)``.  The
-formulas of the paper are written for integer lags; they hold unchanged for
-real lags and stay positive semidefinite there, which turns the FIR
-coefficients into samples of a Gaussian process ``g(t)`` over continuous lag.
+formulas of the paper are the prior on the pulse response at integer lags.
+Between them, TC, DC and SS take the interpolation of their integer-lag
+values by the hold (:mod:`gpmultirate.kernels.hold`: the response to a held
+pulse is smooth between the ticks); PK, one damped resonance, keeps its
+formula, which is already the held response of a continuous-time mode.  Either
+way the FIR coefficients are samples of a Gaussian process ``g(t)`` over
+continuous lag.
 
 Hyperparameters follow scikit-learn's conventions: they are plain constructor
 arguments, each has ``<name>_bounds`` (a pair or ``"fixed"``), ``theta``
@@ -26,8 +30,8 @@ from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
-from gpmultirate.kernels.instants import PKTimedTerm, semiseparable_term
-from gpmultirate.kernels.offsets import OffsetStructure, dc_pieces, ss_pieces, tc_pieces
+from gpmultirate.kernels.hold import HoldTerm, hold_covariance, hold_diagonal
+from gpmultirate.kernels.instants import PKTimedTerm
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
 from gpmultirate.kernels.transforms import ARTANH, LOG, ThetaTransform
@@ -298,6 +302,29 @@ class ShiftScaledKernel(LagKernel):
         """``a`` and ``{name: d log(a) / d theta_name}`` for every hyperparameter."""
         raise NotImplementedError
 
+    def integer_covariance(self, t: np.ndarray, s: np.ndarray, eval_gradient: bool = False):
+        """The kernel's formula (the paper's prior on the pulse response at integer lags).
+
+        As :meth:`~LagKernel.lag_covariance`, for integer lag vectors.
+        """
+        raise NotImplementedError
+
+    def lag_covariance(self, t, s, eval_gradient=False):
+        """The formula at integer lags; between them its interpolation by the hold
+        (:func:`~gpmultirate.kernels.hold.hold_covariance`)."""
+        return hold_covariance(self, t, s, eval_gradient)
+
+    def diag(self, X) -> np.ndarray:
+        """Return ``k(X, X)`` on the diagonal only."""
+        t = check_lags(X, "X")
+        if np.all(t == np.round(t)):
+            return self.integer_diagonal(t)
+        return hold_diagonal(self, t)
+
+    def integer_diagonal(self, t: np.ndarray, eval_gradient: bool = False):
+        """``k(t_i, t_i)`` at integer lags by the formula (and ``{name: d/d theta_name}``)."""
+        raise NotImplementedError
+
     def right_multiply(self, X: np.ndarray) -> np.ndarray:
         """``X @ K`` for ``X`` of shape ``(r, P)`` and ``K`` at lags ``0..P-1``, in ``O(r P)``."""
         raise NotImplementedError
@@ -309,6 +336,21 @@ class ShiftScaledKernel(LagKernel):
     def observed(self, observation, path: str = "") -> ObservedTerm:
         """The recursion where it pays off, :meth:`unshifted_term` elsewhere."""
         return ShiftScaledTerm(self, observation, path, self.unshifted_term(observation, path))
+
+    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
+        """Readings at their own instants: rows on the integer lags plus the bridge (one input).
+
+        Between integer lags the kernel is the hold's interpolation of its
+        integer-lag values plus an independent bridge on each cell
+        (:mod:`gpmultirate.kernels.hold`), so a reading at any instant is a
+        row on the integer lags (the observation's ``on_integer_lags``, with
+        every route of the integer lags) plus the bridge's rows
+        (:class:`~gpmultirate.kernels.hold.HoldTerm`).
+        """
+        rows = observation.on_integer_lags() if observation.n_inputs == 1 else None
+        if rows is None:
+            return observation.dense_term(self, path)
+        return HoldTerm(self, self.observed(rows, path), observation, path)
 
 
 class _DecayKernel(ShiftScaledKernel):
@@ -339,12 +381,12 @@ def correlation(distance, beta: float, eval_gradient: bool = False):
         \rho(d) = \beta^d \quad (\beta \ge 0), \qquad
         \rho(d) = |\beta|^d \cos(\pi d) \quad (\beta < 0).
 
-    On integer distances both are ``beta**d``.  For a negative ``beta`` the
-    second form extends it to real distances as the product of the
-    exponential correlation ``|beta|^|d|`` and ``cos(pi d)``, both positive
-    semidefinite, so the kernel stays positive semidefinite on continuous
-    lag (the Gaussian process is an exponentially correlated one modulated at
-    the fast Nyquist frequency).  The wave is ``cos(pi (d mod 2))``, exactly
+    On integer distances both are ``beta**d``, which is where DC reads it;
+    between integer lags DC is the hold's interpolation
+    (:mod:`gpmultirate.kernels.hold`).  For a negative ``beta`` the second
+    form extends the correlation itself to real distances as the product of
+    the exponential correlation ``|beta|^|d|`` and ``cos(pi d)``, both
+    positive semidefinite.  The wave is ``cos(pi (d mod 2))``, exactly
     ``+-1`` on integers.
 
     Parameters
@@ -415,13 +457,13 @@ class TC(_DecayKernel):
     --------
     >>> import numpy as np
     >>> from gpmultirate.kernels import TC
-    >>> TC(alpha=0.5)(np.array([[0.0], [1.0], [2.5]])).round(3)
-    array([[1.   , 0.5  , 0.177],
-           [0.5  , 0.5  , 0.177],
-           [0.177, 0.177, 0.177]])
+    >>> TC(alpha=0.5)(np.array([[0.0], [1.0], [2.5]])).round(3)  # 2.5: between the ticks
+    array([[1.   , 0.5  , 0.192],
+           [0.5  , 0.5  , 0.17 ],
+           [0.192, 0.17 , 0.178]])
     """
 
-    def lag_covariance(self, t, s, eval_gradient=False):
+    def integer_covariance(self, t, s, eval_gradient=False):
         (alpha,) = self.checked_values().values()
         longest = np.maximum.outer(t, s)
         K = alpha**longest
@@ -429,10 +471,10 @@ class TC(_DecayKernel):
             return K
         return K, {"alpha": longest * K}
 
-    def diag(self, X) -> np.ndarray:
-        """Return ``k(X, X)`` on the diagonal only."""
+    def integer_diagonal(self, t, eval_gradient=False):
         (alpha,) = self.checked_values().values()
-        return alpha ** check_lags(X, "X")
+        values = alpha**t
+        return (values, {"alpha": t * values}) if eval_gradient else values
 
     def shift_scale(self):
         return self.checked_values()["alpha"], {"alpha": 1.0}
@@ -449,19 +491,14 @@ class TC(_DecayKernel):
     def unshifted_term(self, observation, path=""):
         return _TCTerm(self, observation, path)
 
-    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
-        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
-        return tc_pieces(values, order)
-
-    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
-        """Readings at their own instants by the semiseparable pieces (one input)."""
-        return semiseparable_term(self, observation, path)
-
 
 class _TCTerm(ObservedTerm):
     """TC off the recursion: the gradient contraction without the gradient array."""
 
     def parameter_contractor(self):
+        if not np.array_equal(self.lags, np.round(self.lags)):
+            # between integer lags the values are the hold's, not the formula's
+            return super().parameter_contractor()
         K = self.kernel_matrix()
         longest = np.maximum.outer(self.lags, self.lags)
         free = not self.kernel.hyperparameter_alpha.fixed
@@ -543,7 +580,7 @@ class DC(ShiftScaledKernel):
     def hyperparameter_beta(self) -> Hyperparameter:
         return Hyperparameter("beta", "numeric", self.beta_bounds)
 
-    def lag_covariance(self, t, s, eval_gradient=False):
+    def integer_covariance(self, t, s, eval_gradient=False):
         alpha, beta = self.checked_values().values()
         if not eval_gradient:
             # scaled in place: one P x P array at a time at the orders of long records
@@ -559,10 +596,11 @@ class DC(ShiftScaledKernel):
         d_beta *= self.theta_transform("beta").derivative(beta)  # d beta / d theta
         return K, {"alpha": mean_lag * K, "beta": d_beta}
 
-    def diag(self, X) -> np.ndarray:
-        """Return ``k(X, X)`` on the diagonal only."""
+    def integer_diagonal(self, t, eval_gradient=False):
         alpha, _ = self.checked_values().values()
-        return alpha ** check_lags(X, "X")
+        values = alpha**t
+        return (values, {"alpha": t * values, "beta": np.zeros_like(values)}) if (
+            eval_gradient) else values
 
     def shift_scale(self):
         return self.checked_values()["alpha"], {"alpha": 1.0, "beta": 0.0}
@@ -592,16 +630,6 @@ class DC(ShiftScaledKernel):
     def unshifted_term(self, observation, path=""):
         return DCFilterTerm(self, observation, path)
 
-    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
-        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
-        return dc_pieces(values, order)
-
-    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
-        """Readings at their own instants by the semiseparable pieces (one input, ``beta != 0``)."""
-        if float(self.beta) == 0.0:  # no pieces: beta^(k - l) divides by beta
-            return observation.dense_term(self, path)
-        return semiseparable_term(self, observation, path)
-
 
 class SS(_DecayKernel):
     r"""Second-order stable-spline kernel (paper eq. 17, without ``lambda``).
@@ -623,7 +651,7 @@ class SS(_DecayKernel):
     array([0.3333, 0.0417])
     """
 
-    def lag_covariance(self, t, s, eval_gradient=False):
+    def integer_covariance(self, t, s, eval_gradient=False):
         (alpha,) = self.checked_values().values()
         longest = np.maximum.outer(t, s)
         first_exponent = np.add.outer(t, s) + longest
@@ -635,18 +663,11 @@ class SS(_DecayKernel):
         # d/d(log alpha) of alpha**e is e * alpha**e
         return K, {"alpha": first_exponent * first - 3.0 * longest * second}
 
-    def diag(self, X) -> np.ndarray:
-        """Return ``k(X, X)`` on the diagonal only."""
+    def integer_diagonal(self, t, eval_gradient=False):
         (alpha,) = self.checked_values().values()
-        return alpha ** (3.0 * check_lags(X, "X")) / 3.0
+        values = alpha ** (3.0 * t) / 3.0
+        return (values, {"alpha": 3.0 * t * values}) if eval_gradient else values
 
-    def offset_structure(self, values: dict, order: int) -> OffsetStructure:
-        """The semiseparable pieces between integer lags (:mod:`gpmultirate.kernels.offsets`)."""
-        return ss_pieces(values, order)
-
-    def observed_at_instants(self, observation, path: str = "") -> ObservedTerm:
-        """Readings at their own instants by the semiseparable pieces (one input)."""
-        return semiseparable_term(self, observation, path)
 
     def shift_scale(self):
         return self.checked_values()["alpha"] ** 3, {"alpha": 3.0}

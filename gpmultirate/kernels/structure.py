@@ -312,7 +312,8 @@ class StructuredKernel:
     * override :meth:`observed` to return a term whose methods use its
       structure (subclass :class:`ObservedTerm`, or use :class:`LowRankTerm`);
     * override :meth:`observed_at_instants` likewise for readings at their
-      own instants (see :mod:`gpmultirate.kernels.instants`);
+      own instants (see :mod:`gpmultirate.kernels.instants` and
+  :mod:`gpmultirate.kernels.hold`);
     * declare ``tuning_roles``, a dict from hyperparameter name to
       ``(kind, power)`` (see :class:`Role`), so that tuning treats decays,
       frequencies and amplitudes well.

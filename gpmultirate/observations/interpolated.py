@@ -40,50 +40,15 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import sparse
 from scipy.linalg import blas
 
+from gpmultirate.kernels.hold import HOLD_POINTS, lagrange_weights, stencil
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.gram import extended_input
-from gpmultirate.observations.timed import TimedConvolution
 
 __all__ = ["DEFAULT_POINTS", "InterpolatedConvolution", "interpolation_error",
            "lagrange_weights", "stencil"]
 
-#: the interpolation nodes of a reading by default (a polynomial of degree eleven)
-DEFAULT_POINTS = 12
-
-
-def stencil(points: int) -> np.ndarray:
-    """The ``points`` interpolation nodes, relative to the tick before the instant.
-
-    Examples
-    --------
-    >>> stencil(4)
-    array([-1,  0,  1,  2])
-    >>> stencil(2)
-    array([0, 1])
-    """
-    if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or (
-            points < 2 or points % 2):
-        raise ValueError(f"points must be an even integer of at least 2; got {points!r}")
-    return np.arange(1 - points // 2, points // 2 + 1)
-
-
-def lagrange_weights(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The Lagrange weights of integer ``nodes`` at the points ``x``: ``(len(x), len(nodes))``.
-
-    Examples
-    --------
-    >>> w = lagrange_weights(np.array([-1, 0, 1, 2]), np.array([0.5]))
-    >>> w * 16
-    array([[-1.,  9.,  9., -1.]])
-    """
-    nodes = np.asarray(nodes, dtype=float)
-    x = np.asarray(x, dtype=float)
-    out = np.ones((x.shape[0], nodes.shape[0]))
-    for j, node in enumerate(nodes):
-        for other in nodes:
-            if other != node:
-                out[:, j] *= (x - other) / (node - other)
-    return out
+#: the interpolation nodes of a reading by default: the hold's (a polynomial of degree eleven)
+DEFAULT_POINTS = HOLD_POINTS
 
 
 class InterpolatedConvolution(Observation):
@@ -126,7 +91,8 @@ class InterpolatedConvolution(Observation):
 
     def __init__(self, timed, points: int = DEFAULT_POINTS):
         nodes = stencil(points)
-        if not isinstance(timed, TimedConvolution):
+        # readings at their own instants (the TimedConvolution, which imports this module)
+        if not (isinstance(timed, Observation) and hasattr(timed, "point_offsets")):
             raise ValueError(f"timed must be a TimedConvolution; got {type(timed).__name__}")
         self.points = int(points)
         self.timed = timed
@@ -354,7 +320,7 @@ def interpolation_error(observation: InterpolatedConvolution, coef,
     times = record.sample_times
     middle = max(0, (times.shape[0] - max_readings) // 2)
     times = times[middle:middle + max_readings]
-    readings = TimedConvolution(record.u, times, P, exposure=observation.exposure,
+    readings = type(record)(record.u, times, P, exposure=observation.exposure,
                                 latency=observation.latency,
                                 initial_conditions=observation.initial_conditions)
     interpolated = InterpolatedConvolution(readings, observation.points).matrix @ coef.reshape(-1)

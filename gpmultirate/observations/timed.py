@@ -14,19 +14,18 @@ exposure ``E`` and latency ``L`` reports, at its stamp ``t``,
 the posterior and its bands stay exact Gaussian computations;
 :class:`TimedConvolution` is that observation.
 
-Its readings are not a matrix on the integer lags, so the routes of the
-integer-lag observations (the long-record reduction, the diagonal recursion,
-the filters of DC) do not apply.  The covariance of the readings is formed by
-the kernel's terms for readings at their own instants
-(:mod:`gpmultirate.kernels.instants`): the walker
-(:func:`~gpmultirate.kernels.observe`) asks this observation for each leaf,
-and the observation asks a structured kernel for its
-:meth:`~gpmultirate.kernels.StructuredKernel.observed_at_instants`:
+The covariance of the readings is formed by the kernel's terms for readings
+at their own instants: the walker (:func:`~gpmultirate.kernels.observe`)
+asks this observation for each leaf, and the observation asks a structured
+kernel for its :meth:`~gpmultirate.kernels.StructuredKernel.observed_at_instants`:
 
-* TC, DC and SS by their semiseparable structure between integer lags
-  (:mod:`gpmultirate.kernels.offsets`): ``O(M P + M^2 P)``, the products
-  with the pieces being first-order recursions;
-* PK and constants, of rank two and one at any lag, by their bases;
+* TC, DC and SS by their rows on the integer lags (:meth:`TimedConvolution.on_integer_lags`:
+  between integer lags these kernels are the hold's interpolation of their
+  integer values) plus the bridge (:meth:`TimedConvolution.bridge_rows`,
+  :mod:`gpmultirate.kernels.hold`), every route of the integer lags applying
+  to the first;
+* PK and constants, of rank two and one at any lag, by their bases
+  (:mod:`gpmultirate.kernels.instants`);
 * sums and constant multiples through the walker's own terms;
 * independent inputs (:class:`~gpmultirate.kernels.PerInputKernel`) as the
   sum of each input's term on that input's readings (:meth:`TimedConvolution.input_block`);
@@ -35,26 +34,11 @@ and the observation asks a structured kernel for its
   offsets (as cheap as on the ticks for ``G = 1``, meant for small problems
   otherwise).
 
-The derivatives of the structured terms are exact to rounding: the complex
-step on the hyperparameter values.
-
 The exposure integral is Gauss-Legendre quadrature with
 :data:`QUADRATURE_NODES` nodes on each piece of the window between fast
-ticks, where the output is smooth.  The covariance of TC, DC and SS has a
-kink where two lags meet.  Where their pieces are single exponentials (TC,
-DC with ``beta > 0``, SS), the double integral of two windows on the same
-integer lag is in closed form
-(:func:`~gpmultirate.kernels.offsets.ordered_exponential_integral`, a
-divided difference of ``exp``; it agrees with the quadrature to ``1e-12``);
-DC with ``beta < 0`` splits the double integral at the kink
-(:func:`~gpmultirate.kernels.instants._ordered_integral`), and the
-cross-covariance with ``g`` at real lags likewise, so with an exposure they
-are exact to rounding (8 and 16 nodes agree to ``1e-10``; a brute-force
-double sum with 96 nodes agrees to its own error, about ``1e-6``).  PK and
-constants are smooth: exact to rounding as well.  The dense route integrates
-by the points; for smooth kernels (RBF) its error is below ``1e-8``, for a
-kinked kernel inside a product, or TC/DC of several inputs, it falls as the
-square of the nodes (about ``5e-4`` of the covariance with 16 nodes).
+ticks, where the output is smooth: exact for TC, DC and SS (a polynomial and
+a sine on each piece), PK and constants; the dense route's error is below
+``1e-8`` for smooth kernels (RBF).
 """
 
 from __future__ import annotations
@@ -67,11 +51,12 @@ from scipy import linalg, sparse
 
 from gpmultirate.exceptions import MemoryLimitError
 from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
-from gpmultirate.kernels.offsets import offset_structure
+from gpmultirate.kernels.hold import HOLD_POINTS, bridge_shape
 from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
 from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
+from gpmultirate.observations.interpolated import InterpolatedConvolution
 from gpmultirate.observations.sampled import check_initial_conditions
 from gpmultirate.validation import as_real_array, check_inputs, check_int
 
@@ -178,17 +163,16 @@ def check_windows(times, n_samples: int, exposure: float, latency: float,
 
 
 def _window_points(times, exposure: float, latency: float, nodes: int):
-    """The quadrature points of every reading, and the pieces of its window between ticks.
+    """The quadrature points of every reading: ``(reading, instant, weight)`` per point.
 
-    Returns ``(reading, instant, weight, piece)`` per point and
-    ``(start, stop)`` per piece (one piece per reading without exposure).
+    Gauss-Legendre nodes on each piece of the window between ticks (one
+    point per reading without exposure).
     """
     ends = times - latency
     if exposure == 0.0:
-        index = np.arange(times.shape[0])
-        return index, ends, np.ones(times.shape[0]), index, (ends, ends)
+        return np.arange(times.shape[0]), ends, np.ones(times.shape[0])
     xi, w = np.polynomial.legendre.leggauss(nodes)
-    readings, instants, weights, starts, stops = [], [], [], [], []
+    readings, instants, weights = [], [], []
     for m, end in enumerate(ends):
         start = end - exposure
         cuts = np.arange(np.floor(start) + 1.0, np.ceil(end))
@@ -198,11 +182,7 @@ def _window_points(times, exposure: float, latency: float, nodes: int):
             instants.append(low + half * (xi + 1.0))
             weights.append(w * half / exposure)
             readings.append(np.full(nodes, m))
-            starts.append(low)
-            stops.append(high)
-    piece = np.repeat(np.arange(len(starts)), nodes)
-    return (np.concatenate(readings), np.concatenate(instants), np.concatenate(weights), piece,
-            (np.array(starts), np.array(stops)))
+    return np.concatenate(readings), np.concatenate(instants), np.concatenate(weights)
 
 
 class TimedConvolution(Observation):
@@ -278,7 +258,7 @@ class TimedConvolution(Observation):
         self.nodes = check_int(nodes, "nodes", low=1)
         given = check_sample_times(sample_times, n_samples)
         check_windows(given, n_samples, self.exposure, self.latency, self.nodes)
-        reading, instant, weight, piece, (starts, stops) = _window_points(
+        reading, instant, weight = _window_points(
             given, self.exposure, self.latency, self.nodes)
         ticks = np.floor(instant).astype(np.int64)
         if self.initial_conditions == "discard":
@@ -302,19 +282,12 @@ class TimedConvolution(Observation):
         self.sample_times = given[late]
         self.sample_times.setflags(write=False)
         self._parts = [self]
-        kept_pieces = np.unique(piece[keep])
-        piece_ticks = ticks[np.searchsorted(piece, kept_pieces)]
         self._set_points(renumber[reading[keep]], ticks[keep], instant[keep] - ticks[keep],
-                         weight[keep], np.zeros(int(keep.sum()), dtype=np.int64),
-                         np.searchsorted(kept_pieces, piece[keep]),
-                         starts[kept_pieces] - piece_ticks, stops[kept_pieces] - piece_ticks)
+                         weight[keep], np.zeros(int(keep.sum()), dtype=np.int64))
 
-    def _set_points(self, reading, ticks, offsets, weights, record, piece, piece_start,
-                    piece_stop):
+    def _set_points(self, reading, ticks, offsets, weights, record):
         self._reading, self._ticks, self._offsets = reading, ticks, offsets
         self._weights, self._record = weights, record
-        # the windows' pieces between ticks, as offsets from their tick
-        self._piece, self._piece_start, self._piece_stop = piece, piece_start, piece_stop
         self.n_outputs = int(reading.max()) + 1 if reading.size else 0
         # one regressor row per distinct (record, tick): the points of a window share them
         keys = record * (int(ticks.max()) + 2 + self.order) + ticks if ticks.size else ticks
@@ -355,16 +328,14 @@ class TimedConvolution(Observation):
         stacked.u, stacked._inputs = first.u, first._inputs
         stacked.used = np.concatenate([r.used for r in records])
         stacked.sample_times = np.concatenate([r.sample_times for r in records])
-        shift, part_shift, piece_shift = 0, 0, 0
-        pieces = []
+        shift, part_shift = 0, 0
+        points = []
         for record in records:
-            pieces.append((record._reading + shift, record._ticks, record._offsets,
-                           record._weights, record._record + part_shift,
-                           record._piece + piece_shift, record._piece_start, record._piece_stop))
+            points.append((record._reading + shift, record._ticks, record._offsets,
+                           record._weights, record._record + part_shift))
             shift += record.n_outputs
             part_shift += len(record._parts)
-            piece_shift += record._piece_start.shape[0]
-        stacked._set_points(*(np.concatenate(column) for column in zip(*pieces)))
+        stacked._set_points(*(np.concatenate(column) for column in zip(*points)))
         return stacked
 
     # ------------------------------------------------------------ the data
@@ -410,11 +381,6 @@ class TimedConvolution(Observation):
         """Each point's row in :meth:`unique_rows` (its record and tick)."""
         return self._row_id
 
-    @property
-    def pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(piece, start, stop)``: each point's piece of its window between two ticks,
-        and each piece's ends as offsets from its tick."""
-        return self._piece, self._piece_start, self._piece_stop
 
     @property
     def matrix(self):
@@ -635,6 +601,31 @@ class TimedConvolution(Observation):
         return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
 
     # -------------------------------------------------------- with a kernel
+    def on_integer_lags(self):
+        """These readings as rows on the integer lags, by the hold's interpolation.
+
+        The :class:`~gpmultirate.observations.InterpolatedConvolution` of
+        :data:`~gpmultirate.kernels.hold.HOLD_POINTS` nodes: for TC, DC and
+        SS, whose values between integer lags are that interpolation
+        (:mod:`gpmultirate.kernels.hold`), the readings exactly; None where a
+        record is shorter than the nodes.  Kept: the evidence asks for it at
+        every evaluation.
+        """
+        if "_on_lags" not in self.__dict__:
+            short = min(part._inputs.shape[0] for part in self._parts) < HOLD_POINTS
+            self._on_lags = None if short else InterpolatedConvolution(self, HOLD_POINTS)
+        return self._on_lags
+
+    def bridge_rows(self) -> np.ndarray:
+        """``Psi``: the regressor rows of the points weighted by the bridge's shape ``s(d)``.
+
+        Reading ``m``'s row is ``sum_points weight * s(offset) * row``, shape
+        ``(M, n_inputs P)`` (:func:`~gpmultirate.kernels.hold.bridge_shape`); kept.
+        """
+        if "_bridge_rows" not in self.__dict__:
+            self._bridge_rows = self.weighted_rows(bridge_shape(self._offsets))
+        return self._bridge_rows
+
     def structured_term(self, kernel, path: str = "") -> ObservedTerm:
         """A structured leaf through these readings: the kernel's ``observed_at_instants``."""
         return kernel.observed_at_instants(self, path)
@@ -665,56 +656,14 @@ class TimedConvolution(Observation):
     def cross_covariance(self, kernel, lags) -> np.ndarray:
         """``Cov(g(lags), y)``, shape ``(n, M)``.
 
-        From the kernel at the real lags of the quadrature points; for TC, DC
-        and SS under an exposure, the integral over the lag of the window that
-        meets ``lags`` is split at its kink (exact to rounding).
+        Each kernel's term answers: TC, DC and SS by their rows on the
+        integer lags, other kernels from their values at the real lags of
+        the quadrature points.
         """
         lags = np.asarray(lags, dtype=float)
         if lags.ndim == 1:
             lags = lags[:, None]
         return observe(kernel, self).cross_covariance(lags)
-
-    def kink_correction(self, kernel, lags) -> np.ndarray:
-        """Exact minus quadrature, for the window lags on the same integer lag as ``lags``."""
-        values = {h.name: float(getattr(kernel, h.name)) for h in kernel.hyperparameters}
-        found = offset_structure(kernel, values, self.order)
-        whole = np.floor(lags).astype(np.int64)
-        frac = lags - whole
-        inside = np.flatnonzero(whole < self.order)
-        out = np.zeros((lags.shape[0], self.n_outputs))
-        if inside.size == 0:
-            return out
-        whole, frac = whole[inside], frac[inside]
-        rows = self.unique_rows()
-        scale = np.real(found.scale) ** whole.astype(float)
-        # the quadrature's own value of the k = whole term
-        point_u = rows[self._row_id][:, whole]  # (points, n)
-        base = np.real(found.base(frac, self._offsets))  # (n, points)
-        approx = (point_u.T * base) * self._weights
-        # its exact value, piece by piece: k(d, x) = sum_r A_r f_r(max) h_r(min)
-        xi, w = np.polynomial.legendre.leggauss(self.nodes)
-        start, stop = self._piece_start, self._piece_stop
-        first_point = np.searchsorted(self._piece, np.arange(start.shape[0]))
-        piece_u = rows[self._row_id[first_point]][:, whole].T  # (n, pieces)
-        d = frac[:, None]
-        exact = 0.0
-        for p_r, q_r, _, f, h in found.lower:
-            A00 = float(np.real(p_r[0] * q_r[0]))
-            for low, high, after in ((start[None, :], np.minimum(stop[None, :], d), False),
-                                     (np.maximum(start[None, :], d), stop[None, :], True)):
-                half = 0.5 * np.maximum(high - low, 0.0)
-                x = low[..., None] + half[..., None] * (xi + 1.0)
-                if after:  # x > d
-                    part = (np.real(f(x)) @ w) * np.real(h(d))
-                else:
-                    part = (np.real(h(x)) @ w) * np.real(f(d))
-                exact = exact + A00 * part * half
-        exact = exact * piece_u / self.exposure
-        correction = np.zeros((inside.size, self.n_outputs))
-        np.add.at(correction.T, self._reading[first_point], exact.T)
-        np.add.at(correction.T, self._reading, -approx.T)
-        out[inside] = correction * scale[:, None]
-        return out
 
     def dense_cross_covariance(self, kernel, lags) -> np.ndarray:
         """``Cov(g(lags), y)`` from the kernel at the real lags of the readings' points."""
@@ -745,6 +694,8 @@ class TimedConvolution(Observation):
         if k not in blocks:
             block = copy.copy(self)
             block.__dict__.pop("_blocks", None)
+            block.__dict__.pop("_on_lags", None)
+            block.__dict__.pop("_bridge_rows", None)
             if len(self._parts) == 1 and self._parts[0] is self:
                 block._parts = [block]
             else:
@@ -776,6 +727,8 @@ class TimedConvolution(Observation):
         state = self.__dict__.copy()
         state["_rows"] = None
         state.pop("_blocks", None)
+        state.pop("_on_lags", None)
+        state.pop("_bridge_rows", None)
         return state
 
     def __repr__(self) -> str:
