@@ -163,3 +163,14 @@ def test_readings_between_the_ticks_an_ar1_disturbance_seen_below_the_record_len
             model = FIRGaussianProcess(factor=FACTOR, order=300).fit(u, readings,
                                                                      sample_times=stamps)
         assert (model.noise_kernel_ != "white") == expected
+
+
+def test_discarded_initial_conditions_keep_the_check_within_the_record():
+    # at the record's length every reading would be discarded: the check keeps to the
+    # tail rule there instead of failing (measured on the CD-player arm's example)
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, 0.9 ** np.arange(80))[:600]
+    y_slow = (y + 0.05 * signal.lfilter([1.0], [1.0, -0.99], rng.standard_normal(600)))[::3]
+    model = FIRGaussianProcess(factor=3, order=120, initial_conditions="discard").fit(u, y_slow)
+    assert model.coef_.shape == (120,)

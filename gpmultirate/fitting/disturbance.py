@@ -161,7 +161,8 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
     there is measured again on a white fit tuned at the record's length
     (``experiment_at(order)`` builds the experiment at another order;
     ``noise_bounds`` and ``settings`` tune it): the cut tail is signal
-    there, a disturbance is not.  Beyond, or without ``experiment_at``,
+    there, a disturbance is not.  Beyond, without ``experiment_at`` or
+    where ``initial_conditions="discard"`` (no reading is left at that order),
     white noise is kept where the tuned prior has not decayed against the
     noise by twice the order (the output variance it gives the lags from
     the order to twice the order above ``TAIL_TOLERANCE`` times the noise
@@ -175,8 +176,10 @@ def calls_for_disturbance(experiment, kernel, noise_level: float,
         _LOG.info("noise: white (%d slow samples, beyond %d for a disturbance model)",
                   n_samples, MAX_CHECKED_SAMPLES)
         return False
+    # with initial_conditions="discard" an order of the record's length leaves no reading
+    discards = settings is not None and settings.initial_conditions == "discard"
     look_past = (check_tail and order < longest and experiment_at is not None
-                 and n_samples <= AUTO_NOISE_DENSE_GATE)
+                 and n_samples <= AUTO_NOISE_DENSE_GATE and not discards)
     if check_tail and order < longest and not look_past and orders.prior_tail_lag(
             kernel, input_powers(experiment), noise_level, 2 * order) >= order:
         _LOG.info("noise: white (the prior has not decayed against the noise by "
