@@ -118,14 +118,11 @@ def _pair(kernel, a, b, order=P):
 
 def _bridge(kernel, xa, ca, xb, cb):
     """The bridge of the hold's prior: ``0.1^2 sin(pi d) sin(pi e) k(n, n)`` on a shared cell."""
-    total = 0.0
-    for x, c in zip(xa, ca):
-        for z, e in zip(xb, cb):
-            n = np.floor(x)
-            if np.floor(z) == n:
-                total += (c * e * 0.1**2 * np.sin(np.pi * (x - n)) * np.sin(np.pi * (z - n))
-                          * kernel(np.array([[n]]))[0, 0])
-    return total
+    na, nb = np.floor(xa), np.floor(xb)
+    shared = na[:, None] == nb[None, :]
+    left = ca * np.sin(np.pi * (xa - na)) * kernel.diag(na[:, None])
+    right = cb * np.sin(np.pi * (xb - nb))
+    return float(0.1**2 * np.sum(shared * np.outer(left, right)))
 
 
 def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None, order=P):
