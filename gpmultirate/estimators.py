@@ -436,10 +436,11 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
             self._adopt(*order_steps.fit_checked_order(data, settings, fit_at_order))
         elif check is not None:
             self.interpolation_error_ = check.error
-        # the innovations in the fit's own units, before the rescaling
+        # the innovations in the fit's own units, before the rescaling; a fit with the
+        # user's hyperparameters (no tuning, as a model file is read) is not judged
         specified = misspecification.check_fit(
             self.observation_, self.y_slow_, self.kernel_, self.noise_level_,
-            self._noise_model, self.noise_level_bounds_)
+            self._noise_model, self.noise_level_bounds_) if settings.tuned else None
         units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
             given, self.observation_.order, settings))
         if self.excitation_model_ is None:

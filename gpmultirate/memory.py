@@ -69,6 +69,11 @@ def available_memory() -> int:
         return 2**63 - 1  # unknown: do not refuse
 
 
+#: slow samples up to which the checks after a fit work with the full data covariance
+#: (:data:`gpmultirate.misspecification.CHECKED_SAMPLES`)
+CHECKED_SAMPLES = 2000
+
+
 def fit_memory_estimate(n_outputs: int, n_coefficients: int, n_hyperparameters: int) -> int:
     """Estimated peak memory of a fit in bytes.
 
@@ -77,7 +82,9 @@ def fit_memory_estimate(n_outputs: int, n_coefficients: int, n_hyperparameters: 
     ``min(M, n_coefficients)``: the covariance, its Cholesky factor and
     inverse, and one derivative per hyperparameter; the posterior holds the
     ``P x P`` prior covariance and two ``M x P`` products; the reduction, the
-    factor of ``[Phi y]`` built block by block.  For a long record it covers
+    factor of ``[Phi y]`` built block by block; the checks after the fit, the
+    full ``M x M`` covariance and its factor of a reduced record up to
+    ``CHECKED_SAMPLES`` slow samples.  For a long record it covers
     the general posterior (eigendecomposition and QR); a prior with a
     tridiagonal precision (DC) needs less.
 
@@ -91,7 +98,12 @@ def fit_memory_estimate(n_outputs: int, n_coefficients: int, n_hyperparameters: 
     data_space = (4 + int(n_hyperparameters)) * m * m
     posterior = 2 * p * p + 3 * m * p
     reduction = 3 * p * p if n_outputs > n_coefficients else 0
-    return _BYTES * (data_space + posterior + reduction)
+    # the checks after a tuned fit (misspecification, the disturbance check) factor
+    # the full M x M data covariance up to CHECKED_SAMPLES slow samples: beyond the
+    # data-space matrices where the record is reduced (M > P)
+    checks = (2 * int(n_outputs) ** 2
+              if int(n_coefficients) < int(n_outputs) <= CHECKED_SAMPLES else 0)
+    return _BYTES * (data_space + posterior + reduction + checks)
 
 
 def check_fit_memory(n_outputs: int, n_coefficients: int, n_hyperparameters: int,

@@ -33,7 +33,9 @@ variance ratios within which a 95 % band still holds 0.90-0.98 of what it
 bounds, so that a long record's significant but tiny correlations do not
 call trusted bands untrusted.
 
-:func:`check_misspecification` runs it after a fit and warns once with a
+:func:`check_misspecification` runs it after a tuned fit (not where the
+hyperparameters are the user's, ``optimizer=None``, as when a model file is
+read) and warns once with a
 :class:`~gpmultirate.exceptions.MisspecificationWarning` that names what to
 try, read from :func:`~gpmultirate.diagnosis.explain_residuals` where it
 finds something specific (``kernel="auto"``, a longer order, a disturbance
@@ -139,12 +141,13 @@ def innovations(observation, y, kernel, noise_level: float, noise_model=None) ->
     True
     """
     with blas_threads_for(observation):
+        # one M x M array: the covariance, then its factor in place
         Ky = np.array(observe(kernel, observation).covariance(), dtype=float)
         if noise_model is None or getattr(noise_model, "white", False):
             Ky[np.diag_indices_from(Ky)] += float(noise_level)
         else:
             Ky = noise_model.add_to(Ky)
-        L = linalg.cholesky(Ky, lower=True, check_finite=False)
+        L = linalg.cholesky(Ky, lower=True, overwrite_a=True, check_finite=False)
         return linalg.solve_triangular(L, np.asarray(y, dtype=float), lower=True,
                                        check_finite=False)
 

@@ -80,7 +80,9 @@ def test_the_estimate_covers_the_general_long_record_posterior(optimizer):
     peak = _peak_of_fit(model, u, y)
     assert isinstance(model.posterior_, ParameterSpacePosterior)
     estimate = fit_memory_estimate(y.shape[0], 300, model.kernel_.theta.shape[0] + 1)
-    assert 0.5 * estimate < peak < 1.5 * estimate
+    # untuned, the checks after the fit (the M x M covariance and its factor) do not run
+    lower = estimate - (0 if optimizer else 8 * 2 * y.shape[0] ** 2)
+    assert 0.5 * lower < peak < 1.5 * estimate
 
 
 def test_the_limit_comes_from_the_environment(monkeypatch):

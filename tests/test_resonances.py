@@ -589,7 +589,9 @@ def test_a_drift_lure_near_the_slow_rate_alias_of_dc_is_dropped_a_mode_near_it_k
     found = [r.frequency_hz for r in auto.resonances_]
     assert any(abs(f - f0) < 0.002 for f in found), found
     fits = [gm.fit_percent(system(u_val), m.predict(u_val)) for m in (plain, auto)]
-    assert fits[1] > fits[0] + 5.0, fits  # measured 99.7 against 89.5
+    # the mode kept leaves at most half the plain fit's error (measured 99.29 against 98.29;
+    # 99.7 against 89.5 before the default order saw the mode's memory)
+    assert 100.0 - fits[1] < 0.5 * (100.0 - fits[0]), fits
 
 
 # ------------------------------------------------- aliases judged by the data's evidence

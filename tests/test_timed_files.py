@@ -506,7 +506,8 @@ def test_auto_kernel_finds_a_resonance_above_the_slow_nyquist_frequency():
     assert isinstance(auto.observation_, gm.TimedConvolution)
     found = [2 * np.pi * r.frequency_hz for r in auto.resonances_]
     assert any(abs(w - omega) < 0.02 for w in found)
-    assert gof(auto) > gof(plain) + 10.0 and gof(auto) > 95.0
+    # the mode found leaves at most half the DC prior's error (measured: 1.6 against 4.9)
+    assert 100.0 - gof(auto) < 0.5 * (100.0 - gof(plain)) and gof(auto) > 97.0
     # the model file keeps the resonances
     _, loaded = _saved_and_loaded(auto)
     assert loaded.resonances_ == auto.resonances_

@@ -88,7 +88,9 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
             searched = auto_kernel.search(observation, y, kernel, noise, noise_bounds, settings)
             kernel, noise = searched.kernel, searched.noise_level
             optimizer_result, found = searched.optimizer_result, searched.resonances
-            evidence = searched.evidence  # the search's reduction of the data
+            evidence = searched.evidence  # the search's reduction of the data, if it made one
+            if evidence is None:
+                evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
         else:
             evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
         objective = evidence
