@@ -23,6 +23,7 @@ import gpmultirate as gm
 from gpmultirate import design
 from gpmultirate.design.criterion import BandCriterion
 from gpmultirate.kernels import DC, PK
+from hold_reference import lagrange_rows
 
 ALPHA, BETA, SCALE = 0.8, 0.6, 2.0
 KERNEL = C(SCALE) * DC(alpha=ALPHA, beta=BETA)
@@ -99,13 +100,7 @@ def test_predicted_impulse_response_is_the_dense_posterior_on_and_between_the_la
     # between integer lags the hold's prior: Lagrange on the lags n - 5 .. n + 6 (zero
     # below 0) plus the bridge 0.1^2 sin(pi d)^2 k(n, n)
     grid = np.arange(ORDER + 8)
-    W = np.zeros((lags.shape[0], grid.shape[0]))
-    for i, x in enumerate(lags):
-        n = int(np.floor(x))
-        nodes = [n] if x == n else list(range(n - 5, n + 7))
-        for node in nodes:
-            if node >= 0:
-                W[i, node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+    W = lagrange_rows(lags, grid.shape[0])
     k_grid = dc_matrix(grid)
     cross = W @ k_grid[:, :ORDER]
     Ky = phi @ k_lags @ phi.T + NOISE * np.eye(len(instants))

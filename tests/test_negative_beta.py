@@ -31,6 +31,7 @@ from gpmultirate.kernels.recursion import ShiftScaledTerm, observed_recursion
 from gpmultirate.kernels.structure import ObservedTerm
 from gpmultirate.observations import ReducedObservation, build_experiment, reduce_observation
 from gpmultirate.persistence import load_model, save_model
+from hold_reference import lagrange_rows
 
 DATA = Path(__file__).parent / "data"
 INTEGER_LAGS = np.arange(12.0)
@@ -91,24 +92,13 @@ def test_values_against_the_formula_on_integer_and_real_lags(beta):
     grid = np.arange(40.0)
     formula = dc_elementwise(grid, grid, 0.85, beta)
 
-    def weights(x):
-        n, out = int(np.floor(x)), np.zeros(40)
-        if x == n:
-            out[n] = 1.0
-            return out
-        nodes = range(n - 5, n + 7)
-        for node in nodes:
-            if node >= 0:
-                out[node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
-        return out
-
     def bridge(t, s):  # independent on each cell: 0.1^2 sin(pi d) sin(pi e) k(n, n)
         n, m = np.floor(t)[:, None], np.floor(s)[None, :]
         return (0.1**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
                 * (n == m) * 0.85**n)
 
-    W = np.array([weights(x) for x in REAL_LAGS])
-    V = np.array([weights(x) for x in (0.5, 2.0, 6.0)])
+    W = lagrange_rows(REAL_LAGS, 40)
+    V = lagrange_rows([0.5, 2.0, 6.0], 40)
     expected = W @ formula @ W.T + bridge(REAL_LAGS, REAL_LAGS)
     np.testing.assert_allclose(kernel(REAL_LAGS[:, None]), expected, rtol=1e-11, atol=1e-14)
     np.testing.assert_allclose(kernel.diag(REAL_LAGS[:, None]), np.diag(expected), rtol=1e-11,

@@ -15,6 +15,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 from gpmultirate import DownsampledConvolution
 from gpmultirate.kernels import DC, PK
 from gpmultirate.observations.convolution import convolution_matrix
+from hold_reference import lagrange_rows
 
 # (N, factor, order, offset)
 CASES = [
@@ -172,13 +173,7 @@ def test_cross_covariance_equals_formula():
     # n - 5 .. n + 6 (zero below lag 0) of the formula at integer lags; the bridge is
     # zero against the integer lags
     grid = np.arange(30)
-    W = np.zeros((lags.shape[0], grid.shape[0]))
-    for i, x in enumerate(lags):
-        n = int(np.floor(x))
-        nodes = [n] if x == n else list(range(n - 5, n + 7))
-        for node in nodes:
-            if node >= 0:
-                W[i, node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
+    W = lagrange_rows(lags, grid.shape[0])
     expected = W @ dc_direct(grid, np.arange(15), 0.9, 0.7, 0.8) @ Phi.T
     np.testing.assert_allclose(
         op.cross_covariance(kernel, lags[:, None]), expected, rtol=1e-12, atol=1e-14

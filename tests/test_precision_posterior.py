@@ -27,6 +27,7 @@ from gpmultirate.inference import ParameterSpacePosterior, PrecisionPosterior, p
 from gpmultirate.kernels import DC, PK, TC
 from gpmultirate.observations import reduce_observation
 from gpmultirate.responses import FrequencyResponse
+from hold_reference import lagrange_rows
 
 N, FACTOR, ORDER, OFFSET, NOISE = 600, 2, 40, 1, 0.05**2
 LAGS = np.arange(ORDER, dtype=float)
@@ -55,23 +56,12 @@ def dc(constant, alpha, beta):
         return (constant * alpha ** (np.add.outer(t, s) / 2.0)
                 * beta ** np.abs(np.subtract.outer(t, s)))
 
-    def weights(x, size):
-        n, out = int(np.floor(x)), np.zeros(size)
-        if x == n:
-            out[n] = 1.0
-            return out
-        nodes = range(n - 5, n + 7)
-        for node in nodes:
-            if node >= 0:
-                out[node] = np.prod([(x - o) / (node - o) for o in nodes if o != node])
-        return out
-
     def k(t, s):
         t, s = np.asarray(t, float), np.asarray(s, float)
         size = int(max(t.max(), s.max())) + 8
         grid = np.arange(size, dtype=float)
-        Wt = np.array([weights(x, size) for x in t])
-        Ws = np.array([weights(x, size) for x in s])
+        Wt = lagrange_rows(t, size)
+        Ws = lagrange_rows(s, size)
         n, m = np.floor(t)[:, None], np.floor(s)[None, :]
         bridge = (0.1**2 * np.outer(np.sin(np.pi * t), np.sin(np.pi * s)) * (-1.0) ** (n + m)
                   * (n == m) * constant * alpha**n)
