@@ -313,7 +313,7 @@ class StructuredKernel:
       structure (subclass :class:`ObservedTerm`, or use :class:`LowRankTerm`);
     * override :meth:`observed_at_instants` likewise for readings at their
       own instants (see :mod:`gpmultirate.kernels.instants` and
-  :mod:`gpmultirate.kernels.hold`);
+      :mod:`gpmultirate.kernels.hold`);
     * declare ``tuning_roles``, a dict from hyperparameter name to
       ``(kind, power)`` (see :class:`Role`), so that tuning treats decays,
       frequencies and amplitudes well.
