@@ -335,6 +335,7 @@ def test_order_steps_fit_the_orders_they_choose():
                                                              else [])
 
 
+@pytest.mark.slow
 def test_too_short_order_is_reported_with_the_lag_one_correlation_of_the_residuals():
     rng = np.random.default_rng(7)
     n = 3000

@@ -165,6 +165,7 @@ def test_default_order_of_a_longer_record_is_read_from_the_tuned_prior():
     assert model.score(u_val, y_val) > 99.0
 
 
+@pytest.mark.slow
 def test_too_short_an_order_is_reported_and_a_good_one_is_not():
     g = 0.97 ** np.arange(600) * np.cos(0.3 * np.arange(600))
     u, y_slow, _, _ = _record(3000, g)

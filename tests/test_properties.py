@@ -638,6 +638,7 @@ def noisy_problems(draw):
     return u, y, times, order, timing, exposure, latency
 
 
+@pytest.mark.slow
 @examples(25)
 @given(noisy_problems(), st.sampled_from(NOISE_MODELS), kernel_specs(resonance=False))
 def test_every_noise_model_and_timing_is_the_dense_gaussian_conditional(problem, noise_name,

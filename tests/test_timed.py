@@ -574,6 +574,7 @@ def test_independent_inputs_sum_each_inputs_structured_readings():
     assert model.log_marginal_likelihood_value_ == pytest.approx(reference, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_order_too_short_is_named_at_own_instants():
     # more readings than coefficients, a response far longer than the order: the residuals
     # of the readings (the interpolated fit's rows, or y - gamma S^{-1} y of the exact one)
