@@ -52,6 +52,17 @@ def test_every_example_is_covered():
     assert scripts == set(OUTPUTS)
 
 
+def test_every_example_is_described_and_shown():
+    """Each script has a section in examples/README.md, an entry and its source in the docs."""
+    readme = (EXAMPLES / "README.md").read_text()
+    docs = (EXAMPLES.parent / "docs" / "examples.rst").read_text()
+    for script in sorted(OUTPUTS):
+        assert f"## `{script}`" in readme, f"examples/README.md has no section for {script}"
+        assert f"\n``{script}``\n" in docs, f"docs/examples.rst does not list {script}"
+        assert f"literalinclude:: ../examples/{script}" in docs, \
+            f"docs/examples.rst does not show the source of {script}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("script", sorted(OUTPUTS))
 def test_example_runs_and_writes_figures(script, tmp_path):
