@@ -138,6 +138,20 @@ class KernelNoise(NoiseModel):
         """The same noise as an :class:`AR1Noise`, as a kernel over its instants (dense)."""
         return cls(ar1.kernel, ar1.instants)
 
+    def offers_fisher(self, observation) -> bool:
+        """On the dense route (not the AR(1) one of a long record): ``dN`` is a few ``M x M``
+        matrices, and Fisher scoring needs tens of evaluations where L-BFGS needs thousands
+        (the amplitudes of the prior and of the disturbance trade off along a ridge)."""
+        ar1 = self.structure()
+        return ar1 is None or not ar1.fits(observation)
+
+    def fisher_terms(self, inverse: np.ndarray) -> list:
+        terms = []
+        for dN in self.derivatives():
+            product = inverse @ dN
+            terms.append(("dense", dN, product, np.ascontiguousarray(product.T)))
+        return terms
+
     def data_covariance(self, term, gradient: bool = False):
         """The AR(1) route where the model is one (:meth:`structure`), else the dense route."""
         ar1 = self.structure()
