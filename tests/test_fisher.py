@@ -242,8 +242,9 @@ def test_disturbance_fisher_against_finite_differences(nu):
 
 
 def test_disturbance_tuned_by_fisher_scoring_reaches_the_lbfgs_optimum(monkeypatch):
-    """A Matern 3/2 disturbance tuned by Fisher scoring ends at the log evidence L-BFGS-B
-    reaches (or higher), in far fewer evaluations."""
+    """A Matern 3/2 disturbance tuned by L-BFGS-B for at most
+    ``COLOURED_LBFGS_EVALUATIONS`` and then Fisher scoring ends at the log evidence
+    L-BFGS-B alone reaches (or higher), in no more evaluations."""
     from gpmultirate.noise import KernelNoise
 
     rng = np.random.default_rng(12)
@@ -259,4 +260,4 @@ def test_disturbance_tuned_by_fisher_scoring_reaches_the_lbfgs_optimum(monkeypat
         monkeypatch.setattr(KernelNoise, "offers_fisher", lambda self, observation: False)
         lbfgs = gm.FIRGaussianProcess(**settings).fit(u, y[::3])
     assert fisher.log_marginal_likelihood_value_ >= lbfgs.log_marginal_likelihood_value_ - 1e-3
-    assert fisher.optimizer_result_.nfev < lbfgs.optimizer_result_.nfev
+    assert fisher.optimizer_result_.nfev <= lbfgs.optimizer_result_.nfev
