@@ -41,10 +41,7 @@ def rejudge(observation, y, fitted: DisturbanceFit, found: list, noise_level: fl
 
     Returns the kept :class:`~gpmultirate.resonances.Resonance` list and,
     when terms were dropped, the disturbance tuned again from ``fitted``'s
-    noise model with the kernel without them (None when every term stays; so they
-    do when, tuned again without them, the criterion falls by more than
-    :data:`~gpmultirate.resonances.EVIDENCE_THRESHOLD`: held fixed, the
-    disturbance seemed to explain them, tuned it does not).
+    noise model with the kernel without them (None when every term stays).
     ``noise_level``: the white level the disturbance started from.
     """
     kept, reduced = resonances.resonances_under_disturbance(
@@ -56,11 +53,4 @@ def rejudge(observation, y, fitted: DisturbanceFit, found: list, noise_level: fl
               len(found) - len(kept))
     refitted = fit_disturbance(observation, y, reduced, noise_level, noise_bounds, None,
                                settings, start=fitted.noise_model)
-    lost = fitted.score - refitted.score
-    if lost > resonances.EVIDENCE_THRESHOLD:
-        # judged with every hyperparameter held, the terms looked explained; tuned again
-        # without them the evidence falls by more than a term must gain: they stay
-        _LOG.info("resonance search: the terms stay (tuned again without them the "
-                  "disturbance fit loses %.1f nats)", lost)
-        return found, None
     return [found[r] for r in kept], refitted
