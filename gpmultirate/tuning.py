@@ -64,7 +64,7 @@ RESONANCE_POINTS = 41
 FISHER_MAX_OUTPUTS = 1000
 # A disturbance model's tuning: L-BFGS-B for at most this many evaluations (it picks
 # the basin: Fisher scoring from the white fit ended in a poorer one on a measured
-# record, 853 against 989 nats), then Fisher scoring to the end (L-BFGS-B needs
+# record, 537.5 against 673.9 nats), then Fisher scoring to the end (L-BFGS-B needs
 # thousands of evaluations along the ridge of the amplitudes; within one nat of its
 # end after 100-170 on the ar1 systems of benchmarks/automatic.py)
 COLOURED_LBFGS_EVALUATIONS = 200
