@@ -71,6 +71,7 @@ class KernelNoise(NoiseModel):
             raise ValueError(f"kernel must be a scikit-learn kernel; got {type(kernel).__name__}")
         self.kernel = kernel
         self.instants = instant_blocks(instants)
+        self._blocks = None  # (N, dN) at this kernel's theta, formed once
 
     @property
     def n_samples(self) -> int:
@@ -99,11 +100,19 @@ class KernelNoise(NoiseModel):
 
     def matrix(self) -> np.ndarray:
         """``N``, of shape ``(M, M)``."""
+        if self._blocks is not None:
+            return self._blocks[0].copy()
         return linalg.block_diag(*(self.kernel(t[:, None]) for t in self.instants))
 
     def matrix_with_gradient(self) -> tuple[np.ndarray, np.ndarray]:
-        """``N`` and ``dN / d theta``, of shapes ``(M, M)`` and ``(M, M, len(theta))``."""
-        return kernel_blocks(self.kernel, self.instants)
+        """``N`` and ``dN / d theta``, of shapes ``(M, M)`` and ``(M, M, len(theta))``.
+
+        Formed once per model (a model is one point of ``theta``): the evidence's
+        gradient adds ``N`` and contracts ``dN`` at the same point.  Read only.
+        """
+        if self._blocks is None:
+            self._blocks = kernel_blocks(self.kernel, self.instants)
+        return self._blocks
 
     def derivatives(self) -> list[np.ndarray]:
         """``dN / d theta_j`` for each entry of :attr:`theta`, dense ``(M, M)`` each."""
@@ -112,7 +121,8 @@ class KernelNoise(NoiseModel):
 
     def add_to(self, S: np.ndarray) -> np.ndarray:
         """``S + N`` in place (``S`` square, of the size of the data); returns ``S``."""
-        S += self.matrix()
+        # with its derivatives: the gradient's contraction at this point reuses them
+        S += self.matrix_with_gradient()[0]
         return S
 
     def contract(self, W: np.ndarray, weight: float = 1.0) -> np.ndarray:
