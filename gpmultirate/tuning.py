@@ -66,7 +66,8 @@ FISHER_MAX_OUTPUTS = 1000
 # the basin: Fisher scoring from the white fit ended in a poorer one on a measured
 # record, 537.5 against 673.9 nats), then Fisher scoring to the end (L-BFGS-B needs
 # thousands of evaluations along the ridge of the amplitudes; within one nat of its
-# end after 100-170 on the ar1 systems of benchmarks/automatic.py)
+# end after 100-170 on the ar1 systems of benchmarks/automatic.py; with 100 one
+# system of ten there chose the other Matern candidate)
 COLOURED_LBFGS_EVALUATIONS = 200
 # Through the prior's tridiagonal precision (DC on square or reduced data) an
 # evaluation with its gradient costs a fraction of a Fisher information, and
