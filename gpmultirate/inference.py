@@ -385,10 +385,10 @@ class LogEvidence(TuningObjective):
     def __init__(self, observation, y, kernel, noise_level: float, noise_bounds, noise=None):
         super().__init__(kernel, noise_level, noise_bounds, noise)
         if self.coloured:
-            # a reduction assumes white noise: the disturbance needs the samples themselves,
-            # and its Fisher information is not offered (tuning takes L-BFGS)
+            # a reduction assumes white noise: the disturbance needs the samples themselves;
+            # its Fisher information where the noise offers it (the dense route)
             self.data, self.z = observation, np.asarray(y, dtype=float)
-            self.has_fisher = False
+            self.has_fisher = self.noise.offers_fisher(observation)
         else:
             self.data, self.z = reduce_observation(observation, y)
 

@@ -335,8 +335,9 @@ def test_bad_route_requests_are_refused():
         data_covariance(TC(0.8), op, WhiteNoise(NOISE), space="parameters")
     with pytest.raises(ValueError, match="derivatives"):
         data_covariance(TC(0.8), op, WhiteNoise(NOISE), derivatives="hessian")
-    # the Fisher information's noise derivative is gamma I: white noise only
-    with pytest.raises(ValueError, match="white noise only"):
+    # the Fisher information needs the noise's derivative matrices: white noise and a
+    # kernel over the instants give them, the heteroscedastic model does not
+    with pytest.raises(ValueError, match="Fisher information is not offered"):
         fisher_covariance(TC(0.8), op, HeteroscedasticNoise(np.ones(op.n_outputs), NOISE))
     assert type(fisher_covariance(C(1.0) * DC(0.8, 0.5), op, WhiteNoise(NOISE))) \
         is DenseCovariance

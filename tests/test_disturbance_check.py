@@ -174,3 +174,66 @@ def test_discarded_initial_conditions_keep_the_check_within_the_record():
     y_slow = (y + 0.05 * signal.lfilter([1.0], [1.0, -0.99], rng.standard_normal(600)))[::3]
     model = FIRGaussianProcess(factor=3, order=120, initial_conditions="discard").fit(u, y_slow)
     assert model.coef_.shape == (120,)
+
+
+def test_evidence_gain_grid_against_dense_log_densities():
+    """disturbance_evidence_gain, white noise tuned to nearly nothing: the largest gain of its
+    grid, the disturbance sharing the white noise's variance or added on top of it at
+    variances relative to the output's power, each log density by slogdet and solve."""
+    from gpmultirate.noise import (
+        GAIN_ADDED_LEVELS,
+        GAIN_LENGTH_SCALES,
+        GAIN_SCALES,
+        GAIN_SHARES,
+        disturbance_evidence_gain,
+    )
+
+    rng = np.random.default_rng(5)
+    M = 60
+    t = 3.0 * np.arange(M)
+    A = rng.standard_normal((M, 20))
+    S = A @ A.T / 20  # the response's part: rank 20 of 60
+    y = A @ rng.standard_normal(20) / np.sqrt(20)
+    e = rng.standard_normal(M)
+    y += 0.05 * signal.lfilter([1.0], [1.0, -0.8], e)
+    gamma = 1e-6 * np.mean(y**2)
+
+    def log_density(C):
+        sign, logdet = np.linalg.slogdet(C)
+        return -0.5 * (y @ np.linalg.solve(C, y) + logdet + M * np.log(2 * np.pi))
+
+    white = log_density(S + gamma * np.eye(M))
+    d = np.abs(t[:, None] - t[None, :])
+    gains, shares = [], []
+    for length in 3.0 * np.asarray(GAIN_LENGTH_SCALES):
+        for R in (np.exp(-d / length),
+                  (1 + np.sqrt(3) * d / length) * np.exp(-np.sqrt(3) * d / length)):
+            for w in GAIN_SHARES:
+                for s in GAIN_SCALES:
+                    shares.append(log_density(S + s * gamma * ((1 - w) * np.eye(M) + w * R)))
+            for level in GAIN_ADDED_LEVELS:
+                gains.append(log_density(S + gamma * np.eye(M) + level * np.mean(y**2) * R))
+    expected = max(gains + shares) - white
+    # the best point is a disturbance added on top: shares of the tiny white noise fall short
+    assert expected > 10.0 and max(gains) > max(shares)
+    assert disturbance_evidence_gain(S, y, gamma, t) == pytest.approx(expected, rel=1e-8)
+
+
+@pytest.mark.slow  # four fits with kernel="auto" and a disturbance tuned: about 15 s of CPU
+def test_auto_sees_an_ar1_disturbance_at_50_db_that_the_resonance_prior_took_in():
+    """Paper-like systems, AR(1) at the fast rate (pole 0.95) 50 dB below the output,
+    ``kernel="auto"``: the tuned resonances take the disturbance into the response and the
+    white noise falls to its lower bound on two of these four records, where only a
+    disturbance added on top of it is seen.  A disturbance is chosen on all four (two
+    before the added check), and the impulse band holds 0.90 or more of the truth on
+    average (0.73 before; 0.92 now)."""
+    coverage, chosen = [], 0
+    for seed in range(4):
+        system, u, y_slow = _paper_record(seed, pole=0.95, snr_db=50.0)
+        model = _fit(u, y_slow, kernel="auto")
+        chosen += model.noise_kernel_ != "white"
+        mean, std = model.impulse_response(return_std=True)
+        truth = system.impulse_response(mean.shape[0])
+        coverage.append(np.mean(np.abs(truth - mean) <= 1.959964 * std))
+    assert chosen == 4
+    assert np.mean(coverage) >= 0.90

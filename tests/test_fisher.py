@@ -196,3 +196,68 @@ def test_fisher_scoring_holds_coordinates_at_bounds():
     assert model.kernel_.k1.constant_value in (pytest.approx(1e-3), pytest.approx(1e-2))
     assert model.optimizer_result_.nit < 100
     assert np.all(np.isfinite(model.coef_))
+
+
+@pytest.mark.parametrize("nu", [0.5, 1.5])
+def test_disturbance_fisher_against_finite_differences(nu):
+    """Evidence, gradient and Fisher information under a Matern disturbance (the dense
+    route): ``1/2 tr(Ky^{-1} dKy_j Ky^{-1} dKy_k)`` with every ``dKy_j`` taken by central
+    differences of the dense ``S + N`` in ``theta``, the gradient by differences of the
+    dense log density."""
+    from sklearn.gaussian_process.kernels import Matern, WhiteKernel
+
+    from gpmultirate.inference import LogEvidence
+    from gpmultirate.noise import KernelNoise, noise_instants
+
+    op, y = make_problem(seed=4)
+    kernel = C(1.5) * DC(alpha=0.8, beta=0.6) + PK(alpha=0.9, omega=0.9)
+    noise_kernel = WhiteKernel(0.2) + C(0.5) * Matern(7.0, nu=nu)
+    noise = KernelNoise(noise_kernel, noise_instants(op))
+    evidence = LogEvidence(op, y, kernel, 0.2, (1e-5, 1e5), noise=noise)
+    assert evidence.has_fisher
+    theta = evidence.theta + 0.1
+    value, grad, fisher = evidence.with_fisher(theta)
+    n_kernel = kernel.theta.shape[0]
+
+    def dense(theta):
+        k = kernel.clone_with_theta(theta[:n_kernel])
+        t = noise_instants(op)[0][:, None]
+        return op.covariance(k) + noise_kernel.clone_with_theta(theta[n_kernel:])(t)
+
+    def log_density(theta):
+        Ky = dense(theta)
+        sign, logdet = np.linalg.slogdet(Ky)
+        return -0.5 * (y @ np.linalg.solve(Ky, y) + logdet + y.size * np.log(2 * np.pi))
+
+    h = 1e-5
+    steps = np.eye(theta.size) * h
+    dK = [(dense(theta + e) - dense(theta - e)) / (2 * h) for e in steps]
+    inverse = np.linalg.inv(dense(theta))
+    expected = np.array([[0.5 * np.trace(inverse @ a @ inverse @ b) for b in dK] for a in dK])
+    fd_grad = np.array([(log_density(theta + e) - log_density(theta - e)) / (2 * h)
+                        for e in steps])
+    assert value == pytest.approx(log_density(theta), rel=1e-10)
+    np.testing.assert_allclose(grad, fd_grad, rtol=1e-5, atol=1e-6 * np.abs(fd_grad).max())
+    np.testing.assert_allclose(fisher, expected, rtol=1e-5, atol=1e-7 * np.abs(expected).max())
+
+
+def test_disturbance_tuned_by_fisher_scoring_reaches_the_lbfgs_optimum(monkeypatch):
+    """A Matern 3/2 disturbance tuned by L-BFGS-B for at most
+    ``COLOURED_LBFGS_EVALUATIONS`` and then Fisher scoring ends at the log evidence
+    L-BFGS-B alone reaches (or higher), in no more evaluations."""
+    from gpmultirate.noise import KernelNoise
+
+    rng = np.random.default_rng(12)
+    lags = np.arange(60)
+    g = 0.9**lags * np.sin(0.4 * lags)
+    u = rng.standard_normal(300)
+    drift = np.convolve(rng.standard_normal(400), np.ones(25) / 5.0, "valid")[:300]
+    y = np.convolve(u, g)[:300] + 0.05 * rng.standard_normal(300) + 0.3 * drift
+    settings = dict(factor=3, order=60, noise_kernel="matern32")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fisher = gm.FIRGaussianProcess(**settings).fit(u, y[::3])
+        monkeypatch.setattr(KernelNoise, "offers_fisher", lambda self, observation: False)
+        lbfgs = gm.FIRGaussianProcess(**settings).fit(u, y[::3])
+    assert fisher.log_marginal_likelihood_value_ >= lbfgs.log_marginal_likelihood_value_ - 1e-3
+    assert fisher.optimizer_result_.nfev <= lbfgs.optimizer_result_.nfev

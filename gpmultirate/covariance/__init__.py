@@ -181,7 +181,8 @@ def fisher_covariance(kernel, observation, noise) -> DenseCovariance:
 
     The noise model answers (``noise.fisher_covariance(term)``): white noise
     offers :meth:`DenseCovariance.log_likelihood_fisher`, whose noise
-    derivative is ``gamma I``; other models refuse.
+    derivative is ``gamma I``, a disturbance over the instants on the dense
+    route its kernel's derivative matrices; other models refuse.
     """
     return noise.fisher_covariance(observe(kernel, observation))
 

@@ -183,9 +183,8 @@ class DenseCovariance(DataCovariance):
                 product = inverse @ item
                 # tr(V_j V_k) = sum(V_j * V_k^T): keep the transpose contiguous
                 terms.append(("dense", item, product, np.ascontiguousarray(product.T)))
-        if self.noise.is_free:  # dN = gamma I
-            scaled = noise_level * inverse  # symmetric: its own transpose
-            terms.append(("dense", None, scaled, scaled))
+        if self.noise.is_free:  # the noise's own: dN = gamma I for white noise
+            terms.extend(self.noise.fisher_terms(inverse))
         n = len(terms)
         grad = np.empty(n)
         fisher = np.empty((n, n))

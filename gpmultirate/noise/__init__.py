@@ -36,6 +36,7 @@ from gpmultirate.noise.base import NoiseModel
 from gpmultirate.noise.disturbances import (
     AR1_DISTURBANCE,
     GAIN_LENGTH_SCALES,
+    GAIN_ADDED_LEVELS,
     GAIN_SCALES,
     GAIN_SHARES,
     NAMED_DISTURBANCES,
@@ -50,6 +51,7 @@ from gpmultirate.noise.white import WhiteNoise
 __all__ = [
     "AR1_DISTURBANCE",
     "GAIN_LENGTH_SCALES",
+    "GAIN_ADDED_LEVELS",
     "GAIN_SCALES",
     "GAIN_SHARES",
     "NAMED_DISTURBANCES",

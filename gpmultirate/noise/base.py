@@ -146,10 +146,32 @@ class NoiseModel:
         """``S + N`` for the observed kernel ``term``: the route of the posterior."""
         return self.data_covariance(term)
 
+    def offers_fisher(self, observation) -> bool:
+        """Whether tuning on ``observation`` may take Fisher scoring (:meth:`fisher_covariance`).
+
+        A model that states its derivative matrices (:meth:`fisher_terms`)
+        and takes the dense route on ``observation`` does; by default none.
+        """
+        return False
+
     def fisher_covariance(self, term):
-        """``S + N`` with the derivative matrices of the Fisher information: white noise only."""
-        raise ValueError(f"the Fisher information is offered for white noise only, not for "
-                         f"{type(self).__name__}; tune with L-BFGS")
+        """``S + N`` with the derivative matrices of the Fisher information.
+
+        The dense route with the term's derivative matrices, for a model that
+        :meth:`offers_fisher`; the others refuse.
+        """
+        if not self.offers_fisher(term.observation):
+            raise ValueError(f"the Fisher information is not offered for "
+                             f"{type(self).__name__} here; tune with L-BFGS")
+        return DenseCovariance.with_derivatives(term, self, self.remainder(term.observation))
+
+    def fisher_terms(self, inverse: np.ndarray) -> list:
+        """``("dense", dN_j, V_j, V_j^T)`` with ``V_j = Ky^{-1} dN_j`` for each tuned entry.
+
+        ``inverse``: ``Ky^{-1}``.  What :meth:`DenseCovariance.log_likelihood_fisher
+        <gpmultirate.covariance.DenseCovariance.log_likelihood_fisher>` needs of the noise.
+        """
+        raise NotImplementedError
 
     def offers_precision(self, term) -> bool:
         """Whether the evidence goes through the kernel term's tridiagonal precision."""

@@ -21,6 +21,7 @@ from gpmultirate.noise.white import WhiteNoise
 
 __all__ = [
     "AR1_DISTURBANCE",
+    "GAIN_ADDED_LEVELS",
     "GAIN_LENGTH_SCALES",
     "GAIN_SCALES",
     "GAIN_SHARES",
@@ -40,6 +41,12 @@ AR1_DISTURBANCE = "ar1"
 #: :func:`disturbance_evidence_gain` tries (with :data:`GAIN_LENGTH_SCALES`
 #: and :data:`GAIN_SCALES`).
 GAIN_SHARES = (0.5, 0.9)
+#: The variances, relative to the slow samples' power ``mean(y**2)``, of a
+#: disturbance :func:`disturbance_evidence_gain` adds on top of the white noise
+#: (those above three times the white noise's): where the prior has taken the
+#: disturbance into the response, the white noise tuned to nearly nothing holds
+#: none of it to share (AR(1) at 40-60 dB, docs/disturbances.rst).
+GAIN_ADDED_LEVELS = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 
 
 def disturbance_evidence_gain(S, y, noise_level: float, instants) -> float:
@@ -51,7 +58,11 @@ def disturbance_evidence_gain(S, y, noise_level: float, instants) -> float:
     ``s gamma ((1 - w) I + w R)``, ``R`` the correlation of a Matérn 1/2 or
     3/2 process over the instants (records independent), for a small grid of
     time scales ``l`` (:data:`GAIN_LENGTH_SCALES` times the median spacing),
-    shares ``w`` (:data:`GAIN_SHARES`) and scales ``s`` (:data:`GAIN_SCALES`).
+    shares ``w`` (:data:`GAIN_SHARES`) and scales ``s`` (:data:`GAIN_SCALES`);
+    and ``gamma I + v R``, the disturbance added on top, for the variances
+    ``v`` of :data:`GAIN_ADDED_LEVELS` times ``mean(y**2)`` above ``3 gamma``
+    (a prior that took the disturbance into the response leaves ``gamma``
+    tuned to nearly nothing, and nothing for a share of it to hold).
     Returns the largest ``log N(y; 0, S + N_disturbance) - log N(y; 0, S + gamma I)``
     (negative when no disturbance on the grid does better).  Each grid point
     costs one ``M x M`` Cholesky factorization.
@@ -107,6 +118,8 @@ def disturbance_evidence_gain(S, y, noise_level: float, instants) -> float:
         start += n
     steps = np.abs(np.concatenate(steps))
     spacing = float(np.median(steps)) if steps.size and np.median(steps) > 0 else 1.0
+    power = float(np.mean(y**2))
+    added = [level * power for level in GAIN_ADDED_LEVELS if level * power > 3.0 * gamma]
     best = -np.inf
     for length_scale in spacing * np.asarray(GAIN_LENGTH_SCALES):
         d = distance / length_scale
@@ -119,6 +132,10 @@ def disturbance_evidence_gain(S, y, noise_level: float, instants) -> float:
                 N[np.diag_indices(M)] += 1.0 - share
                 for scale in GAIN_SCALES:
                     best = max(best, log_evidence(scale * gamma * N) - white)
+            for variance in added:
+                N = variance * R
+                N[np.diag_indices(M)] += gamma
+                best = max(best, log_evidence(N) - white)
     return best
 
 

@@ -71,6 +71,7 @@ class KernelNoise(NoiseModel):
             raise ValueError(f"kernel must be a scikit-learn kernel; got {type(kernel).__name__}")
         self.kernel = kernel
         self.instants = instant_blocks(instants)
+        self._blocks = None  # (N, dN) at this kernel's theta, formed once
 
     @property
     def n_samples(self) -> int:
@@ -99,11 +100,19 @@ class KernelNoise(NoiseModel):
 
     def matrix(self) -> np.ndarray:
         """``N``, of shape ``(M, M)``."""
+        if self._blocks is not None:
+            return self._blocks[0].copy()
         return linalg.block_diag(*(self.kernel(t[:, None]) for t in self.instants))
 
     def matrix_with_gradient(self) -> tuple[np.ndarray, np.ndarray]:
-        """``N`` and ``dN / d theta``, of shapes ``(M, M)`` and ``(M, M, len(theta))``."""
-        return kernel_blocks(self.kernel, self.instants)
+        """``N`` and ``dN / d theta``, of shapes ``(M, M)`` and ``(M, M, len(theta))``.
+
+        Formed once per model (a model is one point of ``theta``): the evidence's
+        gradient adds ``N`` and contracts ``dN`` at the same point.  Read only.
+        """
+        if self._blocks is None:
+            self._blocks = kernel_blocks(self.kernel, self.instants)
+        return self._blocks
 
     def derivatives(self) -> list[np.ndarray]:
         """``dN / d theta_j`` for each entry of :attr:`theta`, dense ``(M, M)`` each."""
@@ -112,7 +121,8 @@ class KernelNoise(NoiseModel):
 
     def add_to(self, S: np.ndarray) -> np.ndarray:
         """``S + N`` in place (``S`` square, of the size of the data); returns ``S``."""
-        S += self.matrix()
+        # with its derivatives: the gradient's contraction at this point reuses them
+        S += self.matrix_with_gradient()[0]
         return S
 
     def contract(self, W: np.ndarray, weight: float = 1.0) -> np.ndarray:
@@ -137,6 +147,20 @@ class KernelNoise(NoiseModel):
     def from_ar1(cls, ar1: AR1Noise) -> "KernelNoise":
         """The same noise as an :class:`AR1Noise`, as a kernel over its instants (dense)."""
         return cls(ar1.kernel, ar1.instants)
+
+    def offers_fisher(self, observation) -> bool:
+        """On the dense route (not the AR(1) one of a long record): ``dN`` is a few ``M x M``
+        matrices, and Fisher scoring needs tens of evaluations where L-BFGS needs thousands
+        (the amplitudes of the prior and of the disturbance trade off along a ridge)."""
+        ar1 = self.structure()
+        return ar1 is None or not ar1.fits(observation)
+
+    def fisher_terms(self, inverse: np.ndarray) -> list:
+        terms = []
+        for dN in self.derivatives():
+            product = inverse @ dN
+            terms.append(("dense", dN, product, np.ascontiguousarray(product.T)))
+        return terms
 
     def data_covariance(self, term, gradient: bool = False):
         """The AR(1) route where the model is one (:meth:`structure`), else the dense route."""

@@ -116,9 +116,16 @@ class WhiteNoise(NoiseModel):
                 return route
         return DenseCovariance.of_term(term, self, self.remainder(observation), gradient)
 
-    def fisher_covariance(self, term):
-        """The dense route with the term's derivative matrices (``dN = gamma I``)."""
-        return DenseCovariance.with_derivatives(term, self, self.remainder(term.observation))
+    def offers_fisher(self, observation) -> bool:
+        return True
+
+    def fisher_terms(self, inverse: np.ndarray) -> list:
+        """``dN = gamma I``: ``V = gamma Ky^{-1}``, symmetric (its own transpose); the
+        derivative itself is left out (None), its quadratic form is ``gamma a^T a``."""
+        if not self.is_free:
+            return []
+        scaled = self.level * inverse
+        return [("dense", None, scaled, scaled)]
 
     def posterior_covariance(self, term):
         observation = term.observation
