@@ -121,7 +121,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 from sklearn.base import clone
-from sklearn.gaussian_process.kernels import Kernel
+from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
 
 from gpmultirate import tuning
 from gpmultirate.covariance import (
@@ -135,6 +135,7 @@ from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
+    DC,
     PK,
     input_kernels,
     like_inputs,
@@ -606,7 +607,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
     base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
     model_noise0, result0 = noise, result
     history = [value]
-    model = _ResonantModel(evidence.moved_to(base, noise))
+    model = _ResonantModel(evidence.moved_to(base, noise), with_start=True).optimized()
     n_inputs = len(input_kernels(base_kernel))
     kernel = base
     timed = hasattr(evidence.data, "damped_spectrum")
@@ -659,8 +660,9 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             kept = list(range(len(gains)))
         final = kept
         if gains:
+            # against the base kernel with its lag-0 parts: the terms are judged, not those
             check = held_out_resonances(
-                observation, y, kernel, noise, [g.input for g in gains], base, model_noise0,
+                observation, y, kernel, noise, [g.input for g in gains], *retuned([])[:2],
                 n_folds, refit=lambda subset: retuned([kept[i] for i in subset])[:2])
             if check is not None and len(check["kept_terms"]) < len(gains):
                 _LOG.info("resonance search: %d term(s) dropped, they do not improve the fit of "
@@ -1037,10 +1039,10 @@ def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs
     if kept:
         check = held_out_resonances(
             observation, y, _assembled(kernel, [terms[r] for r in kept]), noise,
-            [inputs[r] for r in kept], _without_pk(kernel), noise, n_folds)
+            [inputs[r] for r in kept], _base_of(kernel), noise, n_folds)
         if check is not None:
             kept = [kept[i] for i in check["kept_terms"]]
-    return kept, _assembled(kernel, [terms[r] for r in kept]) if kept else _without_pk(kernel)
+    return kept, _assembled(kernel, [terms[r] for r in kept]) if kept else _base_of(kernel)
 
 
 def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
@@ -1088,7 +1090,8 @@ class _Retuned:
     """
 
     def __init__(self, evidence, kernel, noise, terms):
-        self._model = _ResonantModel(evidence.moved_to(_without_pk(kernel), noise))
+        self._model = _ResonantModel(evidence.moved_to(_base_of(kernel), noise),
+                                     start=_starts_of(kernel), with_start=True)
         self._terms = list(terms)
         self._done = {}
 
@@ -1188,9 +1191,20 @@ class _ResonantModel:
     plus a rank-``2 n_terms`` update, so the log evidence costs
     ``O(M P n_terms)`` for any values of the terms, ``c`` and ``gamma``, and
     all of them are tuned jointly (L-BFGS-B) each time a term is added.
+
+    With terms, each input's response at lag 0 gets a part of its own, of
+    standard deviation ``start[k]`` (tuned with the terms; a rank-one
+    column ``Phi_k e_0`` of ``U``): the modes of a sampled system shape its
+    response from lag 1 on (``C A^(t-1) B``), its value at lag 0 is the
+    feedthrough ``D``, which the terms' sinusoids, continued back to lag 0,
+    do not give.  Without it a kept term's value at lag 0 pins the
+    estimate there, and a wrong value is a flat error over every
+    frequency, far outside the band where the true response is small
+    (above the slow Nyquist frequency).  Readings at their own instants
+    (a timed observation) have no such part.
     """
 
-    def __init__(self, evidence):
+    def __init__(self, evidence, start=None, with_start: bool = False):
         self.evidence = evidence
         self.base = evidence.kernel
         self.noise_level = evidence.noise_level
@@ -1201,7 +1215,27 @@ class _ResonantModel:
         self._s = self._spectral.eigenvalues
         self._y = self._spectral.rotated_y
         self._blocks = {}
+        n_inputs = len(input_kernels(self.base))
+        self._has_start = not hasattr(data, "damped_sinusoids")
+        if start is None:  # the base kernel's prior standard deviation at lag 0
+            start = [float(np.sqrt(max(float(each.diag(np.zeros((1, 1)))[0]), 1e-300)))
+                     for each in input_kernels(self.base)]
+        self.start = [float(v) for v in start] if len(start) == n_inputs else [1.0] * n_inputs
+        self._start_bounds = [(v * 1e-4, v * 1e4) for v in self.start]
+        self._start_init = list(self.start)
+        self.with_start = with_start
         self.value = self._log_evidence(self._pack())
+
+    def _starts(self) -> int:
+        """The number of lag-0 parts in the parameters: one per input, or none.
+
+        None for a timed observation, and none without terms unless
+        ``with_start``: the search judges its terms against the base kernel
+        with its lag-0 parts, and a fit that keeps no term is the base
+        kernel's fit.
+        """
+        return (len(self.start) if self._has_start and (self.terms or self.with_start)
+                else 0)
 
     # ---------------------------------------------------------- parameters
     def _pack(self):
@@ -1209,6 +1243,7 @@ class _ResonantModel:
         for _, term in self.terms:
             x += [np.log(max(-0.5 * np.log(term.alpha), 1e-10)), term.omega,
                   np.log(term.sigma1), np.log(term.sigma2)]
+        x += list(np.log(self.start[:self._starts()]))
         return np.array(x)
 
     def _bounds(self):
@@ -1222,6 +1257,7 @@ class _ResonantModel:
             bounds += [(np.log(max(rates[0], 1e-10)), np.log(max(rates[1], 1e-10))),
                        tuple(term.omega_bounds), tuple(np.log(term.sigma1_bounds)),
                        tuple(np.log(term.sigma2_bounds))]
+        bounds += [tuple(np.log(b)) for b in self._start_bounds[:self._starts()]]
         return np.array(bounds, dtype=float)
 
     def rotate(self, B):
@@ -1244,7 +1280,7 @@ class _ResonantModel:
         """
         x = self._pack()
         root = np.sqrt(self._spectral.diagonal(np.exp(x[0]), np.exp(x[1])))
-        if not self.terms:
+        if not self._starts():
             return lambda X: X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((root.size, 2 * len(self.terms)))
@@ -1253,6 +1289,7 @@ class _ResonantModel:
             rotated = self._observed_basis(k, lags, rate, omega, False)
             W[:, 2 * r] = np.exp(x[4 + 4 * r]) * rotated[:, 0]
             W[:, 2 * r + 1] = np.exp(x[5 + 4 * r]) * rotated[:, 1]
+        W = np.hstack([W, self._start_columns(x)])
         U, S, _ = np.linalg.svd(W / root[:, None], full_matrices=False)
         shrink = 1.0 / np.sqrt(1.0 + S**2) - 1.0
 
@@ -1261,6 +1298,13 @@ class _ResonantModel:
             return X + U @ (shrink.reshape((-1,) + (1,) * (np.ndim(X) - 1)) * (U.T @ X))
 
         return whiten
+
+    def _start_columns(self, x):
+        """The rotated lag-0 columns ``start[k] Q^T Phi_k e_0``, ``(M, n_starts)``."""
+        n = self._starts()
+        first = 2 + 4 * len(self.terms)
+        columns = [np.exp(x[first + k]) * self._rotated_regressor(k)[:, 0] for k in range(n)]
+        return np.column_stack(columns) if columns else np.empty((self._y.shape[0], 0))
 
     def _rotated_regressor(self, k):
         if k not in self._blocks:
@@ -1304,7 +1348,9 @@ class _ResonantModel:
             rotated = self._observed_basis(k, lags, rate, omega, eval_gradient)
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
             raw.append((rotated, rate, s1, s2))
-        if r_terms:
+        starts = self._start_columns(x)
+        W = np.hstack([W, starts])
+        if W.shape[1]:
             update = DiagonalPlusLowRank(d, W)
             quad, log_det = update.inv_quad_logdet(y)
         else:
@@ -1314,7 +1360,7 @@ class _ResonantModel:
         value = log_gaussian(quad, log_det, y.shape[0]) + rest
         if not eval_gradient:
             return value
-        if r_terms:
+        if W.shape[1]:
             a, diag_A = update.solve(y), update.inverse_diagonal()
             AW = update.inverse_times_low_rank()
         else:
@@ -1335,10 +1381,17 @@ class _ResonantModel:
             grad[3 + 4 * r] = contribution(np.column_stack([-s1 * ts, s2 * tc]))
             grad[4 + 4 * r] = contribution(np.column_stack([s1 * c_, np.zeros_like(c_)]))
             grad[5 + 4 * r] = contribution(np.column_stack([np.zeros_like(s_), s2 * s_]))
+        for j in range(starts.shape[1]):  # d/dlog(start): the column itself
+            column = 2 * r_terms + j
+            wa = W[:, column] @ a
+            grad[2 + 4 * r_terms + j] = float(wa * wa - AW[:, column] @ W[:, column])
         return value, grad
 
     def _unpack(self, x):
         self.log_scale, self.noise_level = float(x[0]), float(np.exp(x[1]))
+        first = 2 + 4 * len(self.terms)
+        self.start = ([float(v) for v in np.exp(x[first:first + self._starts()])]
+                      + self.start[self._starts():])
         terms = []
         for r, (k, term) in enumerate(self.terms):
             rate, omega, log_s1, log_s2 = x[2 + 4 * r : 6 + 4 * r]
@@ -1352,6 +1405,7 @@ class _ResonantModel:
         copy = _ResonantModel.__new__(_ResonantModel)
         copy.__dict__.update(self.__dict__)
         copy.terms = list(self.terms)
+        copy.start = list(self.start)
         return copy
 
     # ------------------------------------------------------------- search
@@ -1426,6 +1480,9 @@ class _ResonantModel:
         """
         trial = self._copy()
         trial.terms.append((k, term))
+        # the lag-0 parts start again from the base kernel's prior: a part tuned small
+        # where the base alone fits lag 0 has no gradient left (its variance's log)
+        trial.start = [max(v, w) for v, w in zip(trial.start, trial._start_init)]
         trial = trial.optimized()
         added = trial.terms[-1][1]
         if damping_ratio(added.alpha, added.omega) >= MAX_DAMPING:
@@ -1433,11 +1490,60 @@ class _ResonantModel:
         return trial
 
     def kernel(self):
-        """The base kernel scaled by ``c`` plus the terms, one input kernel each."""
+        """The base kernel scaled by ``c``, the lag-0 parts and the terms, one input kernel each."""
         kernels = [clone(each) for each in input_kernels(_scaled(self.evidence, self.log_scale))]
+        for k in range(self._starts()):
+            kernels[k] = kernels[k] + start_kernel(self.start[k])
         for k, term in self.terms:
             kernels[k] = kernels[k] + term
         return like_inputs(kernels, self.base)
+
+
+#: the decay of :func:`start_kernel`: its variance at lag 1 is this fraction of lag 0's
+START_DECAY = 1e-12
+
+
+def start_kernel(std: float):
+    """The prior of a response at lag 0 only, of standard deviation ``std``.
+
+    ``std^2 * DC(alpha=START_DECAY, beta=0)``, both fixed: the variance is
+    ``std^2`` at lag 0 and ``std^2 START_DECAY^t`` at lag ``t``, with no
+    correlation between lags.  The search adds it beside its terms (the
+    feedthrough of a sampled system, :class:`_ResonantModel`).
+
+    Examples
+    --------
+    >>> start_kernel(0.5)(np.array([[0.0], [1.0]])).round(3)
+    array([[0.25, 0.  ],
+           [0.  , 0.  ]])
+    """
+    return (ConstantKernel(std**2, "fixed")
+            * DC(alpha=START_DECAY, beta=0.0, alpha_bounds="fixed", beta_bounds="fixed"))
+
+
+def _is_start(kernel) -> bool:
+    return (isinstance(kernel, Product) and isinstance(kernel.k1, ConstantKernel)
+            and isinstance(kernel.k2, DC) and kernel.k2.alpha == START_DECAY
+            and kernel.k2.beta == 0.0 and kernel.k1.hyperparameter_constant_value.fixed)
+
+
+def _split_start(kernel):
+    """``(kernel without its lag-0 part, the part's std or None)`` of one input kernel."""
+    if isinstance(kernel, Sum) and _is_start(kernel.k2):
+        return kernel.k1, float(np.sqrt(kernel.k2.k1.constant_value))
+    return kernel, None
+
+
+def _base_of(kernel):
+    """The kernel without its PK summands and its lag-0 parts: the tuned base kernel."""
+    return like_inputs([_split_start(without_resonances(each))[0]
+                        for each in input_kernels(kernel)], kernel)
+
+
+def _starts_of(kernel):
+    """The std of each input's lag-0 part in ``kernel``, or None when it has none."""
+    starts = [_split_start(without_resonances(each))[1] for each in input_kernels(kernel)]
+    return None if any(v is None for v in starts) else starts
 
 
 def _without_pk(kernel):
