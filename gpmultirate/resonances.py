@@ -59,7 +59,18 @@ terms one at a time, greedily:
    even in held-out blocks (a spurious regression of one persistent
    signal on another), but not its changes from one sample to the next,
    nor on a new record;
-6. **the frequencies' spread**: the kept terms get ``omega_std`` and
+6. **the response at lag 0, and the frequencies' spread**: the kept terms
+   are tuned once more beside a part of each input's response at lag 0
+   of its own (:func:`start_kernel`, its standard deviation tuned with
+   them): the modes of a sampled system shape its response from lag 1 on
+   (``C A^(t-1) B``), its value at lag 0 is the feedthrough ``D``, which
+   the terms' sinusoids, continued back to lag 0, do not give; the base
+   kernel, scaled down beside the terms, did not free it either, and the
+   wrong value there was a flat error over every frequency, far outside
+   the band where the true response is small (above the slow Nyquist
+   frequency of a camera plant: the truth inside the band at 0.33-0.59
+   of the frequencies above 55 Hz, 1.00 with the part).  The kept
+   terms then get ``omega_std`` and
    ``rate_std`` (:class:`~gpmultirate.kernels.PK`), the standard
    deviations of their frequency and decay rate in the Laplace
    approximation of the evidence at the tuned values (its Hessian by
@@ -154,7 +165,7 @@ __all__ = [
     "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
-    "search_resonances", "slowest_decay",
+    "search_resonances", "slowest_decay", "start_kernel", "START_DECAY",
 ]
 
 #: the logger of a fit's progress (see :mod:`gpmultirate.progress`)
@@ -607,7 +618,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
     base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
     model_noise0, result0 = noise, result
     history = [value]
-    model = _ResonantModel(evidence.moved_to(base, noise), with_start=True).optimized()
+    model = _ResonantModel(evidence.moved_to(base, noise))
     n_inputs = len(input_kernels(base_kernel))
     kernel = base
     timed = hasattr(evidence.data, "damped_spectrum")
@@ -660,9 +671,8 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             kept = list(range(len(gains)))
         final = kept
         if gains:
-            # against the base kernel with its lag-0 parts: the terms are judged, not those
             check = held_out_resonances(
-                observation, y, kernel, noise, [g.input for g in gains], *retuned([])[:2],
+                observation, y, kernel, noise, [g.input for g in gains], base, model_noise0,
                 n_folds, refit=lambda subset: retuned([kept[i] for i in subset])[:2])
             if check is not None and len(check["kept_terms"]) < len(gains):
                 _LOG.info("resonance search: %d term(s) dropped, they do not improve the fit of "
@@ -677,8 +687,13 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
-    if terms:  # the prior carries what the data leave uncertain of each frequency and decay
-        kernel, terms = _with_spreads(kernel, terms, retuned.model(final).term_spreads())
+    if terms:
+        # the kept terms with the lag-0 parts, tuned together (module docstring, step 6);
+        # the prior carries what the data leave uncertain of each frequency and decay
+        tuned = retuned.model(final).with_lag_zero()
+        kernel, noise = tuned.kernel(), tuned.noise_level
+        terms = _terms_of(kernel, [r.input for r in gains])
+        kernel, terms = _with_spreads(kernel, terms, tuned.term_spreads())
         moved = evidence.moved_to(kernel, noise)
         value = float(moved(moved.theta))
         history.append(value)
@@ -1090,8 +1105,7 @@ class _Retuned:
     """
 
     def __init__(self, evidence, kernel, noise, terms):
-        self._model = _ResonantModel(evidence.moved_to(_base_of(kernel), noise),
-                                     start=_starts_of(kernel), with_start=True)
+        self._model = _ResonantModel(evidence.moved_to(_base_of(kernel), noise))
         self._terms = list(terms)
         self._done = {}
 
@@ -1192,9 +1206,9 @@ class _ResonantModel:
     ``O(M P n_terms)`` for any values of the terms, ``c`` and ``gamma``, and
     all of them are tuned jointly (L-BFGS-B) each time a term is added.
 
-    With terms, each input's response at lag 0 gets a part of its own, of
-    standard deviation ``start[k]`` (tuned with the terms; a rank-one
-    column ``Phi_k e_0`` of ``U``): the modes of a sampled system shape its
+    In :meth:`with_lag_zero`, each input's response at lag 0 gets a part of
+    its own, of standard deviation ``start[k]`` (tuned with the terms; a
+    rank-one column ``Phi_k e_0`` of ``U``): the modes of a sampled system shape its
     response from lag 1 on (``C A^(t-1) B``), its value at lag 0 is the
     feedthrough ``D``, which the terms' sinusoids, continued back to lag 0,
     do not give.  Without it a kept term's value at lag 0 pins the
@@ -1204,7 +1218,7 @@ class _ResonantModel:
     (a timed observation) have no such part.
     """
 
-    def __init__(self, evidence, start=None, with_start: bool = False):
+    def __init__(self, evidence):
         self.evidence = evidence
         self.base = evidence.kernel
         self.noise_level = evidence.noise_level
@@ -1215,27 +1229,27 @@ class _ResonantModel:
         self._s = self._spectral.eigenvalues
         self._y = self._spectral.rotated_y
         self._blocks = {}
-        n_inputs = len(input_kernels(self.base))
-        self._has_start = not hasattr(data, "damped_sinusoids")
-        if start is None:  # the base kernel's prior standard deviation at lag 0
-            start = [float(np.sqrt(max(float(each.diag(np.zeros((1, 1)))[0]), 1e-300)))
-                     for each in input_kernels(self.base)]
-        self.start = [float(v) for v in start] if len(start) == n_inputs else [1.0] * n_inputs
+        # the lag-0 parts start from the base kernel's prior standard deviation there
+        self.start = [float(np.sqrt(max(float(each.diag(np.zeros((1, 1)))[0]), 1e-300)))
+                      for each in input_kernels(self.base)]
         self._start_bounds = [(v * 1e-4, v * 1e4) for v in self.start]
-        self._start_init = list(self.start)
-        self.with_start = with_start
+        self.with_start = False
         self.value = self._log_evidence(self._pack())
 
     def _starts(self) -> int:
         """The number of lag-0 parts in the parameters: one per input, or none.
 
-        None for a timed observation, and none without terms unless
-        ``with_start``: the search judges its terms against the base kernel
-        with its lag-0 parts, and a fit that keeps no term is the base
-        kernel's fit.
+        None unless :meth:`with_lag_zero` made this model, it has terms and
+        its observation is not timed.
         """
-        return (len(self.start) if self._has_start and (self.terms or self.with_start)
-                else 0)
+        return (len(self.start) if self.with_start and self.terms
+                and not hasattr(self.evidence.data, "damped_sinusoids") else 0)
+
+    def with_lag_zero(self):
+        """A copy with each input's lag-0 part added, tuned jointly with everything else."""
+        trial = self._copy()
+        trial.with_start = True
+        return trial.optimized()
 
     # ---------------------------------------------------------- parameters
     def _pack(self):
@@ -1280,7 +1294,7 @@ class _ResonantModel:
         """
         x = self._pack()
         root = np.sqrt(self._spectral.diagonal(np.exp(x[0]), np.exp(x[1])))
-        if not self._starts():
+        if not self.terms:
             return lambda X: X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((root.size, 2 * len(self.terms)))
@@ -1480,9 +1494,6 @@ class _ResonantModel:
         """
         trial = self._copy()
         trial.terms.append((k, term))
-        # the lag-0 parts start again from the base kernel's prior: a part tuned small
-        # where the base alone fits lag 0 has no gradient left (its variance's log)
-        trial.start = [max(v, w) for v, w in zip(trial.start, trial._start_init)]
         trial = trial.optimized()
         added = trial.terms[-1][1]
         if damping_ratio(added.alpha, added.omega) >= MAX_DAMPING:
@@ -1538,12 +1549,6 @@ def _base_of(kernel):
     """The kernel without its PK summands and its lag-0 parts: the tuned base kernel."""
     return like_inputs([_split_start(without_resonances(each))[0]
                         for each in input_kernels(kernel)], kernel)
-
-
-def _starts_of(kernel):
-    """The std of each input's lag-0 part in ``kernel``, or None when it has none."""
-    starts = [_split_start(without_resonances(each))[1] for each in input_kernels(kernel)]
-    return None if any(v is None for v in starts) else starts
 
 
 def _without_pk(kernel):
