@@ -228,7 +228,10 @@ class Resonance:
         ``r = -log(alpha) / 2`` per fast sample of the response envelope,
         ``r / sqrt(r^2 + omega^2)``.
     evidence_gain : float
-        Gain of the tuned log evidence (nats) when the term was added.
+        Gain of the tuned log evidence (nats) by the term: that of the
+        fitted kernel (before the spreads of its terms) minus that of the
+        kernel without it, the other terms, the scale, the parts at lag 0
+        and the noise tuned again.
     input : int
         The input whose kernel holds the term.
     """
@@ -692,6 +695,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
         # the prior carries what the data leave uncertain of each frequency and decay
         tuned = retuned.model(final).with_lag_zero()
         kernel, noise = tuned.kernel(), tuned.noise_level
+        gains = [_Gain(g.input, value) for g, value in zip(gains, tuned.gains())]
         terms = _terms_of(kernel, [r.input for r in gains])
         kernel, terms = _with_spreads(kernel, terms, tuned.term_spreads())
         moved = evidence.moved_to(kernel, noise)
@@ -1239,10 +1243,10 @@ class _ResonantModel:
     def _starts(self) -> int:
         """The number of lag-0 parts in the parameters: one per input, or none.
 
-        None unless :meth:`with_lag_zero` made this model, it has terms and
-        its observation is not timed.
+        None unless :meth:`with_lag_zero` made this model and its
+        observation is not timed.
         """
-        return (len(self.start) if self.with_start and self.terms
+        return (len(self.start) if self.with_start
                 and not hasattr(self.evidence.data, "damped_sinusoids") else 0)
 
     def with_lag_zero(self):
@@ -1250,6 +1254,15 @@ class _ResonantModel:
         trial = self._copy()
         trial.with_start = True
         return trial.optimized()
+
+    def gains(self):
+        """Each term's evidence gain: the log evidence minus that without it, the rest re-tuned."""
+        out = []
+        for r in range(len(self.terms)):
+            trial = self._copy()
+            trial.terms = self.terms[:r] + self.terms[r + 1:]
+            out.append(self.value - trial.optimized().value)
+        return out
 
     # ---------------------------------------------------------- parameters
     def _pack(self):
@@ -1294,7 +1307,7 @@ class _ResonantModel:
         """
         x = self._pack()
         root = np.sqrt(self._spectral.diagonal(np.exp(x[0]), np.exp(x[1])))
-        if not self.terms:
+        if not self.terms and not self._starts():
             return lambda X: X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((root.size, 2 * len(self.terms)))
@@ -1517,10 +1530,13 @@ START_DECAY = 1e-12
 def start_kernel(std: float):
     """The prior of a response at lag 0 only, of standard deviation ``std``.
 
-    ``std^2 * DC(alpha=START_DECAY, beta=0)``, both fixed: the variance is
-    ``std^2`` at lag 0 and ``std^2 START_DECAY^t`` at lag ``t``, with no
-    correlation between lags.  The search adds it beside its terms (the
-    feedthrough of a sampled system, :class:`_ResonantModel`).
+    ``std^2 * DC(alpha=START_DECAY, beta=0)``, DC's values fixed: the
+    variance is ``std^2`` at lag 0 and ``std^2 START_DECAY^t`` at lag
+    ``t``, with no correlation between lags.  The search adds it beside its
+    terms (the feedthrough of a sampled system, :class:`_ResonantModel`).
+    The amplitude is a hyperparameter (bounds ``1e-8`` to ``1e8`` times
+    ``std^2``): a fit that tunes after the search tunes it, and a change of
+    the data's units scales it as the other amplitudes.
 
     Examples
     --------
@@ -1528,14 +1544,15 @@ def start_kernel(std: float):
     array([[0.25, 0.  ],
            [0.  , 0.  ]])
     """
-    return (ConstantKernel(std**2, "fixed")
+    variance = std**2
+    return (ConstantKernel(variance, (variance * 1e-8, variance * 1e8))
             * DC(alpha=START_DECAY, beta=0.0, alpha_bounds="fixed", beta_bounds="fixed"))
 
 
 def _is_start(kernel) -> bool:
     return (isinstance(kernel, Product) and isinstance(kernel.k1, ConstantKernel)
             and isinstance(kernel.k2, DC) and kernel.k2.alpha == START_DECAY
-            and kernel.k2.beta == 0.0 and kernel.k1.hyperparameter_constant_value.fixed)
+            and kernel.k2.beta == 0.0 and kernel.k2.hyperparameter_alpha.fixed)
 
 
 def _split_start(kernel):

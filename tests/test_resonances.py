@@ -22,6 +22,7 @@ from gpmultirate.resonances import (
     _ResonantModel,
     PERSISTENT_CYCLES,
     PERSISTENT_DAMPING,
+    START_DECAY,
     damping_ratio,
     persistent_aliases,
     resonance_scan,
@@ -223,21 +224,24 @@ def test_evidence_gain_is_the_evidence_without_the_term_refitted():
     u, y, _, _ = _experiment(system, 240, rng, snr_db=40)
     model = _fit("auto", u, y, 240)
     (found,) = model.resonances_
-    rest = model.kernel_.k1  # C * DC, tuned with the term
+    rest = model.kernel_.k1  # C * DC + the lag-0 part, tuned with the term
+    base, start = rest.k1, rest.k2
+    assert start.k2.alpha == START_DECAY
     op, z = model.observation_, model.y_slow_
 
-    def negative(x):
-        kernel = C(np.exp(x[0]), (1e-300, 1e300)) * rest
-        value, grad = log_marginal_likelihood(op, kernel, np.exp(x[1]), z, True, True)
-        return -value, -grad[[0, -1]]  # d/d log c is first, d/d log gamma last
+    def negative(x):  # the base's scale, the lag-0 part's and the noise tuned again
+        kernel = C(np.exp(x[0]), (1e-300, 1e300)) * base + C(np.exp(x[1]), (1e-300, 1e300)) * start
+        value, grad = log_marginal_likelihood(op, kernel, np.exp(x[2]), z, True, True)
+        n_base = base.theta.size
+        # d/d log c first, d/d log s after the base's coordinates, d/d log gamma last
+        return -value, -grad[[0, 1 + n_base, -1]]
 
     with threadpool_limits(limits=1, user_api="blas"):  # small matrices
-        best = optimize.minimize(negative, [0.0, np.log(model.noise_level_)], jac=True,
+        best = optimize.minimize(negative, [0.0, 0.0, np.log(model.noise_level_)], jac=True,
                                  method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-9})
     # the gain is of the tuned term, before the prior is given its frequency's spread
     term = clone(model.kernel_.k2).set_params(omega_std=0.0, rate_std=0.0)
-    tuned = log_marginal_likelihood(op, model.kernel_.k1 + term, model.noise_level_, z,
-                                    False, True)
+    tuned = log_marginal_likelihood(op, rest + term, model.noise_level_, z, False, True)
     expected = tuned + best.fun
     assert found.evidence_gain == pytest.approx(expected, rel=1e-4)
     assert model.kernel_.k2.omega_std > 0.0 and model.kernel_.k2.rate_std > 0.0
