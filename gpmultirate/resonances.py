@@ -59,11 +59,10 @@ terms one at a time, greedily:
    even in held-out blocks (a spurious regression of one persistent
    signal on another), but not its changes from one sample to the next,
    nor on a new record;
-6. **the response at lag 0, and the frequencies' spread**: from the
-   pruning (step 3) on, the terms are tuned and judged beside a part of
-   each input's response at lag 0 of its own (:func:`start_kernel`, its
-   standard deviation tuned with them; not for readings at their own
-   instants): the modes of a sampled system shape its response from lag 1 on
+6. **the response at lag 0, and the frequencies' spread**: the kept terms
+   are tuned once more beside a part of each input's response at lag 0
+   of its own (:func:`start_kernel`, its standard deviation tuned with
+   them): the modes of a sampled system shape its response from lag 1 on
    (``C A^(t-1) B``), its value at lag 0 is the feedthrough ``D``, which
    the terms' sinusoids, continued back to lag 0, do not give; the base
    kernel, scaled down beside the terms, did not free it either, and the
@@ -694,8 +693,9 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
     if terms:
         # the kept terms with the lag-0 parts, tuned together (module docstring, step 6);
         # the prior carries what the data leave uncertain of each frequency and decay
-        tuned = retuned.model(final)
+        tuned = retuned.model(final).with_lag_zero()
         kernel, noise = tuned.kernel(), tuned.noise_level
+        gains = [_Gain(g.input, value) for g, value in zip(gains, tuned.gains())]
         terms = _terms_of(kernel, [r.input for r in gains])
         kernel, terms = _with_spreads(kernel, terms, tuned.term_spreads())
         moved = evidence.moved_to(kernel, noise)
@@ -1110,8 +1110,6 @@ class _Retuned:
 
     def __init__(self, evidence, kernel, noise, terms):
         self._model = _ResonantModel(evidence.moved_to(_base_of(kernel), noise))
-        self._model.with_start = True  # the parts at lag 0, from their values in kernel
-        self._model.start = _starts_of(kernel) or self._model.start
         self._terms = list(terms)
         self._done = {}
 
@@ -1173,25 +1171,20 @@ def _prune(evidence, model):
     """Drop the weakest term while one is not worth keeping; the others re-tuned each time.
 
     ``model``: the search's :class:`_ResonantModel`, its terms, scale and
-    noise tuned jointly on the base kernel's tuned shape.  The terms are
-    judged beside each input's part at lag 0 (:class:`_ResonantModel`),
-    tuned with them: a term is kept
+    noise tuned jointly on the base kernel's tuned shape.  A term is kept
     when the log evidence exceeds that of the model without it, the other
-    terms, the scale, the parts at lag 0 and the noise re-tuned
-    (:class:`_Retuned`), by more than :data:`EVIDENCE_THRESHOLD` nats, and
-    it is resonant.  Returns the
+    terms, the scale and the noise re-tuned (:class:`_Retuned`), by more
+    than :data:`EVIDENCE_THRESHOLD` nats, and it is resonant.  Returns the
     kernel, noise level, log evidence, the gains (empty when no term is
     left) and the :class:`_Retuned` of the kept terms (None without terms),
     whose subsets the held-out check reuses.
     """
     inputs = [k for k, _ in model.terms]
     while inputs:
-        terms = list(model.terms)
-        retuned = _Retuned(evidence, model.kernel(), model.noise_level, terms)
-        everything = range(len(terms))
-        # the terms with the parts at lag 0 (the search's model has none)
-        model = retuned.model(everything)
         kernel, noise, value = model.kernel(), model.noise_level, model.value
+        terms = list(model.terms)
+        retuned = _Retuned(evidence, kernel, noise, terms)
+        everything = range(len(terms))
         gains = [value - retuned.model([i for i in everything if i != r]).value
                  for r in everything]
         weak = [r for r, (_, term) in enumerate(terms)
@@ -1217,8 +1210,8 @@ class _ResonantModel:
     ``O(M P n_terms)`` for any values of the terms, ``c`` and ``gamma``, and
     all of them are tuned jointly (L-BFGS-B) each time a term is added.
 
-    With ``with_start`` (the pruning's models), each input's response at
-    lag 0 gets a part of its own, of standard deviation ``start[k]`` (tuned with the terms; a
+    In :meth:`with_lag_zero`, each input's response at lag 0 gets a part of
+    its own, of standard deviation ``start[k]`` (tuned with the terms; a
     rank-one column ``Phi_k e_0`` of ``U``): the modes of a sampled system shape its
     response from lag 1 on (``C A^(t-1) B``), its value at lag 0 is the
     feedthrough ``D``, which the terms' sinusoids, continued back to lag 0,
@@ -1250,11 +1243,26 @@ class _ResonantModel:
     def _starts(self) -> int:
         """The number of lag-0 parts in the parameters: one per input, or none.
 
-        None unless ``with_start`` is set (the pruning's models,
-        :class:`_Retuned`) and the observation is not timed.
+        None unless :meth:`with_lag_zero` made this model and its
+        observation is not timed.
         """
         return (len(self.start) if self.with_start
                 and not hasattr(self.evidence.data, "damped_sinusoids") else 0)
+
+    def with_lag_zero(self):
+        """A copy with each input's lag-0 part added, tuned jointly with everything else."""
+        trial = self._copy()
+        trial.with_start = True
+        return trial.optimized()
+
+    def gains(self):
+        """Each term's evidence gain: the log evidence minus that without it, the rest re-tuned."""
+        out = []
+        for r in range(len(self.terms)):
+            trial = self._copy()
+            trial.terms = self.terms[:r] + self.terms[r + 1:]
+            out.append(self.value - trial.optimized().value)
+        return out
 
     # ---------------------------------------------------------- parameters
     def _pack(self):
@@ -1558,12 +1566,6 @@ def _base_of(kernel):
     """The kernel without its PK summands and its lag-0 parts: the tuned base kernel."""
     return like_inputs([_split_start(without_resonances(each))[0]
                         for each in input_kernels(kernel)], kernel)
-
-
-def _starts_of(kernel):
-    """The std of each input's lag-0 part in ``kernel``, or None where one has none."""
-    starts = [_split_start(without_resonances(each))[1] for each in input_kernels(kernel)]
-    return None if any(v is None for v in starts) else starts
 
 
 def _without_pk(kernel):
