@@ -1514,7 +1514,7 @@ class _ResonantModel:
         return trial
 
     def kernel(self):
-        """The base kernel scaled by ``c``, the lag-0 parts and the terms, one input kernel each."""
+        """The base kernel scaled by ``c``, the lag-0 parts and the terms, per input kernel."""
         kernels = [clone(each) for each in input_kernels(_scaled(self.evidence, self.log_scale))]
         for k in range(self._starts()):
             kernels[k] = kernels[k] + start_kernel(self.start[k])
