@@ -117,7 +117,9 @@ unsuccessful scan and refinement; one re-tuning per subset of terms judged
 (``O(M P r)`` per evaluation); the held-out check, one ``M x M``
 factorization per kernel compared (skipped beyond
 :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
-spreads, ``2 (2 + 4 r)`` gradient evaluations.  Without resonances, one
+kept terms tuned once more with the parts at lag 0 and, for their
+evidence gains, once without each (``1 + r`` tunings, 15-40 % of a fit
+that keeps two terms); the spreads, ``2 (3 + 4 r)`` gradient evaluations.  Without resonances, one
 tuning of the base kernel (the default fit), a scan and a refinement.
 """
 
