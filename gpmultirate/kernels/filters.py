@@ -6,6 +6,10 @@ of first-order recursive filters (causal and anticausal, the centre counted
 once).  With ``G = Phi D`` and ``H = G T``:
 
 * ``S = Phi K Phi^T = H G^T``, ``O(M P + M^2 P)`` instead of ``O(M P^2)``;
+  formed as ``(G R)(G R)^T`` with ``T = R R^T`` the Cholesky factor of the
+  AR(1) correlation (``G R`` is the anticausal filter of ``G``, scaled by
+  ``sqrt(1 - beta^2)`` beyond its first column), a symmetric rank-k update
+  of half the flops of the general product;
 * the derivative in ``log alpha`` is ``E K + K E`` with ``E = diag(t / 2)``,
   so ``tr(W Phi dK Phi^T) = sum_{m, i} t_i H[m, i] (W G)[m, i]``;
 * the derivative in ``beta`` replaces ``T`` by ``|i - j| beta^(|i - j| - 1)``,
@@ -26,7 +30,7 @@ import numpy as np
 from scipy import signal
 
 from gpmultirate.kernels.precision import dc_precision
-from gpmultirate.kernels.structure import ObservedTerm, symmetrize
+from gpmultirate.kernels.structure import ObservedTerm, outer_square, symmetrize
 
 __all__ = ["DCFilterTerm", "suffix_after", "two_sided"]
 
@@ -97,6 +101,18 @@ class DCFilterTerm(ObservedTerm):
             self._filtered_parts = cached
         return cached
 
+    def _root(self):
+        """``G R`` with ``T = R R^T``: ``S = (G R)(G R)^T`` (the module docstring).
+
+        ``R[i, j] = c_j beta^(i - j)`` for ``i >= j`` (``c_0 = 1``, else
+        ``sqrt(1 - beta^2)``): the covariance of the AR(1) recursion
+        ``x_i = beta x_(i-1) + sqrt(1 - beta^2) e_i`` started at ``x_0 = e_0``.
+        """
+        beta, _, G, _ = self._filtered()
+        root = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
+        root[:, 1:] *= np.sqrt(max(1.0 - beta * beta, 0.0))
+        return np.ascontiguousarray(root)
+
     def kernel_matrix(self):
         # not kept: S and Phi K come from the filters, so K is asked for once, and at
         # the orders of long records a kept copy would double the largest array
@@ -134,12 +150,11 @@ class DCFilterTerm(ObservedTerm):
                             self.observation.order, tuple(self._free()))
 
     def covariance(self):
-        _, _, G, H = self._filtered()
-        return symmetrize(self.observation.regressor_shaped_outer(H, G))
+        return outer_square(self._root())
 
     def covariance_with_contractor(self):
         beta, _, G, H = self._filtered()
-        S = symmetrize(self.observation.regressor_shaped_outer(H, G))
+        S = outer_square(self._root())
         lags, free = self.lags, self._free()
 
         def contract(W):

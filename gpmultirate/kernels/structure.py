@@ -60,6 +60,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import blas
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
 
@@ -112,6 +113,31 @@ def no_gradient(A) -> np.ndarray:
 def symmetrize(A: np.ndarray) -> np.ndarray:
     """``(A + A^T) / 2``: removes the rounding asymmetry of a product."""
     return 0.5 * (A + A.T)
+
+
+def outer_square(X: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``X X^T`` (added to ``out`` when given), exactly symmetric, by a symmetric rank-k update.
+
+    Half the flops of the general product ``X @ X.T``: a covariance
+    ``A K A^T`` whose ``K = R R^T`` has a cheap root is ``outer_square(A R)``.
+
+    Examples
+    --------
+    >>> X = np.array([[1.0, 2.0], [3.0, 4.0], [0.5, 0.0]])
+    >>> bool(np.array_equal(outer_square(X), outer_square(X).T))
+    True
+    >>> bool(np.allclose(outer_square(X, np.eye(3)), X @ X.T + np.eye(3)))
+    True
+    """
+    X = np.asarray(X, dtype=float)
+    # X^T is a Fortran-ordered view of a C-ordered X: no copy
+    if out is None:
+        square = blas.dsyrk(1.0, X.T, trans=1, lower=1)
+    else:
+        square = blas.dsyrk(1.0, X.T, beta=1.0, c=np.asfortranarray(np.tril(out)), trans=1,
+                            lower=1, overwrite_c=1)
+    lower = np.tril(square)
+    return np.ascontiguousarray(lower + np.tril(lower, -1).T)
 
 
 class ObservedTerm:
