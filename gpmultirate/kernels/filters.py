@@ -97,7 +97,14 @@ class DCFilterTerm(ObservedTerm):
             beta = values["beta"]
             decay = values["alpha"] ** (self.lags / 2.0)
             G = self.observation.matrix * decay
-            cached = beta, decay, G, two_sided(G, [1.0], [1.0, -beta], include_center=True)
+            # H = G T: the causal and the anticausal filter, the centre counted once; the
+            # anticausal one is also the root of T (:meth:`_root`)
+            anticausal = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
+            H = signal.lfilter([1.0], [1.0, -beta], G, axis=1)
+            H += anticausal
+            H -= G
+            self._anticausal = anticausal
+            cached = beta, decay, G, H
             self._filtered_parts = cached
         return cached
 
@@ -107,11 +114,16 @@ class DCFilterTerm(ObservedTerm):
         ``R[i, j] = c_j beta^(i - j)`` for ``i >= j`` (``c_0 = 1``, else
         ``sqrt(1 - beta^2)``): the covariance of the AR(1) recursion
         ``x_i = beta x_(i-1) + sqrt(1 - beta^2) e_i`` started at ``x_0 = e_0``.
+        Its columns are those of the anticausal filter of ``G``, scaled.
         """
         beta, _, G, _ = self._filtered()
-        root = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
+        root = self._anticausal  # scaled in place below: taken once, then filtered again
+        self._anticausal = None
+        if root is None:
+            root = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
+        root = np.ascontiguousarray(root)
         root[:, 1:] *= np.sqrt(max(1.0 - beta * beta, 0.0))
-        return np.ascontiguousarray(root)
+        return root
 
     def kernel_matrix(self):
         # not kept: S and Phi K come from the filters, so K is asked for once, and at
@@ -170,7 +182,7 @@ class DCFilterTerm(ObservedTerm):
 
     def covariance_with_derivatives(self):
         beta, _, G, H = self._filtered()
-        S = symmetrize(H @ G.T)
+        S = outer_square(self._root())
         items = []
         for name in self._free():
             if name == "alpha":

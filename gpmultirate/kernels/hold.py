@@ -339,13 +339,26 @@ class HoldTerm(ObservedTerm):
     def _free(self):
         return [h.name for h in self.kernel.hyperparameters if not h.fixed]
 
-    def _bridge(self, gradient: bool):
+    def _bridge_derivatives(self):
+        """``Psi diag(dv_j) Psi^T`` per free hyperparameter; None where ``dv_j`` is zero.
+
+        Each by symmetric rank-k updates of the columns where ``dv_j`` is
+        positive and where it is negative.
+        """
         Psi = self.readings.bridge_rows()
-        found = bridge_variances(self.kernel, self.readings.order, gradient)
-        if not gradient:
-            return (Psi * found) @ Psi.T
-        v, dv = found
-        return (Psi * v) @ Psi.T, [(Psi * dv[name]) @ Psi.T for name in self._free()]
+        _, dv = bridge_variances(self.kernel, self.readings.order, eval_gradient=True)
+        out = []
+        for name in self._free():
+            d = dv[name]
+            if not np.any(d):
+                out.append(None)
+                continue
+            up, down = np.flatnonzero(d > 0), np.flatnonzero(d < 0)
+            matrix = outer_square(Psi[:, up] * np.sqrt(d[up]))
+            if down.size:
+                matrix -= outer_square(Psi[:, down] * np.sqrt(-d[down]))
+            out.append(matrix)
+        return out
 
     def _with_bridge(self, S):
         """``S + Psi diag(v) Psi^T`` by a symmetric rank-k update of ``Psi sqrt(v)``."""
@@ -388,10 +401,10 @@ class HoldTerm(ObservedTerm):
 
     def covariance_with_derivatives(self):
         S, items = self.inner.covariance_with_derivatives()
-        B, d_bridge = self._bridge(True)
         dense = [item[0] @ item[1] @ item[0].T if isinstance(item, tuple) else item
                  for item in items]
-        return S + B, [d + e for d, e in zip(dense, d_bridge)]
+        return self._with_bridge(S), [d if e is None else d + e
+                                      for d, e in zip(dense, self._bridge_derivatives())]
 
     def covariance_with_contractor(self):
         # tr(W Psi diag(dv) Psi^T) = dv . diag(Psi^T W Psi): one product W Psi for every
