@@ -130,14 +130,18 @@ def outer_square(X: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     True
     """
     X = np.asarray(X, dtype=float)
-    # X^T is a Fortran-ordered view of a C-ordered X: no copy
-    if out is None:
-        square = blas.dsyrk(1.0, X.T, trans=1, lower=1)
-    else:
-        square = blas.dsyrk(1.0, X.T, beta=1.0, c=np.asfortranarray(np.tril(out)), trans=1,
-                            lower=1, overwrite_c=1)
-    lower = np.tril(square)
-    return np.ascontiguousarray(lower + np.tril(lower, -1).T)
+    size = X.shape[0]
+    if X.shape[1] == 0:  # no columns: nothing to add (BLAS refuses an empty update)
+        return np.zeros((size, size)) if out is None else np.array(out, dtype=float)
+    # X^T is a Fortran-ordered view of a C-ordered X: no copy; the update fills the lower
+    # triangle of a zero matrix, mirrored by one addition (no masks of M x M)
+    lower = blas.dsyrk(1.0, X.T, c=np.zeros((size, size), order="F"), trans=1, lower=1,
+                       overwrite_c=1)
+    square = lower + lower.T
+    square.flat[:: size + 1] = np.diag(lower)
+    if out is not None:
+        square += out
+    return square
 
 
 class ObservedTerm:
