@@ -706,8 +706,8 @@ def test_exposure_windows_beyond_the_memory_are_refused_before_forming_them(monk
     from gpmultirate.exceptions import MemoryLimitError
 
     u, y_slow, times = _record()
-    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(10**8))
-    # 50 readings of 100 periods: 5050 pieces between ticks, their pairs 0.8 GB
+    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(10**7))
+    # 50 readings of 100 periods: 5050 pieces between ticks, 16 points each, 41 MB
     with pytest.raises(MemoryLimitError, match="^exposure 100 over 50 readings .* 5050 pieces"):
         gm.FIRGaussianProcess(order=20, exposure=100.0).fit(u, y_slow, sample_times=times + 0.5)
 
