@@ -760,3 +760,32 @@ def test_the_bridge_derivatives_and_contraction_against_psi_written_out(kernel):
     np.testing.assert_allclose(S, S_inner + bridge, rtol=1e-10, atol=1e-12 * scale)
     np.testing.assert_allclose(contract(W), expected, rtol=1e-9,
                                atol=1e-11 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "sum", "RBF",
+                                  "per input", "constant"])
+def test_covariance_blocks_are_the_joint_covariances_blocks(name):
+    """The readings' covariance with the data they are stacked after, and their variances,
+    formed alone (each structured route, the bridge, sums and constants) equal the blocks of
+    the joint ``S``."""
+    from gpmultirate.kernels import PerInputKernel
+
+    rng = np.random.default_rng(11)
+    inputs = 2 if name == "per input" else 1
+    u = rng.standard_normal((120, inputs)) if inputs > 1 else rng.standard_normal(120)
+    data = TimedConvolution(u, np.arange(15, 119, 3) + rng.uniform(0, 1, 35), 40,
+                            exposure=0.7, latency=0.2)
+    new = TimedConvolution(u, np.sort(rng.uniform(10, 119, 9)), 40, exposure=0.7, latency=0.2)
+    joint = TimedConvolution.stack([data, new])
+    kernel = {"per input": PerInputKernel([C(1.5) * DC(0.9, 0.6), TC(0.85)]),
+              "constant": C(0.3)}.get(name, KERNELS.get(name))
+    term = observe(kernel, joint)
+    M = data.n_outputs
+    cross, var = term.covariance_blocks(M)
+    S = observe(kernel, joint).covariance()
+    scale = np.abs(S).max()
+    np.testing.assert_allclose(cross, S[M:, :M], rtol=1e-10, atol=1e-12 * scale)
+    np.testing.assert_allclose(var, np.diag(S)[M:], rtol=1e-10, atol=1e-12 * scale)
+    _, every = observe(kernel, new).covariance_blocks(0)
+    np.testing.assert_allclose(every, np.diag(observe(kernel, new).covariance()), rtol=1e-10,
+                               atol=1e-12 * scale)

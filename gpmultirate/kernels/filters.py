@@ -164,6 +164,10 @@ class DCFilterTerm(ObservedTerm):
     def covariance(self):
         return outer_square(self._root())
 
+    def covariance_blocks(self, split):
+        root = self._root()
+        return root[split:] @ root[:split].T, np.einsum("ij,ij->i", root[split:], root[split:])
+
     def covariance_with_contractor(self):
         beta, _, G, H = self._filtered()
         S = outer_square(self._root())

@@ -399,6 +399,14 @@ class HoldTerm(ObservedTerm):
             self._covariance = self._with_bridge(self.inner.covariance())
         return self._covariance
 
+    def covariance_blocks(self, split):
+        # the bridge's blocks: Psi_r diag(v) Psi_d^T and the rows' sums of Psi_r^2 v
+        cross, var = self.inner.covariance_blocks(split)
+        Psi = self.readings.bridge_rows()
+        v = bridge_variances(self.kernel, self.readings.order)
+        weighted = Psi[split:] * v
+        return cross + weighted @ Psi[:split].T, var + np.einsum("ij,ij->i", weighted, Psi[split:])
+
     def covariance_with_derivatives(self):
         S, items = self.inner.covariance_with_derivatives()
         dense = [item[0] @ item[1] @ item[0].T if isinstance(item, tuple) else item

@@ -234,6 +234,17 @@ class ObservedTerm:
         """``Phi K``, of shape ``(M, P)``: the covariance of the data with the coefficients."""
         return self.observation.matrix @ self.kernel_matrix()
 
+    def covariance_blocks(self, split: int) -> tuple[np.ndarray, np.ndarray]:
+        """``S[split:, :split]`` and ``diag(S)[split:]``, without the rest of ``S``.
+
+        A prediction of readings stacked after the data they are conditioned
+        on needs their covariance with the data and their own variances
+        only; the structured terms form just these (half the products of
+        the joint ``S`` and none of its memory).  Here, from ``S``.
+        """
+        S = self.covariance()
+        return S[split:, :split], np.diag(S)[split:].copy()
+
     def cross_covariance(self, lags: np.ndarray) -> np.ndarray:
         """``Cov(g(lags), y)`` for the lags of shape ``(n, d)``: shape ``(n, M)``.
 
@@ -405,6 +416,11 @@ class SumTerm(ObservedTerm):
     def regressor_times_kernel(self):
         return self.first.regressor_times_kernel() + self.second.regressor_times_kernel()
 
+    def covariance_blocks(self, split):
+        cross, var = self.first.covariance_blocks(split)
+        cross2, var2 = self.second.covariance_blocks(split)
+        return cross + cross2, var + var2
+
     def cross_covariance(self, lags):
         return self.first.cross_covariance(lags) + self.second.cross_covariance(lags)
 
@@ -507,6 +523,10 @@ class ScaledTerm(ObservedTerm):
 
     def regressor_times_kernel(self):
         return self.value * self.inner.regressor_times_kernel()
+
+    def covariance_blocks(self, split):
+        cross, var = self.inner.covariance_blocks(split)
+        return self.value * cross, self.value * var
 
     def cross_covariance(self, lags):
         return self.value * self.inner.cross_covariance(lags)
@@ -671,6 +691,11 @@ class LowRankTerm(ObservedTerm):
     def regressor_times_kernel(self):
         r = self.basis.shape[1]
         return (self.observed_basis()[:, :r] @ self.weight) @ self.basis.T
+
+    def covariance_blocks(self, split):
+        U = self.observed_basis()[:, : self.basis.shape[1]]
+        UD = U[split:] @ self.weight
+        return UD @ U[:split].T, np.einsum("ij,ij->i", UD, U[split:])
 
 
 def split_constant(kernel: Product):

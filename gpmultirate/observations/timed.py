@@ -869,15 +869,14 @@ def predict_readings(posterior, data, kernel, readings: TimedConvolution):
     """
     if isinstance(data, TimedConvolution):
         joint = TimedConvolution.stack([data, readings])
-        S = observe(kernel, joint).covariance()
-        M = data.n_outputs
-        cross = S[M:, :M]
+        # only the readings' covariance with the data and their own variances
+        cross, prior = observe(kernel, joint).covariance_blocks(data.n_outputs)
         mean = cross @ posterior.alpha
         V = linalg.solve_triangular(posterior.L, cross.T, lower=True, check_finite=False)
-        var = np.diag(S[M:, M:]) - np.einsum("ij,ij->j", V, V)
+        var = prior - np.einsum("ij,ij->j", V, V)
         return mean, np.maximum(var, 0.0)
     term = observe(kernel, readings)
-    prior = np.diag(term.covariance())
+    _, prior = term.covariance_blocks(0)
     with_lags = term.regressor_times_kernel()  # Cov(readings, g(0..P-1))
     K = kernel(data.lags)
     jitter = 1e-10 * max(float(np.mean(np.diag(K))), 1e-300)
