@@ -108,17 +108,25 @@ class DCFilterTerm(ObservedTerm):
             self._filtered_parts = cached
         return cached
 
-    def _root(self):
+    def _root(self, alone: bool = False):
         """``G R`` with ``T = R R^T``: ``S = (G R)(G R)^T`` (the module docstring).
 
         ``R[i, j] = c_j beta^(i - j)`` for ``i >= j`` (``c_0 = 1``, else
         ``sqrt(1 - beta^2)``): the covariance of the AR(1) recursion
         ``x_i = beta x_(i-1) + sqrt(1 - beta^2) e_i`` started at ``x_0 = e_0``.
         Its columns are those of the anticausal filter of ``G``, scaled.
+        ``alone``: nothing else of the filters is asked for (``H`` not formed).
         """
-        beta, _, G, _ = self._filtered()
-        root = self._anticausal  # scaled in place below: taken once, then filtered again
-        self._anticausal = None
+        if alone and getattr(self, "_filtered_parts", None) is None:
+            # the root only: G and its anticausal filter, not H (which S's derivatives and
+            # Phi K need)
+            values = self.kernel.checked_values()
+            beta, root = values["beta"], None
+            G = self.observation.matrix * values["alpha"] ** (self.lags / 2.0)
+        else:
+            beta, _, G, _ = self._filtered()
+            root = self._anticausal  # scaled in place below: taken once, then filtered again
+            self._anticausal = None
         if root is None:
             root = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
         root = np.ascontiguousarray(root)
@@ -165,7 +173,7 @@ class DCFilterTerm(ObservedTerm):
         return outer_square(self._root())
 
     def covariance_blocks(self, split):
-        root = self._root()
+        root = self._root(alone=True)
         return root[split:] @ root[:split].T, np.einsum("ij,ij->i", root[split:], root[split:])
 
     def covariance_with_contractor(self):
