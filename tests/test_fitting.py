@@ -377,3 +377,47 @@ def test_the_skipped_disturbance_check_says_why(order, why, caplog, monkeypatch)
         assert not disturbance.calls_for_disturbance(experiment, C(1.0) * DC(0.9, 0.9), 1e-4,
                                                      check_tail=False)
     assert f"1100 slow samples: {why}" in caplog.text
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:tuning ended on a bound")
+def test_a_pilots_order_fitted_again_starts_from_that_pilots_tuning(monkeypatch):
+    """When the default order falls back to a pilot's order (the doubled order lost
+    evidence), the fit at that order starts from that pilot's tuned prior, not from the
+    plain prior: it reaches the pilot's optimum in no more evaluations than the pilot took."""
+    from gpmultirate import orders
+
+    rng = np.random.default_rng(8)
+    u = rng.standard_normal(3000)
+    y = (np.convolve(u, 0.99 ** np.arange(900) * np.cos(0.3 * np.arange(900)))[:3000]
+         + 0.1 * rng.standard_normal(3000))[::FACTOR]
+    data = (u, y, None)
+    pilots, calls = {}, []
+
+    def ladder(fit_at, tail_lag, longest, n_samples, n_inputs=1, log=None, evidence=None):
+        for p in (512, 999):
+            pilots[p] = fit_at(p)
+        # the doubled order lost evidence: the shorter one is fitted again
+        return orders.DefaultOrder(order=512, table={"order": np.array([512, 999])}, fit=None)
+
+    def fit_at(data, order_, settings, start=None):
+        calls.append((order_, start))
+        return fit_at_order(data, order_, settings, start)
+
+    monkeypatch.setattr(orders, "default_order", ladder)
+    base = check_settings(gm.FIRGaussianProcess(factor=FACTOR, noise_kernel="white"))
+    fitted, _ = order.fit_order(data, base, fit_at)
+    assert [c[0] for c in calls] == [512, 999, 512]
+    kernel, noise = calls[-1][1]
+    assert kernel.theta == pytest.approx(pilots[512].kernel_.theta)
+    assert noise == pilots[512].noise_level_
+    # the plain start repeats the pilot's run evaluation for evaluation
+    assert fitted.optimizer_result_.nfev < pilots[512].optimizer_result_.nfev
+    assert fitted.log_marginal_likelihood_value_ >= (
+        pilots[512].log_marginal_likelihood_value_ - 1e-6)
+    # a plain start where no pilot was fitted at the order
+    calls.clear()
+    monkeypatch.setattr(orders, "default_order", lambda fit_at, *args, **kwargs: (
+        fit_at(512), orders.DefaultOrder(order=300, table={}, fit=None))[1])
+    order.fit_order(data, base, fit_at)
+    assert calls[-1] == (300, None)

@@ -706,7 +706,86 @@ def test_exposure_windows_beyond_the_memory_are_refused_before_forming_them(monk
     from gpmultirate.exceptions import MemoryLimitError
 
     u, y_slow, times = _record()
-    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(10**8))
-    # 50 readings of 100 periods: 5050 pieces between ticks, their pairs 0.8 GB
+    monkeypatch.setenv("GPMULTIRATE_MEMORY_LIMIT", str(10**7))
+    # 50 readings of 100 periods: 5050 pieces between ticks, 16 points each, 41 MB
     with pytest.raises(MemoryLimitError, match="^exposure 100 over 50 readings .* 5050 pieces"):
         gm.FIRGaussianProcess(order=20, exposure=100.0).fit(u, y_slow, sample_times=times + 0.5)
+
+
+class _FallingBridge(DC):
+    """DC whose bridge variance is written to fall with ``alpha`` on odd cells: both signs of
+    ``dv`` for the bridge's rank-k updates (the integer-lag kernel is DC's)."""
+
+    def integer_diagonal(self, t, eval_gradient=False):
+        found = super().integer_diagonal(t, eval_gradient)
+        if not eval_gradient:
+            return found
+        values, gradients = found
+        sign = np.where(np.asarray(t) % 2 == 1, -1.0, 1.0)
+        return values, {name: sign * d for name, d in gradients.items()}
+
+
+@pytest.mark.parametrize("kernel", [DC(0.9, 0.6), TC(0.85), _FallingBridge(0.9, -0.4)],
+                         ids=["DC", "TC", "both signs"])
+def test_the_bridge_derivatives_and_contraction_against_psi_written_out(kernel):
+    """``S``, ``dS_j`` and ``tr(W dS_j)`` of the exact route: the rows on the integer lags'
+    (every route of the integer lags) plus ``Psi diag(v) Psi^T`` and ``Psi diag(dv_j) Psi^T``
+    formed densely from the observation's bridge rows and the kernel's diagonal."""
+    from gpmultirate.kernels.hold import BRIDGE_SCALE
+
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal(120)
+    times = np.arange(15, 120, 2) + rng.uniform(0, 1, len(range(15, 120, 2)))
+    P = 40
+    timed = TimedConvolution(u, times, P, exposure=0.7)
+    term = observe(kernel, timed)
+    inner = observe(kernel, timed.on_integer_lags())
+    Psi = np.array(timed.bridge_rows())
+    v, dv = kernel.integer_diagonal(np.arange(P, dtype=float), eval_gradient=True)
+    free = [h.name for h in kernel.hyperparameters if not h.fixed]
+    bridge = Psi @ np.diag(BRIDGE_SCALE**2 * v) @ Psi.T
+    d_bridge = [Psi @ np.diag(BRIDGE_SCALE**2 * dv[name]) @ Psi.T for name in free]
+    S_inner, d_inner = inner.covariance_with_derivatives()
+    scale = np.abs(S_inner + bridge).max()
+    np.testing.assert_allclose(term.covariance(), S_inner + bridge, rtol=1e-10,
+                               atol=1e-12 * scale)
+    S, items = term.covariance_with_derivatives()
+    np.testing.assert_allclose(S, S_inner + bridge, rtol=1e-10, atol=1e-12 * scale)
+    for item, d, e in zip(items, d_inner, d_bridge):
+        np.testing.assert_allclose(item, d + e, rtol=1e-10, atol=1e-12 * np.abs(d + e).max())
+    W = rng.standard_normal((timed.n_outputs, timed.n_outputs))
+    W = W + W.T
+    S, contract = term.covariance_with_contractor()
+    expected = np.array([np.sum(W * (d + e)) for d, e in zip(d_inner, d_bridge)])
+    np.testing.assert_allclose(S, S_inner + bridge, rtol=1e-10, atol=1e-12 * scale)
+    np.testing.assert_allclose(contract(W), expected, rtol=1e-9,
+                               atol=1e-11 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "sum", "RBF",
+                                  "per input", "constant"])
+def test_covariance_blocks_are_the_joint_covariances_blocks(name):
+    """The readings' covariance with the data they are stacked after, and their variances,
+    formed alone (each structured route, the bridge, sums and constants) equal the blocks of
+    the joint ``S``."""
+    from gpmultirate.kernels import PerInputKernel
+
+    rng = np.random.default_rng(11)
+    inputs = 2 if name == "per input" else 1
+    u = rng.standard_normal((120, inputs)) if inputs > 1 else rng.standard_normal(120)
+    data = TimedConvolution(u, np.arange(15, 119, 3) + rng.uniform(0, 1, 35), 40,
+                            exposure=0.7, latency=0.2)
+    new = TimedConvolution(u, np.sort(rng.uniform(10, 119, 9)), 40, exposure=0.7, latency=0.2)
+    joint = TimedConvolution.stack([data, new])
+    kernel = {"per input": PerInputKernel([C(1.5) * DC(0.9, 0.6), TC(0.85)]),
+              "constant": C(0.3)}.get(name, KERNELS.get(name))
+    term = observe(kernel, joint)
+    M = data.n_outputs
+    cross, var = term.covariance_blocks(M)
+    S = observe(kernel, joint).covariance()
+    scale = np.abs(S).max()
+    np.testing.assert_allclose(cross, S[M:, :M], rtol=1e-10, atol=1e-12 * scale)
+    np.testing.assert_allclose(var, np.diag(S)[M:], rtol=1e-10, atol=1e-12 * scale)
+    _, every = observe(kernel, new).covariance_blocks(0)
+    np.testing.assert_allclose(every, np.diag(observe(kernel, new).covariance()), rtol=1e-10,
+                               atol=1e-12 * scale)

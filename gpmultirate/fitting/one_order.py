@@ -68,7 +68,8 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     ``order``: the FIR order (None: the longest record's length);
     ``settings``: the fit's :class:`~gpmultirate.fitting.settings.Settings`;
     ``start``: the ``(kernel, noise level)`` of a plain fit at that order
-    (the default order's pilot), where ``kernel="auto"`` starts its search.
+    (the default order's pilot), where the tuning or ``kernel="auto"``'s
+    search starts.
 
     The steps: the experiment and the starting prior, the memory guard, the
     resonance search (``kernel="auto"``), the tuning by the criterion, the

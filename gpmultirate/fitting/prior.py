@@ -177,7 +177,7 @@ def starting_prior(experiment, settings, start=None):
     :func:`~gpmultirate.units.normalize` (a model file of
     ``hyperparameter_units_="normalized"`` gives it in those units already).
     ``start``: the tuned ``(kernel, noise level)`` of a plain fit at that
-    order, where ``kernel="auto"`` starts its search instead.
+    order, where the tuning (or ``kernel="auto"``'s search) starts instead.
     """
     user_kernel = None if isinstance(settings.kernel, str) else settings.kernel
     kernel, noise, noise_bounds = prior_in_data_units(
@@ -193,6 +193,6 @@ def starting_prior(experiment, settings, start=None):
             settings.scale)
         kernel = converted if given else kernel
         noise_bounds = bounds if explicit else noise_bounds
-    if start is not None and settings.auto:
+    if start is not None:
         kernel, noise = clone(start[0]), float(start[1])
     return kernel, noise, noise_bounds

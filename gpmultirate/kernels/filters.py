@@ -6,6 +6,10 @@ of first-order recursive filters (causal and anticausal, the centre counted
 once).  With ``G = Phi D`` and ``H = G T``:
 
 * ``S = Phi K Phi^T = H G^T``, ``O(M P + M^2 P)`` instead of ``O(M P^2)``;
+  formed as ``(G R)(G R)^T`` with ``T = R R^T`` the Cholesky factor of the
+  AR(1) correlation (``G R`` is the anticausal filter of ``G``, scaled by
+  ``sqrt(1 - beta^2)`` beyond its first column), a symmetric rank-k update
+  of half the flops of the general product;
 * the derivative in ``log alpha`` is ``E K + K E`` with ``E = diag(t / 2)``,
   so ``tr(W Phi dK Phi^T) = sum_{m, i} t_i H[m, i] (W G)[m, i]``;
 * the derivative in ``beta`` replaces ``T`` by ``|i - j| beta^(|i - j| - 1)``,
@@ -26,7 +30,7 @@ import numpy as np
 from scipy import signal
 
 from gpmultirate.kernels.precision import dc_precision
-from gpmultirate.kernels.structure import ObservedTerm, symmetrize
+from gpmultirate.kernels.structure import ObservedTerm, outer_square, symmetrize
 
 __all__ = ["DCFilterTerm", "suffix_after", "two_sided"]
 
@@ -93,9 +97,41 @@ class DCFilterTerm(ObservedTerm):
             beta = values["beta"]
             decay = values["alpha"] ** (self.lags / 2.0)
             G = self.observation.matrix * decay
-            cached = beta, decay, G, two_sided(G, [1.0], [1.0, -beta], include_center=True)
+            # H = G T: the causal and the anticausal filter, the centre counted once; the
+            # anticausal one is also the root of T (:meth:`_root`)
+            anticausal = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
+            H = signal.lfilter([1.0], [1.0, -beta], G, axis=1)
+            H += anticausal
+            H -= G
+            self._anticausal = anticausal
+            cached = beta, decay, G, H
             self._filtered_parts = cached
         return cached
+
+    def _root(self, alone: bool = False):
+        """``G R`` with ``T = R R^T``: ``S = (G R)(G R)^T`` (the module docstring).
+
+        ``R[i, j] = c_j beta^(i - j)`` for ``i >= j`` (``c_0 = 1``, else
+        ``sqrt(1 - beta^2)``): the covariance of the AR(1) recursion
+        ``x_i = beta x_(i-1) + sqrt(1 - beta^2) e_i`` started at ``x_0 = e_0``.
+        Its columns are those of the anticausal filter of ``G``, scaled.
+        ``alone``: nothing else of the filters is asked for (``H`` not formed).
+        """
+        if alone and getattr(self, "_filtered_parts", None) is None:
+            # the root only: G and its anticausal filter, not H (which S's derivatives and
+            # Phi K need)
+            values = self.kernel.checked_values()
+            beta, root = values["beta"], None
+            G = self.observation.matrix * values["alpha"] ** (self.lags / 2.0)
+        else:
+            beta, _, G, _ = self._filtered()
+            root = self._anticausal  # scaled in place below: taken once, then filtered again
+            self._anticausal = None
+        if root is None:
+            root = signal.lfilter([1.0], [1.0, -beta], G[:, ::-1], axis=1)[:, ::-1]
+        root = np.ascontiguousarray(root)
+        root[:, 1:] *= np.sqrt(max(1.0 - beta * beta, 0.0))
+        return root
 
     def kernel_matrix(self):
         # not kept: S and Phi K come from the filters, so K is asked for once, and at
@@ -134,12 +170,15 @@ class DCFilterTerm(ObservedTerm):
                             self.observation.order, tuple(self._free()))
 
     def covariance(self):
-        _, _, G, H = self._filtered()
-        return symmetrize(self.observation.regressor_shaped_outer(H, G))
+        return outer_square(self._root())
+
+    def covariance_blocks(self, split):
+        root = self._root(alone=True)
+        return root[split:] @ root[:split].T, np.einsum("ij,ij->i", root[split:], root[split:])
 
     def covariance_with_contractor(self):
         beta, _, G, H = self._filtered()
-        S = symmetrize(self.observation.regressor_shaped_outer(H, G))
+        S = outer_square(self._root())
         lags, free = self.lags, self._free()
 
         def contract(W):
@@ -155,7 +194,7 @@ class DCFilterTerm(ObservedTerm):
 
     def covariance_with_derivatives(self):
         beta, _, G, H = self._filtered()
-        S = symmetrize(H @ G.T)
+        S = outer_square(self._root())
         items = []
         for name in self._free():
             if name == "alpha":

@@ -60,7 +60,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-from gpmultirate.kernels.structure import ObservedTerm
+from gpmultirate.kernels.structure import ObservedTerm, outer_square
 
 __all__ = ["BRIDGE_SCALE", "HOLD_POINTS", "HoldTerm", "bridge_shape", "bridge_variances",
            "hold_covariance", "hold_diagonal", "hold_weights", "lagrange_weights", "stencil"]
@@ -318,7 +318,10 @@ class HoldTerm(ObservedTerm):
     (``readings.bridge_rows()``); ``b`` independent across cells with
     variances ``v_n`` (:func:`bridge_variances`).  So
     ``S = Phi_w K Phi_w^T + Psi diag(v) Psi^T``: the bridge costs
-    ``O(M^2 P)`` and the covariance is formed in the data space.
+    ``O(M^2 P)`` (a symmetric rank-k update; its gradient one product
+    ``W Psi``, the derivative matrices never formed) and the covariance is
+    formed in the data space, the cheaper form while ``M`` is below the
+    ``2 P`` coefficients of ``g`` and the bridge.
 
     Parameters
     ----------
@@ -336,13 +339,32 @@ class HoldTerm(ObservedTerm):
     def _free(self):
         return [h.name for h in self.kernel.hyperparameters if not h.fixed]
 
-    def _bridge(self, gradient: bool):
+    def _bridge_derivatives(self):
+        """``Psi diag(dv_j) Psi^T`` per free hyperparameter; None where ``dv_j`` is zero.
+
+        Each by symmetric rank-k updates of the columns where ``dv_j`` is
+        positive and where it is negative.
+        """
         Psi = self.readings.bridge_rows()
-        found = bridge_variances(self.kernel, self.readings.order, gradient)
-        if not gradient:
-            return (Psi * found) @ Psi.T
-        v, dv = found
-        return (Psi * v) @ Psi.T, [(Psi * dv[name]) @ Psi.T for name in self._free()]
+        _, dv = bridge_variances(self.kernel, self.readings.order, eval_gradient=True)
+        out = []
+        for name in self._free():
+            d = dv[name]
+            if not np.any(d):
+                out.append(None)
+                continue
+            up, down = np.flatnonzero(d > 0), np.flatnonzero(d < 0)
+            matrix = outer_square(Psi[:, up] * np.sqrt(d[up]))
+            if down.size:
+                matrix -= outer_square(Psi[:, down] * np.sqrt(-d[down]))
+            out.append(matrix)
+        return out
+
+    def _with_bridge(self, S):
+        """``S + Psi diag(v) Psi^T`` by a symmetric rank-k update of ``Psi sqrt(v)``."""
+        Psi = self.readings.bridge_rows()
+        v = bridge_variances(self.kernel, self.readings.order)
+        return outer_square(Psi * np.sqrt(v), out=S)
 
     # the parameter space and the roles are the inner term's: the bridge is zero at integer lags
     def kernel_matrix(self):
@@ -374,20 +396,37 @@ class HoldTerm(ObservedTerm):
 
     def covariance(self):
         if getattr(self, "_covariance", None) is None:
-            self._covariance = self.inner.covariance() + self._bridge(False)
+            self._covariance = self._with_bridge(self.inner.covariance())
         return self._covariance
+
+    def covariance_blocks(self, split):
+        # the bridge's blocks: Psi_r diag(v) Psi_d^T and the rows' sums of Psi_r^2 v
+        cross, var = self.inner.covariance_blocks(split)
+        Psi = self.readings.bridge_rows()
+        v = bridge_variances(self.kernel, self.readings.order)
+        weighted = Psi[split:] * v
+        return cross + weighted @ Psi[:split].T, var + np.einsum("ij,ij->i", weighted, Psi[split:])
 
     def covariance_with_derivatives(self):
         S, items = self.inner.covariance_with_derivatives()
-        B, d_bridge = self._bridge(True)
         dense = [item[0] @ item[1] @ item[0].T if isinstance(item, tuple) else item
                  for item in items]
-        return S + B, [d + e for d, e in zip(dense, d_bridge)]
+        return self._with_bridge(S), [d if e is None else d + e
+                                      for d, e in zip(dense, self._bridge_derivatives())]
 
     def covariance_with_contractor(self):
+        # tr(W Psi diag(dv) Psi^T) = dv . diag(Psi^T W Psi): one product W Psi for every
+        # derivative, none of the M x M derivative matrices formed
         S, contract = self.inner.covariance_with_contractor()
-        B, d_bridge = self._bridge(True)
-        return S + B, lambda W: contract(W) + np.array([np.sum(W * d) for d in d_bridge])
+        Psi = self.readings.bridge_rows()
+        _, dv = bridge_variances(self.kernel, self.readings.order, eval_gradient=True)
+        derivatives = np.array([dv[name] for name in self._free()])
+
+        def with_bridge(W):
+            seen = np.einsum("mj,mj->j", Psi, W @ Psi)  # diag(Psi^T W Psi)
+            return contract(W) + derivatives @ seen
+
+        return self._with_bridge(S), with_bridge
 
     def cross_covariance(self, lags):
         # the bridge of g(n + d) meets the readings' bridge on the cell n

@@ -254,6 +254,10 @@ class BlockTerm(ObservedTerm):
     def covariance(self):
         return sum(block.covariance() for block in self.blocks)
 
+    def covariance_blocks(self, split):
+        parts = [block.covariance_blocks(split) for block in self.blocks]
+        return sum(cross for cross, _ in parts), sum(var for _, var in parts)
+
     def covariance_with_contractor(self):
         parts = [block.covariance_with_contractor() for block in self.blocks]
         S = sum(S_i for S_i, _ in parts)

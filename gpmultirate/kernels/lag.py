@@ -508,6 +508,12 @@ class _TCTerm(ObservedTerm):
 
         return K, contract
 
+    def covariance_blocks(self, split):
+        # Phi_r K by the kernel's O(M P) product, then one product with Phi_d^T
+        Phi = self.observation.matrix
+        PhiK = self.kernel.right_multiply(Phi[split:])
+        return PhiK @ Phi[:split].T, np.einsum("ij,ij->i", PhiK, Phi[split:])
+
 
 class DC(ShiftScaledKernel):
     r"""Diagonal-correlated kernel (paper eq. 16, without the scale ``lambda``).

@@ -379,6 +379,11 @@ class ShiftScaledTerm(ObservedTerm):
             return self.other.covariance_with_derivatives()
         return observed_recursion(self.kernel, sampling, self.observation.order)
 
+    def covariance_blocks(self, split):
+        if self._sampling(False) is None:
+            return self.other.covariance_blocks(split)
+        return super().covariance_blocks(split)
+
     def regressor_times_kernel(self):
         # O(M P): the kernel's own product with the (strided) regressor
         return self.kernel.right_multiply(self.observation.regressor_view())

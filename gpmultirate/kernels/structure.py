@@ -60,6 +60,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import blas
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
 
@@ -112,6 +113,35 @@ def no_gradient(A) -> np.ndarray:
 def symmetrize(A: np.ndarray) -> np.ndarray:
     """``(A + A^T) / 2``: removes the rounding asymmetry of a product."""
     return 0.5 * (A + A.T)
+
+
+def outer_square(X: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``X X^T`` (added to ``out`` when given), exactly symmetric, by a symmetric rank-k update.
+
+    Half the flops of the general product ``X @ X.T``: a covariance
+    ``A K A^T`` whose ``K = R R^T`` has a cheap root is ``outer_square(A R)``.
+
+    Examples
+    --------
+    >>> X = np.array([[1.0, 2.0], [3.0, 4.0], [0.5, 0.0]])
+    >>> bool(np.array_equal(outer_square(X), outer_square(X).T))
+    True
+    >>> bool(np.allclose(outer_square(X, np.eye(3)), X @ X.T + np.eye(3)))
+    True
+    """
+    X = np.asarray(X, dtype=float)
+    size = X.shape[0]
+    if X.shape[1] == 0:  # no columns: nothing to add (BLAS refuses an empty update)
+        return np.zeros((size, size)) if out is None else np.array(out, dtype=float)
+    # X^T is a Fortran-ordered view of a C-ordered X: no copy; the update fills the lower
+    # triangle of a zero matrix, mirrored by one addition (no masks of M x M)
+    lower = blas.dsyrk(1.0, X.T, c=np.zeros((size, size), order="F"), trans=1, lower=1,
+                       overwrite_c=1)
+    square = lower + lower.T
+    square.flat[:: size + 1] = np.diag(lower)
+    if out is not None:
+        square += out
+    return square
 
 
 class ObservedTerm:
@@ -203,6 +233,17 @@ class ObservedTerm:
     def regressor_times_kernel(self) -> np.ndarray:
         """``Phi K``, of shape ``(M, P)``: the covariance of the data with the coefficients."""
         return self.observation.matrix @ self.kernel_matrix()
+
+    def covariance_blocks(self, split: int) -> tuple[np.ndarray, np.ndarray]:
+        """``S[split:, :split]`` and ``diag(S)[split:]``, without the rest of ``S``.
+
+        A prediction of readings stacked after the data they are conditioned
+        on needs their covariance with the data and their own variances
+        only; the structured terms form just these (half the products of
+        the joint ``S`` and none of its memory).  Here, from ``S``.
+        """
+        S = self.covariance()
+        return S[split:, :split], np.diag(S)[split:].copy()
 
     def cross_covariance(self, lags: np.ndarray) -> np.ndarray:
         """``Cov(g(lags), y)`` for the lags of shape ``(n, d)``: shape ``(n, M)``.
@@ -375,6 +416,11 @@ class SumTerm(ObservedTerm):
     def regressor_times_kernel(self):
         return self.first.regressor_times_kernel() + self.second.regressor_times_kernel()
 
+    def covariance_blocks(self, split):
+        cross, var = self.first.covariance_blocks(split)
+        cross2, var2 = self.second.covariance_blocks(split)
+        return cross + cross2, var + var2
+
     def cross_covariance(self, lags):
         return self.first.cross_covariance(lags) + self.second.cross_covariance(lags)
 
@@ -477,6 +523,10 @@ class ScaledTerm(ObservedTerm):
 
     def regressor_times_kernel(self):
         return self.value * self.inner.regressor_times_kernel()
+
+    def covariance_blocks(self, split):
+        cross, var = self.inner.covariance_blocks(split)
+        return self.value * cross, self.value * var
 
     def cross_covariance(self, lags):
         return self.value * self.inner.cross_covariance(lags)
@@ -641,6 +691,11 @@ class LowRankTerm(ObservedTerm):
     def regressor_times_kernel(self):
         r = self.basis.shape[1]
         return (self.observed_basis()[:, :r] @ self.weight) @ self.basis.T
+
+    def covariance_blocks(self, split):
+        U = self.observed_basis()[:, : self.basis.shape[1]]
+        UD = U[split:] @ self.weight
+        return UD @ U[:split].T, np.einsum("ij,ij->i", UD, U[split:])
 
 
 def split_constant(kernel: Product):

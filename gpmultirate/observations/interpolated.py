@@ -142,9 +142,13 @@ class InterpolatedConvolution(Observation):
                                np.arange(max(P - edge - points, 0), P)])
         per_point = np.zeros((offsets.shape[0], self._edge_lags.shape[0], self.n_inputs))
         inputs = np.zeros((offsets.shape[0], self.n_inputs))
+        weights_of = {}  # the lags of most k are the whole stencil: their weights are shared
         for k in near:
             lags = np.arange(k + nodes[0], min(k + nodes[-1], P - 1) + 1)
-            w = lagrange_weights(lags - k, offsets) * weights[:, None]
+            key = lags.shape[0]
+            if key not in weights_of:
+                weights_of[key] = lagrange_weights(lags - k, offsets) * weights[:, None]
+            w = weights_of[key]
             w, lags = w[:, lags >= 0], lags[lags >= 0]  # the response is zero before lag 0
             for r, part in enumerate(parts):
                 mine = record == r

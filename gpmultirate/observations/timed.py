@@ -67,6 +67,10 @@ __all__ = [
 
 #: Gauss-Legendre nodes on each piece of an exposure window between two ticks
 QUADRATURE_NODES = 16
+# the floats a quadrature point holds while the readings are formed: its reading, instant,
+# weight, tick and offset, and its weights on the integer lags (the twelve of the stencil
+# and, near the order's ends, up to 48 more)
+_NUMBERS_PER_POINT = 64
 
 
 def check_sample_times(times, n_samples: int, name: str = "sample_times") -> np.ndarray:
@@ -124,9 +128,11 @@ def check_windows(times, n_samples: int, exposure: float, latency: float,
     window longer than the record (``E > N``) or a latency that puts every
     window's end before the record starts is a ``ValueError`` naming the
     parameter.  Checked from the stamps alone, before any array of the
-    windows' points is formed; the pieces of the windows between ticks
-    (whose pairs the exact covariance integrates) are counted against the
-    available memory.
+    windows' points is formed; the points of the windows' pieces between
+    ticks, with their rows' interpolation weights, are counted against the
+    available memory (no pair of pieces is formed: the readings are rows
+    on the integer lags, whose ``M x M`` and ``M x P`` arrays the fit's own
+    memory estimate counts).
 
     Examples
     --------
@@ -150,9 +156,9 @@ def check_windows(times, n_samples: int, exposure: float, latency: float,
         return
     ends = times - latency
     pieces = float(np.sum(np.ceil(ends) - np.floor(ends - exposure)))
-    # the exact covariance forms a few (pieces x pieces) float arrays and one
-    # point per node of each piece
-    needed = 8.0 * (4.0 * pieces**2 + 8.0 * pieces * nodes)
+    # each node of each piece is a point with a few numbers of its own and the weights of
+    # its interpolation on the integer lags (the stencil, the lags at the order's ends)
+    needed = 8.0 * _NUMBERS_PER_POINT * pieces * nodes
     available = available_memory()
     if needed > available:
         raise MemoryLimitError(
@@ -863,15 +869,14 @@ def predict_readings(posterior, data, kernel, readings: TimedConvolution):
     """
     if isinstance(data, TimedConvolution):
         joint = TimedConvolution.stack([data, readings])
-        S = observe(kernel, joint).covariance()
-        M = data.n_outputs
-        cross = S[M:, :M]
+        # only the readings' covariance with the data and their own variances
+        cross, prior = observe(kernel, joint).covariance_blocks(data.n_outputs)
         mean = cross @ posterior.alpha
         V = linalg.solve_triangular(posterior.L, cross.T, lower=True, check_finite=False)
-        var = np.diag(S[M:, M:]) - np.einsum("ij,ij->j", V, V)
+        var = prior - np.einsum("ij,ij->j", V, V)
         return mean, np.maximum(var, 0.0)
     term = observe(kernel, readings)
-    prior = np.diag(term.covariance())
+    _, prior = term.covariance_blocks(0)
     with_lags = term.regressor_times_kernel()  # Cov(readings, g(0..P-1))
     K = kernel(data.lags)
     jitter = 1e-10 * max(float(np.mean(np.diag(K))), 1e-300)
