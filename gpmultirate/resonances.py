@@ -59,18 +59,7 @@ terms one at a time, greedily:
    even in held-out blocks (a spurious regression of one persistent
    signal on another), but not its changes from one sample to the next,
    nor on a new record;
-6. **the response at lag 0, and the frequencies' spread**: the kept terms
-   are tuned once more beside a part of each input's response at lag 0
-   of its own (:func:`start_kernel`, its standard deviation tuned with
-   them): the modes of a sampled system shape its response from lag 1 on
-   (``C A^(t-1) B``), its value at lag 0 is the feedthrough ``D``, which
-   the terms' sinusoids, continued back to lag 0, do not give; the base
-   kernel, scaled down beside the terms, did not free it either, and the
-   wrong value there was a flat error over every frequency, far outside
-   the band where the true response is small (above the slow Nyquist
-   frequency of a camera plant: the truth inside the band at 0.33-0.59
-   of the frequencies above 55 Hz, 1.00 with the part).  The kept
-   terms then get ``omega_std`` and
+6. **the frequencies' spread**: the kept terms get ``omega_std`` and
    ``rate_std`` (:class:`~gpmultirate.kernels.PK`), the standard
    deviations of their frequency and decay rate in the Laplace
    approximation of the evidence at the tuned values (its Hessian by
@@ -117,9 +106,7 @@ unsuccessful scan and refinement; one re-tuning per subset of terms judged
 (``O(M P r)`` per evaluation); the held-out check, one ``M x M``
 factorization per kernel compared (skipped beyond
 :data:`~gpmultirate.orders.MAX_CHECKED_SAMPLES` slow samples); the
-kept terms tuned once more with the parts at lag 0 and, for their
-evidence gains, once without each (``1 + r`` tunings, 15-40 % of a fit
-that keeps two terms); the spreads, ``2 (3 + 4 r)`` gradient evaluations.  Without resonances, one
+spreads, ``2 (2 + 4 r)`` gradient evaluations.  Without resonances, one
 tuning of the base kernel (the default fit), a scan and a refinement.
 """
 
@@ -134,7 +121,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 from sklearn.base import clone
-from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Product, Sum
+from sklearn.gaussian_process.kernels import Kernel
 
 from gpmultirate import tuning
 from gpmultirate.covariance import (
@@ -148,7 +135,6 @@ from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
-    DC,
     PK,
     input_kernels,
     like_inputs,
@@ -167,7 +153,7 @@ __all__ = [
     "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
-    "search_resonances", "slowest_decay", "start_kernel", "START_DECAY",
+    "search_resonances", "slowest_decay",
 ]
 
 #: the logger of a fit's progress (see :mod:`gpmultirate.progress`)
@@ -230,10 +216,7 @@ class Resonance:
         ``r = -log(alpha) / 2`` per fast sample of the response envelope,
         ``r / sqrt(r^2 + omega^2)``.
     evidence_gain : float
-        Gain of the tuned log evidence (nats) by the term: that of the
-        fitted kernel (before the spreads of its terms) minus that of the
-        kernel without it, the other terms, the scale, the parts at lag 0
-        and the noise tuned again.
+        Gain of the tuned log evidence (nats) when the term was added.
     input : int
         The input whose kernel holds the term.
     """
@@ -692,14 +675,8 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
-    if terms:
-        # the kept terms with the lag-0 parts, tuned together (module docstring, step 6);
-        # the prior carries what the data leave uncertain of each frequency and decay
-        tuned = retuned.model(final).with_lag_zero()
-        kernel, noise = tuned.kernel(), tuned.noise_level
-        gains = [_Gain(g.input, value) for g, value in zip(gains, tuned.gains())]
-        terms = _terms_of(kernel, [r.input for r in gains])
-        kernel, terms = _with_spreads(kernel, terms, tuned.term_spreads())
+    if terms:  # the prior carries what the data leave uncertain of each frequency and decay
+        kernel, terms = _with_spreads(kernel, terms, retuned.model(final).term_spreads())
         moved = evidence.moved_to(kernel, noise)
         value = float(moved(moved.theta))
         history.append(value)
@@ -1060,10 +1037,10 @@ def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs
     if kept:
         check = held_out_resonances(
             observation, y, _assembled(kernel, [terms[r] for r in kept]), noise,
-            [inputs[r] for r in kept], _base_of(kernel), noise, n_folds)
+            [inputs[r] for r in kept], _without_pk(kernel), noise, n_folds)
         if check is not None:
             kept = [kept[i] for i in check["kept_terms"]]
-    return kept, _assembled(kernel, [terms[r] for r in kept]) if kept else _base_of(kernel)
+    return kept, _assembled(kernel, [terms[r] for r in kept]) if kept else _without_pk(kernel)
 
 
 def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
@@ -1111,7 +1088,7 @@ class _Retuned:
     """
 
     def __init__(self, evidence, kernel, noise, terms):
-        self._model = _ResonantModel(evidence.moved_to(_base_of(kernel), noise))
+        self._model = _ResonantModel(evidence.moved_to(_without_pk(kernel), noise))
         self._terms = list(terms)
         self._done = {}
 
@@ -1211,17 +1188,6 @@ class _ResonantModel:
     plus a rank-``2 n_terms`` update, so the log evidence costs
     ``O(M P n_terms)`` for any values of the terms, ``c`` and ``gamma``, and
     all of them are tuned jointly (L-BFGS-B) each time a term is added.
-
-    In :meth:`with_lag_zero`, each input's response at lag 0 gets a part of
-    its own, of standard deviation ``start[k]`` (tuned with the terms; a
-    rank-one column ``Phi_k e_0`` of ``U``): the modes of a sampled system shape its
-    response from lag 1 on (``C A^(t-1) B``), its value at lag 0 is the
-    feedthrough ``D``, which the terms' sinusoids, continued back to lag 0,
-    do not give.  Without it a kept term's value at lag 0 pins the
-    estimate there, and a wrong value is a flat error over every
-    frequency, far outside the band where the true response is small
-    (above the slow Nyquist frequency).  Readings at their own instants
-    (a timed observation) have no such part.
     """
 
     def __init__(self, evidence):
@@ -1235,36 +1201,7 @@ class _ResonantModel:
         self._s = self._spectral.eigenvalues
         self._y = self._spectral.rotated_y
         self._blocks = {}
-        # the lag-0 parts start from the base kernel's prior standard deviation there
-        self.start = [float(np.sqrt(max(float(each.diag(np.zeros((1, 1)))[0]), 1e-300)))
-                      for each in input_kernels(self.base)]
-        self._start_bounds = [(v * 1e-4, v * 1e4) for v in self.start]
-        self.with_start = False
         self.value = self._log_evidence(self._pack())
-
-    def _starts(self) -> int:
-        """The number of lag-0 parts in the parameters: one per input, or none.
-
-        None unless :meth:`with_lag_zero` made this model and its
-        observation is not timed.
-        """
-        return (len(self.start) if self.with_start
-                and not hasattr(self.evidence.data, "damped_sinusoids") else 0)
-
-    def with_lag_zero(self):
-        """A copy with each input's lag-0 part added, tuned jointly with everything else."""
-        trial = self._copy()
-        trial.with_start = True
-        return trial.optimized()
-
-    def gains(self):
-        """Each term's evidence gain: the log evidence minus that without it, the rest re-tuned."""
-        out = []
-        for r in range(len(self.terms)):
-            trial = self._copy()
-            trial.terms = self.terms[:r] + self.terms[r + 1:]
-            out.append(self.value - trial.optimized().value)
-        return out
 
     # ---------------------------------------------------------- parameters
     def _pack(self):
@@ -1272,7 +1209,6 @@ class _ResonantModel:
         for _, term in self.terms:
             x += [np.log(max(-0.5 * np.log(term.alpha), 1e-10)), term.omega,
                   np.log(term.sigma1), np.log(term.sigma2)]
-        x += list(np.log(self.start[:self._starts()]))
         return np.array(x)
 
     def _bounds(self):
@@ -1286,7 +1222,6 @@ class _ResonantModel:
             bounds += [(np.log(max(rates[0], 1e-10)), np.log(max(rates[1], 1e-10))),
                        tuple(term.omega_bounds), tuple(np.log(term.sigma1_bounds)),
                        tuple(np.log(term.sigma2_bounds))]
-        bounds += [tuple(np.log(b)) for b in self._start_bounds[:self._starts()]]
         return np.array(bounds, dtype=float)
 
     def rotate(self, B):
@@ -1309,7 +1244,7 @@ class _ResonantModel:
         """
         x = self._pack()
         root = np.sqrt(self._spectral.diagonal(np.exp(x[0]), np.exp(x[1])))
-        if not self.terms and not self._starts():
+        if not self.terms:
             return lambda X: X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((root.size, 2 * len(self.terms)))
@@ -1318,7 +1253,6 @@ class _ResonantModel:
             rotated = self._observed_basis(k, lags, rate, omega, False)
             W[:, 2 * r] = np.exp(x[4 + 4 * r]) * rotated[:, 0]
             W[:, 2 * r + 1] = np.exp(x[5 + 4 * r]) * rotated[:, 1]
-        W = np.hstack([W, self._start_columns(x)])
         U, S, _ = np.linalg.svd(W / root[:, None], full_matrices=False)
         shrink = 1.0 / np.sqrt(1.0 + S**2) - 1.0
 
@@ -1327,13 +1261,6 @@ class _ResonantModel:
             return X + U @ (shrink.reshape((-1,) + (1,) * (np.ndim(X) - 1)) * (U.T @ X))
 
         return whiten
-
-    def _start_columns(self, x):
-        """The rotated lag-0 columns ``start[k] Q^T Phi_k e_0``, ``(M, n_starts)``."""
-        n = self._starts()
-        first = 2 + 4 * len(self.terms)
-        columns = [np.exp(x[first + k]) * self._rotated_regressor(k)[:, 0] for k in range(n)]
-        return np.column_stack(columns) if columns else np.empty((self._y.shape[0], 0))
 
     def _rotated_regressor(self, k):
         if k not in self._blocks:
@@ -1377,9 +1304,7 @@ class _ResonantModel:
             rotated = self._observed_basis(k, lags, rate, omega, eval_gradient)
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
             raw.append((rotated, rate, s1, s2))
-        starts = self._start_columns(x)
-        W = np.hstack([W, starts])
-        if W.shape[1]:
+        if r_terms:
             update = DiagonalPlusLowRank(d, W)
             quad, log_det = update.inv_quad_logdet(y)
         else:
@@ -1389,7 +1314,7 @@ class _ResonantModel:
         value = log_gaussian(quad, log_det, y.shape[0]) + rest
         if not eval_gradient:
             return value
-        if W.shape[1]:
+        if r_terms:
             a, diag_A = update.solve(y), update.inverse_diagonal()
             AW = update.inverse_times_low_rank()
         else:
@@ -1410,17 +1335,10 @@ class _ResonantModel:
             grad[3 + 4 * r] = contribution(np.column_stack([-s1 * ts, s2 * tc]))
             grad[4 + 4 * r] = contribution(np.column_stack([s1 * c_, np.zeros_like(c_)]))
             grad[5 + 4 * r] = contribution(np.column_stack([np.zeros_like(s_), s2 * s_]))
-        for j in range(starts.shape[1]):  # d/dlog(start): the column itself
-            column = 2 * r_terms + j
-            wa = W[:, column] @ a
-            grad[2 + 4 * r_terms + j] = float(wa * wa - AW[:, column] @ W[:, column])
         return value, grad
 
     def _unpack(self, x):
         self.log_scale, self.noise_level = float(x[0]), float(np.exp(x[1]))
-        first = 2 + 4 * len(self.terms)
-        self.start = ([float(v) for v in np.exp(x[first:first + self._starts()])]
-                      + self.start[self._starts():])
         terms = []
         for r, (k, term) in enumerate(self.terms):
             rate, omega, log_s1, log_s2 = x[2 + 4 * r : 6 + 4 * r]
@@ -1434,7 +1352,6 @@ class _ResonantModel:
         copy = _ResonantModel.__new__(_ResonantModel)
         copy.__dict__.update(self.__dict__)
         copy.terms = list(self.terms)
-        copy.start = list(self.start)
         return copy
 
     # ------------------------------------------------------------- search
@@ -1516,58 +1433,11 @@ class _ResonantModel:
         return trial
 
     def kernel(self):
-        """The base kernel scaled by ``c``, the lag-0 parts and the terms, per input kernel."""
+        """The base kernel scaled by ``c`` plus the terms, one input kernel each."""
         kernels = [clone(each) for each in input_kernels(_scaled(self.evidence, self.log_scale))]
-        for k in range(self._starts()):
-            kernels[k] = kernels[k] + start_kernel(self.start[k])
         for k, term in self.terms:
             kernels[k] = kernels[k] + term
         return like_inputs(kernels, self.base)
-
-
-#: the decay of :func:`start_kernel`: its variance at lag 1 is this fraction of lag 0's
-START_DECAY = 1e-12
-
-
-def start_kernel(std: float):
-    """The prior of a response at lag 0 only, of standard deviation ``std``.
-
-    ``std^2 * DC(alpha=START_DECAY, beta=0)``, DC's values fixed: the
-    variance is ``std^2`` at lag 0 and ``std^2 START_DECAY^t`` at lag
-    ``t``, with no correlation between lags.  The search adds it beside its
-    terms (the feedthrough of a sampled system, :class:`_ResonantModel`).
-    The amplitude is a hyperparameter (bounds ``1e-8`` to ``1e8`` times
-    ``std^2``): a fit that tunes after the search tunes it, and a change of
-    the data's units scales it as the other amplitudes.
-
-    Examples
-    --------
-    >>> start_kernel(0.5)(np.array([[0.0], [1.0]])).round(3)
-    array([[0.25, 0.  ],
-           [0.  , 0.  ]])
-    """
-    variance = std**2
-    return (ConstantKernel(variance, (variance * 1e-8, variance * 1e8))
-            * DC(alpha=START_DECAY, beta=0.0, alpha_bounds="fixed", beta_bounds="fixed"))
-
-
-def _is_start(kernel) -> bool:
-    return (isinstance(kernel, Product) and isinstance(kernel.k1, ConstantKernel)
-            and isinstance(kernel.k2, DC) and kernel.k2.alpha == START_DECAY
-            and kernel.k2.beta == 0.0 and kernel.k2.hyperparameter_alpha.fixed)
-
-
-def _split_start(kernel):
-    """``(kernel without its lag-0 part, the part's std or None)`` of one input kernel."""
-    if isinstance(kernel, Sum) and _is_start(kernel.k2):
-        return kernel.k1, float(np.sqrt(kernel.k2.k1.constant_value))
-    return kernel, None
-
-
-def _base_of(kernel):
-    """The kernel without its PK summands and its lag-0 parts: the tuned base kernel."""
-    return like_inputs([_split_start(without_resonances(each))[0]
-                        for each in input_kernels(kernel)], kernel)
 
 
 def _without_pk(kernel):

@@ -22,7 +22,6 @@ from gpmultirate.resonances import (
     _ResonantModel,
     PERSISTENT_CYCLES,
     PERSISTENT_DAMPING,
-    START_DECAY,
     damping_ratio,
     persistent_aliases,
     resonance_scan,
@@ -125,15 +124,12 @@ def test_scan_gain_is_the_dense_evidence_difference():
     assert best == pytest.approx(2.3, abs=0.03)
 
 
-@pytest.mark.parametrize("lag_zero", [False, True])
-def test_joint_model_evidence_and_gradient(lag_zero):
+def test_joint_model_evidence_and_gradient():
     op, y = _small_problem(1)
     evidence = LogEvidence(op, y, C(0.3) * DC(alpha=0.8, beta=0.9), 1e-3, (1e-8, 1.0))
     model = _ResonantModel(evidence)
     model.terms = [(0, PK(alpha=0.97, omega=2.2, sigma1=0.5, sigma2=0.8)),
                    (0, PK(alpha=0.9, omega=0.6, sigma1=0.1, sigma2=0.2))]
-    model.with_start = lag_zero  # each input's part at lag 0 (the last coordinate)
-    assert model._pack().size == 10 + lag_zero
     x = model._pack() + 0.05
     value, grad = model._log_evidence(x, eval_gradient=True)
     step = 1e-6
@@ -224,24 +220,21 @@ def test_evidence_gain_is_the_evidence_without_the_term_refitted():
     u, y, _, _ = _experiment(system, 240, rng, snr_db=40)
     model = _fit("auto", u, y, 240)
     (found,) = model.resonances_
-    rest = model.kernel_.k1  # C * DC + the lag-0 part, tuned with the term
-    base, start = rest.k1, rest.k2
-    assert start.k2.alpha == START_DECAY
+    rest = model.kernel_.k1  # C * DC, tuned with the term
     op, z = model.observation_, model.y_slow_
 
-    def negative(x):  # the base's scale, the lag-0 part's and the noise tuned again
-        kernel = C(np.exp(x[0]), (1e-300, 1e300)) * base + C(np.exp(x[1]), (1e-300, 1e300)) * start
-        value, grad = log_marginal_likelihood(op, kernel, np.exp(x[2]), z, True, True)
-        n_base = base.theta.size
-        # d/d log c first, d/d log s after the base's coordinates, d/d log gamma last
-        return -value, -grad[[0, 1 + n_base, -1]]
+    def negative(x):
+        kernel = C(np.exp(x[0]), (1e-300, 1e300)) * rest
+        value, grad = log_marginal_likelihood(op, kernel, np.exp(x[1]), z, True, True)
+        return -value, -grad[[0, -1]]  # d/d log c is first, d/d log gamma last
 
     with threadpool_limits(limits=1, user_api="blas"):  # small matrices
-        best = optimize.minimize(negative, [0.0, 0.0, np.log(model.noise_level_)], jac=True,
+        best = optimize.minimize(negative, [0.0, np.log(model.noise_level_)], jac=True,
                                  method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-9})
     # the gain is of the tuned term, before the prior is given its frequency's spread
     term = clone(model.kernel_.k2).set_params(omega_std=0.0, rate_std=0.0)
-    tuned = log_marginal_likelihood(op, rest + term, model.noise_level_, z, False, True)
+    tuned = log_marginal_likelihood(op, model.kernel_.k1 + term, model.noise_level_, z,
+                                    False, True)
     expected = tuned + best.fun
     assert found.evidence_gain == pytest.approx(expected, rel=1e-4)
     assert model.kernel_.k2.omega_std > 0.0 and model.kernel_.k2.rate_std > 0.0
@@ -811,54 +804,3 @@ def test_the_search_scan_whitened_by_its_model_is_the_scan_of_the_dense_covarian
         model = model.with_term(0, PK(alpha=alphas[a], omega=omegas[j], sigma1=0.1, sigma2=0.1,
                                       alpha_bounds=(1e-4, 0.999)))
     assert len(model.terms) == 2
-
-
-
-@pytest.mark.slow
-def test_the_response_at_lag_zero_is_free_of_the_modes():
-    # a sampled strictly proper system: its modes shape the response from lag 1 on
-    # (C A^(t-1) B), its value at lag 0 is D = 0, not the terms' sinusoids continued
-    # back to lag 0.  A camera plant (well-damped 3 Hz, light 70 Hz mode above the slow
-    # Nyquist frequency, input mostly below 30 Hz): with both modes kept as terms the
-    # lag-0 estimate was pinned 16 standard deviations off, a flat error that left the
-    # true |G| outside the FRF band at 0.33 of the frequencies above 55 Hz
-    import sys
-    from pathlib import Path
-
-    from gpmultirate.resonances import START_DECAY, start_kernel
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
-    from default_kernel import FACTOR as F, SAMPLE_TIME, draw_plant, true_frf
-
-    plant = draw_plant(8, 10.0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        model = gm.FIRGaussianProcess("auto", factor=F, sample_time=SAMPLE_TIME, order=999)
-        model.fit(plant["u"], plant["y_slow"])
-    assert len(model.resonances_) == 2
-    mean, std = model.impulse_response(return_std=True)
-    assert plant["impulse"][0] == 0.0
-    assert abs(mean[0]) < 3.0 * std[0]
-    freqs = np.linspace(55.0, 490.0, 300)
-    response = model.frequency_response(freqs)
-    truth = np.abs(true_frf(plant["impulse"], freqs))
-    inside = (response.magnitude_lower <= truth) & (truth <= response.magnitude_upper)
-    assert inside.mean() >= 0.9
-    # the fitted kernel carries the lag-0 part (in the data's units, under their scale):
-    # a prior at lag 0 only
-    def summands(kernel):
-        if hasattr(kernel, "k1") and type(kernel).__name__ == "Sum":
-            return summands(kernel.k1) + summands(kernel.k2)
-        return [kernel]
-
-    kernel = model.kernel_
-    if isinstance(kernel.k1, C) and not isinstance(kernel.k2, DC):  # the units' scale
-        kernel = kernel.k2
-    starts = [k for k in summands(kernel) if isinstance(getattr(k, "k2", None), DC)
-              and k.k2.alpha == START_DECAY]
-    assert len(starts) == 1
-    lags = np.arange(3.0)[:, None]
-    std0 = float(np.sqrt(starts[0].k1.constant_value))
-    np.testing.assert_allclose(starts[0](lags), start_kernel(std0)(lags))
-    np.testing.assert_allclose(starts[0](lags), np.diag([std0**2, 0.0, 0.0]),
-                               atol=1e-12 * std0**2)
