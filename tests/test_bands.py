@@ -146,6 +146,31 @@ def test_draws_through_a_cholesky_factor_have_the_covariance():
     assert np.abs(draws.mean(axis=1) - mean).max() < 5 * np.sqrt(np.diag(cov).max() / 4000)
 
 
+def test_small_draws_move_with_the_covariance_only_by_rounding():
+    """Below the Cholesky size the root is ``V sqrt(L) V^T``: a seed's draws survive the last digits.
+
+    The covariance has nearly equal eigenvalues, where ``eigh``'s vectors
+    (and their signs) turn with a change in the 13th digit; draws built on
+    the vectors themselves then differ by the size of the draws.
+    """
+    from gpmultirate.covariance import posteriors
+
+    rng = np.random.default_rng(8)
+    size = 40
+    basis, _ = np.linalg.qr(rng.standard_normal((size, size)))
+    values = np.r_[np.full(10, 1.0), np.full(10, 1.0 + 1e-12), np.linspace(0.1, 0.5, 20)]
+    cov = (basis * values) @ basis.T
+    nudge = rng.standard_normal((size, size)) * 1e-13
+    nudged = cov + (nudge + nudge.T) / 2
+    mean = np.zeros(size)
+    a = posteriors.gaussian_samples(mean, cov, 5, np.random.default_rng(9))
+    b = posteriors.gaussian_samples(mean, nudged, 5, np.random.default_rng(9))
+    np.testing.assert_allclose(a, b, atol=1e-6)
+    root = np.linalg.cholesky(cov)  # an independent root: the same covariance
+    draws = posteriors.gaussian_samples(mean, cov, 20000, np.random.default_rng(10))
+    np.testing.assert_allclose(np.cov(draws), root @ root.T, atol=0.05)
+
+
 def test_cholesky_root_refuses_what_it_cannot_factor():
     from gpmultirate.covariance import posteriors
 
