@@ -762,7 +762,8 @@ def test_the_bridge_derivatives_and_contraction_against_psi_written_out(kernel):
                                atol=1e-11 * np.abs(expected).max())
 
 
-@pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "sum", "RBF",
+@pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "sum",
+                                  pytest.param("RBF", marks=pytest.mark.slow),  # dense: 45 s
                                   "per input", "constant"])
 def test_covariance_blocks_are_the_joint_covariances_blocks(name):
     """The readings' covariance with the data they are stacked after, and their variances,
