@@ -47,14 +47,14 @@ SAMPLE_TIME, FACTOR, GAIN = 1 / 500, 5, 1.5
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--output", type=pathlib.Path, default=pathlib.Path("."))
-    parser.add_argument("--quick", action="store_true", help="a 6 s record instead of 20 s")
+    parser.add_argument("--quick", action="store_true", help="a 12 s record instead of 20 s")
     return parser.parse_args()
 
 
 def main():
     args = parse_args()
     args.output.mkdir(parents=True, exist_ok=True)
-    seconds = 6.0 if args.quick else 20.0
+    seconds = 12.0 if args.quick else 20.0
     n = int(round(seconds / SAMPLE_TIME))
     plant = sim.camera_loop_plant(SAMPLE_TIME)
     rng = np.random.default_rng(37)
