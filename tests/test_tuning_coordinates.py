@@ -188,3 +188,67 @@ def test_the_prefit_scale_warning_is_kept_for_an_amplitude_the_tuning_leaves_on_
         amplitude = np.exp(result.x[0])
         assert (amplitude == pytest.approx(bounds[1])) == binds
         assert len(said) == int(binds)
+
+
+def _rosenbrock(theta):
+    x, y = theta
+    value = (1.0 - x) ** 2 + 100.0 * (y - x**2) ** 2
+    grad = np.array([-2.0 * (1.0 - x) - 400.0 * x * (y - x**2), 200.0 * (y - x**2)])
+    return value, grad
+
+
+def _counted(function):
+    calls = [0]
+
+    def counted(theta):
+        calls[0] += 1
+        return function(theta)
+
+    return counted, calls
+
+
+def test_a_run_stopped_short_on_relative_reduction_starts_again(monkeypatch):
+    # a loose ftol makes L-BFGS-B stop on a small relative reduction far from the
+    # optimum (the camera log's stop on a broken curvature memory); the restarts go on
+    bounds = np.array([[-5.0, 5.0], [-5.0, 5.0]])
+    monkeypatch.setattr(tuning, "LBFGS_OPTIONS", dict(tuning.LBFGS_OPTIONS, ftol=0.2))
+    monkeypatch.setattr(tuning, "LBFGS_RESTARTS", 0)
+    once = tuning.minimize_lbfgs(_rosenbrock, np.array([-1.2, 1.0]), bounds)
+    assert "REDUCTION" in str(once.message).upper() and once.fun > 1e-2
+    assert tuning._promises_more(once)
+    monkeypatch.setattr(tuning, "LBFGS_RESTARTS", 50)
+    counted, calls = _counted(_rosenbrock)
+    again = tuning.minimize_lbfgs(counted, np.array([-1.2, 1.0]), bounds)
+    assert again.fun < 0.1 * once.fun
+    assert again.nfev == calls[0]  # the evaluations of every run are counted
+    # the budget covers the restarts too: none starts once it is spent
+    counted, calls = _counted(_rosenbrock)
+    capped = tuning.minimize_lbfgs(counted, np.array([-1.2, 1.0]), bounds,
+                                   max_evaluations=once.nfev)
+    assert calls[0] == capped.nfev == once.nfev
+    counted, calls = _counted(_rosenbrock)
+    capped = tuning.minimize_lbfgs(counted, np.array([-1.2, 1.0]), bounds,
+                                   max_evaluations=once.nfev + 20)
+    assert calls[0] == capped.nfev < again.nfev and capped.fun < once.fun
+
+
+def test_a_converged_run_is_not_started_again():
+    bounds = np.array([[-5.0, 5.0], [-5.0, 5.0]])
+    counted, calls = _counted(_rosenbrock)
+    result = tuning.minimize_lbfgs(counted, np.array([-1.2, 1.0]), bounds)
+    plain = tuning._lbfgs_run(_rosenbrock, np.array([-1.2, 1.0]), bounds)
+    assert result.fun < 1e-10 and calls[0] == plain.nfev == result.nfev
+    assert not tuning._promises_more(plain)
+
+
+def test_a_gradient_against_its_bound_promises_nothing():
+    # the minimum of (x + 3)^2 over [-1, 1] sits on the lower bound with gradient 4
+    def pushed(theta):
+        return float((theta[0] + 3.0) ** 2), np.array([2.0 * (theta[0] + 3.0)])
+
+    result = tuning._lbfgs_run(pushed, np.array([0.5]), np.array([[-1.0, 1.0]]))
+    assert result.x[0] == -1.0 and not result.free[0]
+    result.message = "CONVERGENCE: RELATIVE REDUCTION OF F <= FACTR*EPSMCH"
+    assert not tuning._promises_more(result)
+    result.free = np.array([True])
+    assert tuning._promises_more(result)  # the same gradient off the bound would
