@@ -408,6 +408,8 @@ def test_a_pilots_order_fitted_again_starts_from_that_pilots_tuning(monkeypatch)
     base = check_settings(gm.FIRGaussianProcess(factor=FACTOR, noise_kernel="white"))
     fitted, _ = order.fit_order(data, base, fit_at)
     assert [c[0] for c in calls] == [512, 999, 512]
+    assert calls[0][1] is None  # the first pilot from the plain prior, the next from its end
+    assert calls[1][1][0].theta == pytest.approx(pilots[512].kernel_.theta)
     kernel, noise = calls[-1][1]
     assert kernel.theta == pytest.approx(pilots[512].kernel_.theta)
     assert noise == pilots[512].noise_level_
@@ -421,3 +423,55 @@ def test_a_pilots_order_fitted_again_starts_from_that_pilots_tuning(monkeypatch)
         fit_at(512), orders.DefaultOrder(order=300, table={}, fit=None))[1])
     order.fit_order(data, base, fit_at)
     assert calls[-1] == (300, None)
+
+
+def test_a_start_tuned_at_another_order_keeps_this_orders_bounds():
+    # the default prior bounds DC's decay by the order (slowest_decay): a start tuned at
+    # 512 lags brings its values to a fit at 999 lags, not its tighter bound on alpha
+    from gpmultirate.resonances import slowest_decay
+
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(3000)
+    y = np.convolve(u, 0.99 ** np.arange(900))[:3000][::FACTOR]
+    data = (u, y, None)
+    settings = check_settings(gm.FIRGaussianProcess(factor=FACTOR, noise_kernel="white"))
+    short = between_ticks.experiment_of(data, 512, settings)
+    tuned, _, _ = prior.starting_prior(short, settings)
+    tuned = tuned.clone_with_theta(tuned.bounds[:, 1])  # every value on its upper bound
+    assert np.exp(tuned.bounds[1, 1]) == pytest.approx(slowest_decay(512))
+    longer = between_ticks.experiment_of(data, 999, settings)
+    plain, _, _ = prior.starting_prior(longer, settings)
+    started, noise, _ = prior.starting_prior(longer, settings, (tuned, 0.25))
+    np.testing.assert_array_equal(started.bounds, plain.bounds)
+    assert np.exp(started.bounds[1, 1]) == pytest.approx(slowest_decay(999))
+    np.testing.assert_allclose(started.theta, tuned.theta)  # inside the wider bounds
+    assert noise == 0.25
+    # a value outside this order's bounds is clipped to them
+    wide = tuned.clone_with_theta(plain.bounds[:, 1])
+    shorter = between_ticks.experiment_of(data, 300, settings)
+    clipped, _, _ = prior.starting_prior(shorter, settings, (wide, 0.25))
+    assert np.exp(clipped.theta[1]) == pytest.approx(slowest_decay(300))
+    # a start of another structure is taken as it is
+    other = C(2.0) * DC(alpha=0.9, beta=0.5) + C(1.0)
+    taken, _, _ = prior.starting_prior(longer, settings, (other, 0.25))
+    assert repr(taken) == repr(other)
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:tuning ended on a bound")
+def test_a_doubled_pilot_from_the_last_pilots_end_reaches_the_plain_starts_optimum():
+    """The default order's pilots after the first start from the last one's tuned prior:
+    the doubled order's tuning then ends where the plain start's does (same evidence to
+    0.01 nats), in fewer evaluations."""
+    rng = np.random.default_rng(8)
+    u = rng.standard_normal(3000)
+    y = (np.convolve(u, 0.99 ** np.arange(900) * np.cos(0.3 * np.arange(900)))[:3000]
+         + 0.1 * rng.standard_normal(3000))[::FACTOR]
+    data = (u, y, None)
+    base = check_settings(gm.FIRGaussianProcess(factor=FACTOR, noise_kernel="white"))
+    first = fit_at_order(data, 512, base)
+    plain = fit_at_order(data, 999, base)
+    warm = fit_at_order(data, 999, base, (first.kernel_, first.noise_level_))
+    assert warm.log_marginal_likelihood_value_ == pytest.approx(
+        plain.log_marginal_likelihood_value_, abs=1e-2)
+    assert warm.optimizer_result_.nfev < plain.optimizer_result_.nfev

@@ -204,10 +204,13 @@ def default_order_rule(data, settings, fit_at):
     tuned = {}  # each white pilot's tuned (kernel, noise level), by order: no matrices
 
     def fit_pilot(order):
+        # each pilot's tuning starts where the last one's ended (the prior's decay moves
+        # little from one order to its double)
+        start = tuned.get(max(tuned)) if tuned and pilot.tuned else None
         last.clear()  # the last pilot is not held while the next one is fitted
         with warnings.catch_warnings(record=True) as record:
             warnings.simplefilter("always")
-            fitted = fit_at(data, order, pilot)
+            fitted = fit_at(data, order, pilot, start)
         caught[order] = record
         last[:] = [fitted]
         if fitted.noise_model is None:

@@ -194,5 +194,19 @@ def starting_prior(experiment, settings, start=None):
         kernel = converted if given else kernel
         noise_bounds = bounds if explicit else noise_bounds
     if start is not None:
-        kernel, noise = clone(start[0]), float(start[1])
+        kernel, noise = _moved_to(kernel, start[0]), float(start[1])
     return kernel, noise, noise_bounds
+
+
+def _moved_to(prior, tuned):
+    """``prior`` with the values of ``tuned`` (a kernel of the same structure), keeping its bounds.
+
+    The bounds are those of this order's prior: a start tuned at another order
+    (a shorter pilot's) carries that order's bound on DC's decay, which would
+    hold the tuning below the decay the longer order admits.  A kernel of
+    another structure is taken as it is.
+    """
+    if prior.theta.shape != tuned.theta.shape:
+        return clone(tuned)
+    bounds = prior.bounds
+    return prior.clone_with_theta(np.clip(tuned.theta, bounds[:, 0], bounds[:, 1]))
