@@ -23,6 +23,14 @@ command, the validation fit of the fast output on a held-out input
 Run ``PYTHONPATH=. python benchmarks/run.py --cases camera_log`` (or
 ``camera_log_quick`` for 5 s of record, ``camera_log_ticks`` and
 ``camera_log_60s``).
+
+``PYTHONPATH=. python benchmarks/camera_log.py --logs 3 [--kernel auto]
+[--ticks] [--seconds 60]`` runs the command on held-out logs of this shape,
+drawn afresh each run (:func:`draw_modes`: modes near 10-15 Hz and 70-90 Hz,
+damping 0.015-0.03; ``--seed`` replays a run), and prints per log the wall
+and CPU time, the peak memory, the validation fit, the band's share above
+55 Hz and the resonances found (false: farther than 5 % from every true
+mode).
 """
 
 from __future__ import annotations
@@ -44,6 +52,8 @@ EXPOSURE = 2e-3
 MODES = ((12.0, 0.02, 1.0), (80.0, 0.02, 0.5))
 # points of the exact simulation per fast period
 _FINE = 40
+# a resonance found farther than this share of every true mode's frequency is false
+FALSE_TOLERANCE = 0.05
 
 
 def plant(modes=MODES):
@@ -170,6 +180,34 @@ def step_times(stderr: str) -> dict:
     return times
 
 
+#: a progress line of the tuning: ``[  49.2 s] still on fit (49 s); ... about 88 s left``
+_LEFT = re.compile(r"\[\s*([\d.]+) s\] still on fit .*about (\d+) s left")
+
+
+def estimate_ratios(stderr: str, shortest: float = 10.0) -> list:
+    """Each estimate of the fit's time left over the time the fit then took, where that is at least ``shortest`` s.
+
+    An estimate is of the tuning under way; the pilot fits of the default
+    order are each a tuning of their own, so the time left is measured to the
+    end of the run the line belongs to: the next line of a finished pilot
+    (``default order: fitted order ...``) or the end of the fit.
+    """
+    lines = stderr.replace("\r", "\n").splitlines()
+    ends = [float(m.group(1)) for line in lines
+            for m in [re.search(r"\[\s*([\d.]+) s\] (default order: fitted order|fit: )",
+                                line)] if m]
+    ratios = []
+    for line in lines:
+        m = _LEFT.search(line)
+        if not m:
+            continue
+        at, left = float(m.group(1)), float(m.group(2))
+        later = [end for end in ends if end > at]
+        if later and later[0] - at >= shortest:
+            ratios.append(left / (later[0] - at))
+    return ratios
+
+
 def band_share(model, system, above=55.0):
     """The share of the DFT bins above ``above`` Hz where the true ``|G|`` is in the band."""
     freqs = np.fft.rfftfreq(model.observation_.n_samples, SAMPLE_TIME)
@@ -179,11 +217,20 @@ def band_share(model, system, above=55.0):
     return float(np.mean((truth >= frf.magnitude_lower) & (truth <= frf.magnitude_upper)))
 
 
-def run_command(seconds=20.0, ticks=False, seed=0, extra=(), timeout=3600):
+def draw_modes(rng):
+    """Held-out modes of the log's shape: one near 10-15 Hz, one near 70-90 Hz (damping 0.015-0.03).
+
+    The gains are those of :data:`MODES` (1 and 0.5).
+    """
+    return ((float(rng.uniform(10.0, 15.0)), float(rng.uniform(0.015, 0.03)), 1.0),
+            (float(rng.uniform(70.0, 90.0)), float(rng.uniform(0.015, 0.03)), 0.5))
+
+
+def run_command(seconds=20.0, ticks=False, seed=0, extra=(), timeout=3600, modes=MODES):
     """``gpmultirate fit`` on one camera log in a fresh process: times, memory and accuracy."""
     import gpmultirate as gm
 
-    log = camera_log(seconds, ticks, seed)
+    log = camera_log(seconds, ticks, seed, modes=modes)
     with tempfile.TemporaryDirectory() as folder:
         fast, camera = write_files(log, folder)
         out = Path(folder) / "res"
@@ -205,9 +252,63 @@ def run_command(seconds=20.0, ticks=False, seed=0, extra=(), timeout=3600):
                                f"{done.stderr.strip().splitlines()[-1:]}")
         model = gm.load_model(out / "model.npz")
     gof = gm.goodness_of_fit(log["y_val"], model.predict(log["u_val"]))
+    found = [float(r.frequency_hz) for r in (getattr(model, "resonances_", None) or [])]
     return {"seconds": seconds_taken,
             "cpu_seconds": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
             "command_peak_mb": after.ru_maxrss / 1024, "gof": gof,
             "band_share_above_55hz": band_share(model, log["system"]),
             "order": int(model.coef_.shape[-1]), "frames": int(log["y"].shape[0]),
-            "steps": step_times(done.stderr), "progress": done.stderr[-4000:]}
+            "steps": step_times(done.stderr), "progress": done.stderr[-4000:],
+            "estimate_ratios": estimate_ratios(done.stderr),
+            "resonances_hz": found,
+            "false_resonances_hz": [f for f in found if not any(
+                abs(f - hz) <= FALSE_TOLERANCE * hz for hz, _, _ in modes)]}
+
+
+def _span(ratios) -> str:
+    return f"{min(ratios):.2f}-{max(ratios):.2f} ({len(ratios)})" if ratios else "-"
+
+
+def main(argv=None) -> int:
+    """Held-out logs: ``--logs`` fresh draws of :func:`draw_modes`, the command on each."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--logs", type=int, default=3, help="held-out logs (default 3)")
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--ticks", action="store_true", help="frames on the ticks, no exposure")
+    parser.add_argument("--seed", type=int, default=None, help="replay a run")
+    parser.add_argument("--kernel", default=None, help="the command's --kernel (e.g. auto)")
+    args = parser.parse_args(argv)
+    seed = int(np.random.SeedSequence().entropy % 2**31) if args.seed is None else args.seed
+    print(f"held-out camera logs: seed {seed} (replay with --seed {seed}), {args.seconds:g} s, "
+          f"{'ticks' if args.ticks else 'own clock, exposure 2 ms'}, kernel "
+          f"{args.kernel or 'default'}; load {os.getloadavg()[0]:.1f}", flush=True)
+    rng = np.random.default_rng(seed)
+    extra = () if args.kernel is None else ("--kernel", args.kernel)
+    print("modes (Hz, damping) | wall s | CPU s | peak MB | order | fit % | band > 55 Hz | "
+          "found Hz | false | time-left estimates / actual", flush=True)
+    rows = []
+    for _ in range(args.logs):
+        modes = draw_modes(rng)
+        row = run_command(args.seconds, args.ticks, int(rng.integers(2**31)), extra,
+                          modes=modes)
+        rows.append(row)
+        shown = ", ".join(f"{hz:.2f}/{zeta:.3f}" for hz, zeta, _ in modes)
+        print(f"{shown} | {row['seconds']:.1f} | {row['cpu_seconds']:.1f} | "
+              f"{row['command_peak_mb']:.0f} | {row['order']} | {row['gof']:.3f} | "
+              f"{row['band_share_above_55hz']:.3f} | "
+              f"{', '.join(f'{f:.2f}' for f in row['resonances_hz']) or '-'} | "
+              f"{len(row['false_resonances_hz'])} | "
+              f"{_span(row['estimate_ratios'])}", flush=True)
+    print(f"worst: wall {max(r['seconds'] for r in rows):.1f} s, peak "
+          f"{max(r['command_peak_mb'] for r in rows):.0f} MB, fit "
+          f"{min(r['gof'] for r in rows):.3f} %, band "
+          f"{min(r['band_share_above_55hz'] for r in rows):.3f}, false resonances "
+          f"{sum(len(r['false_resonances_hz']) for r in rows)}, time-left estimates / actual "
+          f"{_span([x for r in rows for x in r['estimate_ratios']])}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
