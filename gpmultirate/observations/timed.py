@@ -589,6 +589,7 @@ class TimedConvolution(Observation):
         d = self._offsets
         centre = 0.5 * (float(d.min()) + float(d.max()))
         radius = 0.5 * (float(d.max()) - float(d.min()))
+        # |omega (d - c)| <= r max|omega| over every point and frequency bounds the remainder
         n_terms = _phase_terms(radius * float(np.max(np.abs(omegas))))
         if n_terms is None:
             return self._pointwise_spectrum(alpha, spectrum[:, index], omegas, out)
