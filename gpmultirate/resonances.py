@@ -347,7 +347,9 @@ def resonance_scan(observation, y, kernel, noise_level: float, input: int = 0,
         The best gain (nats) over the amplitudes, at least 0; 0 at the
         frequencies the input does not excite (:func:`excitation`).
     sigma : ndarray of shape (n_alphas, n_omegas)
-        The amplitude of the best gain.
+        The amplitude of the best gain.  Readings at their own instants are
+        not scanned at the frequencies the input does not excite (but the
+        first): there the smallest candidate amplitude.
     omegas, alphas : ndarray
         The grid.
 
@@ -412,12 +414,29 @@ def _scan(observation, y, input, whiten, omegas=None, alphas=None, amplitudes=No
         power_u = float(np.mean(Phi**2)) * P or 1.0
         amplitudes = _SCAN_AMPLITUDES * np.sqrt(float(np.mean(y**2)) / power_u)
     s2 = np.asarray(amplitudes, dtype=float) ** 2
-    gain = np.empty((alphas.size, omegas.size))
-    sigma = np.empty_like(gain)
+    # where the input has (almost) no power the data cannot locate a resonance:
+    # a large amplitude there only fits noise, and the response beyond the record
+    if seen is None or input not in seen:
+        seen_here = (excitation(Phi, omegas) if n_fft is None
+                     else _excitation_on_grid(Phi, n_fft, index))
+        if seen is not None:
+            seen[input] = seen_here
+    else:
+        seen_here = seen[input]
+    unseen = seen_here < MIN_EXCITATION
+    gain = np.zeros((alphas.size, omegas.size))
+    sigma = np.full_like(gain, np.sqrt(s2.min()))
+    scanned = np.arange(omegas.size)
+    if timed:
+        # the readings' bases cost O(readings x frequencies) each: formed only where the
+        # gain can be other than 0, and at the first frequency, whose amplitude a scan that
+        # gains nowhere returns
+        scanned = np.flatnonzero(~unseen | (scanned == 0))
     for a, alpha in enumerate(alphas):
         envelope = alpha ** (0.5 * lags)
         if timed:
-            Ac, As = _timed_sinusoids(observation, whiten, input, alpha, omegas, n_fft, index)
+            Ac, As = _timed_sinusoids(observation, whiten, input, alpha, omegas[scanned], n_fft,
+                                      None if index is None else index[scanned])
         elif n_fft is None:
             cos, sin = damped_sinusoids(lags, omegas, envelope)  # PK's basis, per frequency
             Ac, As = white @ cos, white @ sin
@@ -440,18 +459,9 @@ def _scan(observation, y, input, whiten, omegas=None, alphas=None, amplitudes=No
         values = woodbury_gain(s2[None, :, None] * lam[:, None, :],
                                s2[None, :, None] * beta2[:, None, :])  # (omega, amplitude)
         best = np.argmax(values, axis=1)
-        gain[a] = np.maximum(values[np.arange(omegas.size), best], 0.0)
-        sigma[a] = np.sqrt(s2[best])
-    # where the input has (almost) no power the data cannot locate a resonance:
-    # a large amplitude there only fits noise, and the response beyond the record
-    if seen is None or input not in seen:
-        seen_here = (excitation(Phi, omegas) if n_fft is None
-                     else _excitation_on_grid(Phi, n_fft, index))
-        if seen is not None:
-            seen[input] = seen_here
-    else:
-        seen_here = seen[input]
-    gain[:, seen_here < MIN_EXCITATION] = 0.0
+        gain[a, scanned] = np.maximum(values[np.arange(scanned.size), best], 0.0)
+        sigma[a, scanned] = np.sqrt(s2[best])
+    gain[:, unseen] = 0.0
     return gain, sigma, omegas, alphas
 
 

@@ -529,6 +529,128 @@ def test_resonance_scan_of_given_frequencies_between_the_ticks():
     assert np.max(grid[0]) > 0.0
 
 
+def _damped_exponentials(alpha, omegas):
+    """``alpha^(x/2) cos(omega x)`` and ``alpha^(x/2) sin(omega x)`` at the real lags ``x``."""
+    return lambda x: np.hstack([alpha ** (x[:, None] / 2) * np.cos(np.outer(x, omegas)),
+                                alpha ** (x[:, None] / 2) * np.sin(np.outer(x, omegas))])
+
+
+@pytest.mark.parametrize("exposure, latency, seed", [
+    (0.0, 0.0, 21), (0.0, 0.4, 22), (0.5, 0.3, 23), (2.0, 0.0, 24), (2.6, 0.7, 25)])
+def test_damped_spectrum_is_the_readings_of_the_damped_exponentials(exposure, latency, seed):
+    # the phases of the points as a series per (reading, tick): to rounding, at every
+    # frequency up to pi, for slow and fast decays
+    order, n_fft = 40, 40
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal((160, 2))
+    stamps = np.sort(rng.choice(np.arange(5, 157), 40, replace=False) + rng.uniform(0, 1, 40))
+    timed = gm.TimedConvolution(u, stamps, order=order, exposure=exposure, latency=latency)
+    index = np.arange(1, n_fft + 1)
+    omegas = np.pi * index / n_fft
+    for alpha in (1.0 - 1e-9, 0.99, np.exp(-2.0 * 60.0 / order), 0.05):
+        spectrum = timed.damped_spectrum(alpha, n_fft, index, input=1)
+        basis = timed.lag_functionals(_damped_exponentials(alpha, omegas), input=1)
+        scale = np.abs(basis).max()
+        np.testing.assert_allclose(spectrum.real, basis[:, :n_fft], rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(-spectrum.imag, basis[:, n_fft:], rtol=0, atol=1e-12 * scale)
+    # a subset of the grid is those columns of the whole
+    chosen = index[::3]
+    np.testing.assert_allclose(timed.damped_spectrum(0.9, n_fft, chosen),
+                               timed.damped_spectrum(0.9, n_fft, index)[:, ::3],
+                               rtol=1e-13, atol=1e-13 * scale)
+
+
+def test_damped_spectrum_of_stacked_records_against_the_readings_point_by_point():
+    # an independent sum over the quadrature points of every window, record by record
+    rng = np.random.default_rng(26)
+    records, expected = [], []
+    alpha, n_fft, index = 0.93, 8, np.array([1, 3, 4, 8])
+    omegas = np.pi * index / n_fft
+    f = _damped_exponentials(alpha, omegas)
+    for n in (40, 33):
+        u = rng.standard_normal(n)
+        stamps = np.arange(3, n - 2, F) + rng.uniform(0.0, 1.0, (n - 5 + F - 1) // F)
+        records.append(gm.TimedConvolution(u, stamps, order=P, exposure=1.4, latency=0.2))
+        expected.append(_brute_force_readings(f, u, stamps, 1.4, 0.2))
+    stacked = gm.TimedConvolution.stack(records)
+    spectrum = stacked.damped_spectrum(alpha, n_fft, index)
+    expected = np.vstack(expected)
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(spectrum.real, expected[:, :4], rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(-spectrum.imag, expected[:, 4:], rtol=0, atol=1e-12 * scale)
+
+
+def test_damped_spectrum_beyond_the_series_reach_takes_the_phases_point_by_point(monkeypatch):
+    from gpmultirate.observations import timed as timed_module
+
+    u, _, stamps = _record(27)
+    timed = gm.TimedConvolution(u, stamps, order=P, exposure=0.8)
+    index = np.arange(1, 9)
+    series = timed.damped_spectrum(0.8, 8, index)
+    monkeypatch.setattr(timed_module, "_SERIES_REACH", 0.0)
+    assert timed_module._phase_terms(0.1) is None
+    pointwise = timed.damped_spectrum(0.8, 8, index)
+    basis = timed.lag_functionals(_damped_exponentials(0.8, np.pi * index / 8))
+    np.testing.assert_allclose(pointwise.real, basis[:, :8], rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(series, pointwise, rtol=1e-12, atol=1e-13)
+
+
+def test_phase_series_terms_reach_rounding():
+    from math import factorial
+
+    from gpmultirate.observations.timed import _phase_terms
+
+    assert _phase_terms(0.0) == 1 and _phase_terms(3.5) is None
+    for reach in (0.3, np.pi / 2, 3.0):
+        n = _phase_terms(reach)
+        theta = np.linspace(-reach, reach, 41)
+        series = sum((-1j * theta) ** q / factorial(q) for q in range(n))
+        assert np.max(np.abs(series - np.exp(-1j * theta))) < 1e-15  # rounding, e^reach ulps
+        shorter = sum((-1j * theta) ** q / factorial(q) for q in range(n - 2))
+        assert np.max(np.abs(shorter - np.exp(-1j * theta))) > 2e-16  # not more than needed
+
+
+def test_resonance_scan_between_the_ticks_skips_only_frequencies_the_input_does_not_excite():
+    from scipy import signal
+
+    from gpmultirate.observations import SampledConvolution
+    from gpmultirate.resonances import MIN_EXCITATION, _scan, resonance_scan
+    from gpmultirate.covariance import DenseCovariance
+    from gpmultirate.noise import WhiteNoise
+
+    rng = np.random.default_rng(28)
+    n, order = 150, 24
+    # high-passed: the first frequency of the grid is not excited either
+    u = signal.lfilter(*signal.butter(6, 0.5, "high"), rng.standard_normal(n))
+    g = 0.9 ** np.arange(order) * np.sin(2.3 * np.arange(order))
+    ticks = np.arange(2, n - 1, F)
+    y = np.convolve(u, g)[:n][ticks] + 1e-3 * rng.standard_normal(ticks.shape[0])
+    kernel = C(1.0) * DC(0.8, 0.5)
+    # on the ticks: the scan of the fast samples, which forms every frequency
+    timed = gm.TimedConvolution(u, ticks.astype(float), order=order)
+    a = resonance_scan(timed, y, kernel, 1e-3)
+    b = resonance_scan(SampledConvolution(u, ticks, order=order), y, kernel, 1e-3)
+    skipped = np.all(b[0] == 0.0, axis=0)
+    assert 0.3 < skipped.mean() < 0.9 and np.max(b[0]) > 1.0
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-8, atol=1e-8)
+    kept = ~skipped
+    kept[0] = True
+    np.testing.assert_allclose(a[1][:, kept], b[1][:, kept], rtol=1e-8)
+    # off the ticks with exposure: the same gains as a scan told every frequency is excited
+    between = gm.TimedConvolution(u, ticks + rng.uniform(0.0, 1.0, ticks.shape[0]),
+                                  order=order, exposure=1.5)
+    whiten = DenseCovariance.of(kernel, between, WhiteNoise(1e-3)).whiten
+    seen = {}
+    gain, sigma, omegas, _ = _scan(between, y, 0, whiten, seen=seen)
+    unseen = seen[0] < MIN_EXCITATION
+    assert 0.1 < unseen.mean() < 0.9 and unseen[0]
+    every, every_sigma, _, _ = _scan(between, y, 0, whiten, seen={0: np.ones(omegas.size)})
+    every[:, unseen] = 0.0
+    np.testing.assert_allclose(gain, every, rtol=1e-12, atol=1e-12 * np.max(every))
+    np.testing.assert_array_equal(sigma[:, ~unseen], every_sigma[:, ~unseen])
+    np.testing.assert_array_equal(sigma[:, 0], every_sigma[:, 0])
+
+
 def test_readings_of_damped_sinusoids_by_their_separable_form():
     u2, _, stamps = _record(17, n_inputs=2)
     timed = gm.TimedConvolution(u2, stamps, order=P, exposure=0.7, latency=0.3)

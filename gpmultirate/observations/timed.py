@@ -191,6 +191,28 @@ def _window_points(times, exposure: float, latency: float, nodes: int):
     return np.concatenate(readings), np.concatenate(instants), np.concatenate(weights)
 
 
+# the largest |omega (d - c)| for which the phases of damped_spectrum are a power series: its
+# terms sum to at most e^reach in size, so rounding stays within e^3 (20) units of the last place
+_SERIES_REACH = 3.0
+
+
+def _phase_terms(reach: float):
+    """Terms of the series of ``exp(-i theta)``, ``|theta| <= reach``, to below rounding.
+
+    The remainder after ``n`` terms is at most ``reach^n / n!`` (Taylor's,
+    ``theta`` real); the series stops where that falls below ``2^-56``.
+    None beyond :data:`_SERIES_REACH`.  Offsets in ``[0, 1)`` and ``omega
+    <= pi`` give ``reach <= pi / 2``: 22 terms.
+    """
+    if not np.isfinite(reach) or reach > _SERIES_REACH:
+        return None
+    n, bound = 1, reach
+    while bound > 2.0 ** -56:
+        n += 1
+        bound *= reach / n
+    return n
+
+
 class TimedConvolution(Observation):
     """The readings of a slow sensor at its own instants, with exposure and latency.
 
@@ -523,7 +545,12 @@ class TimedConvolution(Observation):
         As :meth:`lag_functionals` of the damped complex exponentials (real
         part: PK's cosine basis; minus the imaginary part: its sine basis),
         from one real FFT of length ``2 n_fft`` of the damped regressor rows
-        and a phase per point.
+        and a phase per point.  At ``x = j + d`` the function is its value
+        at the integer lag ``j`` times ``alpha^(d/2) exp(-i omega d)``; the
+        phase ``exp(-i omega (d - c))`` about the offsets' centre ``c`` is a
+        short power series in ``d - c``, so the points of a reading on one
+        tick are summed once into the series' moments and the frequencies
+        meet the ``(reading, tick)`` pairs, not every quadrature point.
 
         Parameters
         ----------
@@ -550,14 +577,54 @@ class TimedConvolution(Observation):
         True
         """
         input = check_int(input, "input", low=0, high=self.n_inputs - 1)
-        index = np.asarray(index, dtype=np.int64)
+        index = np.asarray(index, dtype=np.int64).reshape(-1)
         P = self.order
+        out = np.zeros((self.n_outputs, index.shape[0]), dtype=complex)
+        if index.size == 0 or self.n_points == 0:
+            return out
         rows = self.unique_rows()[:, input * P:(input + 1) * P]
         envelope = alpha ** (0.5 * np.arange(P))
-        spectrum = np.fft.rfft(rows * envelope, n=2 * n_fft, axis=1)[:, index]
+        spectrum = np.fft.rfft(rows * envelope, n=2 * n_fft, axis=1)
         omegas = np.pi * index / n_fft
-        out = np.zeros((self.n_outputs, index.shape[0]), dtype=complex)
-        step = max(1, BLOCK_ENTRIES // (4 * max(index.shape[0], 1)))
+        d = self._offsets
+        centre = 0.5 * (float(d.min()) + float(d.max()))
+        radius = 0.5 * (float(d.max()) - float(d.min()))
+        # |omega (d - c)| <= r max|omega| over every point and frequency bounds the remainder
+        n_terms = _phase_terms(radius * float(np.max(np.abs(omegas))))
+        if n_terms is None:
+            return self._pointwise_spectrum(alpha, spectrum[:, index], omegas, out)
+        # the moments of each (reading, tick) pair: sum of w alpha^(d/2) ((d - c) / r)^q
+        n_rows = int(self._row_id.max()) + 1
+        pairs, pair_of = np.unique(self._reading * n_rows + self._row_id, return_inverse=True)
+        pair_of = pair_of.reshape(-1)
+        scaled = (d - centre) / radius if radius > 0.0 else np.zeros_like(d)
+        term = self._weights * alpha ** (0.5 * d)
+        moments = np.empty((pairs.shape[0], n_terms))
+        for q in range(n_terms):
+            moments[:, q] = np.bincount(pair_of, weights=term, minlength=pairs.shape[0])
+            term = term * scaled
+        # exp(-i omega (d - c)) = sum_q (-i omega r)^q / q! ((d - c) / r)^q
+        series = np.empty((n_terms, omegas.shape[0]), dtype=complex)
+        series[0] = np.exp(-1j * omegas * centre)
+        for q in range(1, n_terms):
+            series[q] = series[q - 1] * (-1j * omegas * radius / q)
+        pair_rows = pairs % n_rows
+        to_readings = sparse.csr_matrix(
+            (np.ones(pairs.shape[0]), (pairs // n_rows, np.arange(pairs.shape[0]))),
+            shape=(self.n_outputs, pairs.shape[0]),
+        )
+        step = max(1, BLOCK_ENTRIES // (4 * pairs.shape[0]))
+        for start in range(0, index.shape[0], step):
+            block = slice(start, min(start + step, index.shape[0]))
+            phase = moments @ series[:, block].real + 1j * (moments @ series[:, block].imag)
+            # the bins of the block gathered once, for the pairs' rows
+            bins = spectrum[np.ix_(pair_rows, index[block])]
+            out[:, block] = to_readings @ (bins * phase)
+        return out
+
+    def _pointwise_spectrum(self, alpha, spectrum, omegas, out):
+        """:meth:`damped_spectrum` with the phase of every point formed (offsets spread wide)."""
+        step = max(1, BLOCK_ENTRIES // (4 * max(omegas.shape[0], 1)))
         for start in range(0, self.n_points, step):
             stop = min(start + step, self.n_points)
             d = self._offsets[start:stop, None]
