@@ -29,6 +29,9 @@ KERNELS = {
     "TC": TC(alpha=0.7),
     "SS": C(3.0) * SS(alpha=0.8),
     "PK": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6),
+    # with the spread of kernel="auto"'s kept terms: rank four, the lag-weighted basis too
+    "PK-spread": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6, omega_std=0.05,
+                    rate_std=0.02),
     "sum": C(1.0) * DC(alpha=0.7, beta=0.4) + PK(alpha=0.85, omega=0.9),
     "RBF": C(0.5) * RBF(length_scale=1.5),
 }
@@ -264,7 +267,7 @@ def test_records_stack_shares_the_response():
 def test_structured_exposure_is_exact_at_any_node_count():
     # the kink of TC/DC/SS is integrated exactly: 8 and 16 nodes agree to rounding
     u = _input()
-    for name in ("DC", "DC-negative", "TC", "SS", "PK"):
+    for name in ("DC", "DC-negative", "TC", "SS", "PK", "PK-spread"):
         found = []
         for nodes in (8, 16):
             op = TimedConvolution(u, TIMES, order=P, exposure=0.8, latency=0.2, nodes=nodes)
@@ -762,7 +765,7 @@ def test_the_bridge_derivatives_and_contraction_against_psi_written_out(kernel):
                                atol=1e-11 * np.abs(expected).max())
 
 
-@pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "sum",
+@pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "PK-spread", "sum",
                                   pytest.param("RBF", marks=pytest.mark.slow),  # dense: 45 s
                                   "per input", "constant"])
 def test_covariance_blocks_are_the_joint_covariances_blocks(name):

@@ -32,7 +32,6 @@ formed is the observation's business.
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
 
 from gpmultirate.kernels.structure import ConstantTerm, ObservedTerm
 
@@ -122,24 +121,24 @@ class ConstantTimedTerm(_TimedTerm):
 
 
 class PKTimedTerm(_TimedTerm):
-    """PK through timed readings: ``S = U D U^T``, ``U`` the readings of its rank-two basis."""
+    """PK through timed readings: ``S = U D U^T``, ``U`` the readings of its low-rank basis.
+
+    The basis ``alpha^(x/2) cos(omega x)``, ``alpha^(x/2) sin(omega x)`` (and,
+    with PK's spread, ``x`` times each) read through the readings' separable
+    form (:meth:`~gpmultirate.observations.TimedConvolution.damped_sinusoids`,
+    ``O(R P)`` for the ``R`` distinct regressor rows, not the quadrature
+    points times ``P``); complex hyperparameter values (the complex step of
+    the derivatives) pass through it.
+    """
 
     def _build(self, values):
-        obs = self.observation
-        P = obs.order
-        alpha, omega = values["alpha"], values["omega"]
-        rows = obs.point_rows()
-        lags = np.arange(P)[None, :] + obs.point_offsets[:, None]
-        envelope = alpha ** (lags / 2.0)
-        cos_part = np.einsum("ij,ij->i", rows, envelope * np.cos(omega * lags))
-        sin_part = np.einsum("ij,ij->i", rows, envelope * np.sin(omega * lags))
-        Q = sparse.csr_matrix(
-            (obs.point_weights, (obs.point_readings, np.arange(obs.n_points))),
-            shape=(obs.n_outputs, obs.n_points),
-        )
-        U = np.column_stack([Q @ cos_part, Q @ sin_part])
-        D = np.diag([values["sigma1"] ** 2, values["sigma2"] ** 2])
-        return (U @ D) @ U.T
+        spread = any(self.kernel.spread())
+        rate = -0.5 * np.log(values["alpha"])
+        U = self.observation.damped_sinusoids(rate, values["omega"], with_lag=spread)
+        weights = [values["sigma1"] ** 2, values["sigma2"] ** 2]
+        if spread:
+            weights.extend(self.kernel._spread_weights(values))
+        return (U * np.array(weights)) @ U.T
 
 
 class DenseTimedTerm(_TimedTerm):

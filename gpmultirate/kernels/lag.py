@@ -991,8 +991,8 @@ class PK(LagKernel):
         )
 
     def observed_at_instants(self, observation, path=""):
-        """Readings at their own instants by the rank-two basis at the real lags (one input)."""
-        if observation.n_inputs != 1 or any(self.spread()):
+        """Readings at their own instants by the low-rank basis at the real lags (one input)."""
+        if observation.n_inputs != 1:
             return observation.dense_term(self, path)
         return PKTimedTerm(self, observation, path)
 
