@@ -659,14 +659,14 @@ def test_time_parameters_beyond_the_record_are_refused_at_once(params, name):
 
     u, y_slow, times = _record()
     tracemalloc.start()
-    started = time.perf_counter()
+    started = time.process_time()  # CPU seconds: a busy machine does not slow a refusal
     try:
         with pytest.raises(ValueError, match=f"^{name} must"):
             gm.FIRGaussianProcess(order=20, **params).fit(u, y_slow, sample_times=times)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert time.perf_counter() - started < 2.0 and peak < 20e6
+    assert time.process_time() - started < 2.0 and peak < 20e6
     # the readings of a prediction are checked against its record too
     with pytest.raises(ValueError, match=f"^{name} must"):
         TimedConvolution(u, times, 20, exposure=params.get("exposure", 0.0),
