@@ -185,7 +185,7 @@ def test_the_posterior_covariance_is_kept_for_its_posterior_only(long_model):
     first = prediction._covariance(posterior)
     assert prediction._covariance(posterior) is first
     np.testing.assert_array_equal(first, posterior.covariance())
-    other = gm.FIRGaussianProcess(order=150, factor=3).fit(u, np.convolve(u, 0.5 ** np.arange(9))[
-        :900:3])
+    other = gm.FIRGaussianProcess(order=150, factor=3, noise_kernel="white").fit(
+        u, np.convolve(u, 0.5 ** np.arange(9))[:900:3])  # another posterior (no disturbance check)
     assert prediction._covariance(gm.prediction.units.split(other.posterior_)[0]) is not first
     assert len(prediction._COVARIANCES) == 1

@@ -211,6 +211,7 @@ def test_benchmark_evaluate_reports_least_squares_not_identifiable(bench):
     assert np.isnan(row["fit_percent"]) and np.isnan(row["gof"])
 
 
+@pytest.mark.slow  # three fits of a two-input model: 2.6 s
 def test_benchmark_evaluate_gaussian_process_on_a_slice(bench):
     data = load_cd_player_arm()
     u, y = data.u[:240], data.y[:240, 1]

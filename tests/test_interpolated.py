@@ -237,15 +237,16 @@ def test_interpolation_error_on_the_paper_system_is_below_the_noise():
 
 @pytest.mark.slow
 def test_interpolated_route_against_the_exact_one():
-    """N = 3000, P = 300, F = 3 (1000 frames at their own instants), 45 dB, tuned by the evidence.
+    """N = 1500, P = 300, F = 3 (500 frames at their own instants), 45 dB, tuned by the evidence.
 
-    Measured: validation GoF 99.72 % exact, 99.78 % interpolated; the two
-    posterior means of the validation output differ by 4.9 noise standard
-    deviations (rms), less than either differs from the truth (9.5 and 8.4;
-    the order cuts the response at 7.5).
+    Measured: validation GoF 99.68 % exact, 99.72 % interpolated; the two
+    posterior means of the validation output differ by 3.9 noise standard
+    deviations (rms), less than either differs from the truth (10.1 and 9.5;
+    the order cuts the response at 7.5); seeds 1 and 2: 4.0 and 4.4 against
+    8.7 and 10.1.  (N = 3000: 4.9 against 8.4, at four times the cost.)
     """
     rng = np.random.default_rng(0)
-    N, P = 3000, 300
+    N, P = 1500, 300
     u = simulation.multisine(N, random_state=rng)
     u_val = simulation.multisine(N, random_state=rng)
     times = np.arange(0, N, 3) + rng.uniform(0, 1, N // 3)
@@ -265,7 +266,10 @@ def test_interpolated_route_against_the_exact_one():
     difference = np.sqrt(np.mean((means["interpolated"] - means["exact"]) ** 2)) / noise_std
     errors = {route: np.sqrt(np.mean((mean - truth) ** 2)) / noise_std
               for route, mean in means.items()}
-    assert difference < 8.0
+    # linear interpolation (points=2) moves the interpolated mean 7.2 from the exact one
+    # (seed 1: 6.4), the cubic 4.5 (its error, 1.4 noise std per reading, is below what
+    # the tuning moves)
+    assert difference < 5.5
     assert difference < min(errors.values())
 
 

@@ -67,6 +67,7 @@ def two_modes():
     return _fit(0)
 
 
+@pytest.mark.slow  # the fit of the two modes: 7 s of CPU
 def test_two_modes_found_with_intervals_and_both_peaks_supported(two_modes):
     analysis = modal_analysis(two_modes, 4, n_draws=40)
     resonant = [m for m in analysis.modes if m.resonant]
@@ -88,13 +89,19 @@ def test_two_modes_found_with_intervals_and_both_peaks_supported(two_modes):
         assert "a higher n_states keeps them" in two.text
 
 
-def test_arguments_are_checked(two_modes):
+def test_arguments_are_checked():
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(120)
+    y = np.convolve(u, 0.8 ** np.arange(20))[:120:2] + 0.01 * rng.standard_normal(60)
+    model = gm.FIRGaussianProcess(order=20, factor=2, sample_time=0.01, optimizer=None,
+                                  noise_level=1e-4, noise_kernel="white").fit(u, y)
     with pytest.raises(ValueError, match="n_draws"):
-        modal_analysis(two_modes, n_draws=0)
+        modal_analysis(model, n_draws=0)
     with pytest.raises(ValueError, match="level"):
-        modal_analysis(two_modes, level=1.5)
+        modal_analysis(model, level=1.5)
 
 
+@pytest.mark.slow  # the fit of the two modes: 7 s of CPU
 def test_the_intervals_are_those_of_the_reduced_posterior_draws(two_modes):
     analysis = modal_analysis(two_modes, 4, n_draws=30, random_state=3)
     systems = two_modes.sample_state_spaces(4, n_samples=30, random_state=3)

@@ -2,6 +2,7 @@
 
 import io
 import time
+import types
 
 import numpy as np
 import pytest
@@ -97,18 +98,25 @@ def test_steps_add_up_and_nothing_is_timed_without_active_steps():
 
 
 @pytest.mark.slow
-def test_the_time_left_of_a_fit_is_within_a_factor_two_of_its_measured_time():
+def test_the_time_left_of_a_fit_is_within_a_factor_two_of_its_measured_time(monkeypatch):
     """End to end: the estimate after a few evaluations of a second fit against its rest.
 
     The first fit sets the expected number of evaluations (as the default
     order's pilot fits do for the fit at the chosen order); the second one
-    is timed and estimated from its own measured evaluations.
+    is timed and estimated from its own measured evaluations (the process's
+    clock starts without the runs of earlier tests).  The clock and
+    the test count this process's CPU seconds (one BLAS thread, conftest.py):
+    on a machine busy with other work the wall time of the same evaluations
+    varies by more than the factor two asked here.
     """
+    monkeypatch.setattr(progress, "time", types.SimpleNamespace(perf_counter=time.process_time))
     rng = np.random.default_rng(2)
     u = rng.standard_normal(6000)
     g = 0.995 ** np.arange(600) * np.sin(0.08 * np.arange(600))
     y = np.convolve(u, g)[:6000] + 0.05 * rng.standard_normal(6000)
     clock = progress.EVALUATIONS
+    # the runs of earlier tests in this process would set the expected count otherwise
+    monkeypatch.setattr(clock, "runs", [])
     model = gm.FIRGaussianProcess(order=600, factor=10, noise_kernel="white")
     model.fit(u, y[::10])
     marks = {}
@@ -119,7 +127,7 @@ def test_the_time_left_of_a_fit_is_within_a_factor_two_of_its_measured_time():
 
         def wrapped(*args, **kwargs):
             out = inner(*args, **kwargs)
-            marks["end"] = time.perf_counter()  # of the run's last evaluation, at the end
+            marks["end"] = time.process_time()  # of the run's last evaluation, at the end
             if len(clock.seconds) == 4 and "estimate" not in marks:
                 marks["estimate"] = time_left(clock.seconds, clock.expected())
                 marks["at"] = marks["end"]

@@ -312,16 +312,16 @@ def test_paper_system_quick():
 
 
 @pytest.mark.slow
-def test_targets_on_paper_and_random_two_mass_systems():
-    """Mean GoF of auto within 0.05 of PK at the true frequencies and above DC."""
-    for systems in (
-        [sim.paper_system(T, perturbation=0.1, random_state=s) for s in range(5)],
-        [random_two_mass(np.random.default_rng(100 + s)) for s in range(5)],
-    ):
-        scores = [_gofs(system, 600, seed)[0] for seed, system in enumerate(systems)]
-        mean = {k: np.mean([s[k] for s in scores]) for k in ("DC", "PK", "auto")}
-        assert mean["auto"] >= mean["PK"] - 0.05, mean
-        assert mean["auto"] > mean["DC"], mean
+def test_targets_on_paper_systems():
+    """Mean GoF of auto within 0.05 of PK at the true frequencies and above DC.
+
+    (The same targets on random two-mass systems: the next test, which asks more.)
+    """
+    systems = [sim.paper_system(T, perturbation=0.1, random_state=s) for s in range(5)]
+    scores = [_gofs(system, 600, seed)[0] for seed, system in enumerate(systems)]
+    mean = {k: np.mean([s[k] for s in scores]) for k in ("DC", "PK", "auto")}
+    assert mean["auto"] >= mean["PK"] - 0.05, mean
+    assert mean["auto"] > mean["DC"], mean
 
 
 @pytest.mark.slow
@@ -331,16 +331,18 @@ def test_random_two_mass_systems_fit_as_well_as_their_true_modes():
     # may be kept as a broad term where its damping is poorly pinned (seeds 200, 202:
     # 3.36 Hz at damping 0.21 for 3.22 Hz at 0.03, 99.9996 % against 99.99999 %)
     # (issue targets: within 0.05 points of it on average, never 0.5 below)
-    gaps = []
+    gaps, over_dc = [], []
     for seed in range(4):
         system = random_two_mass(np.random.default_rng(200 + seed))
         gofs, model = _gofs(system, 600, seed)
         gaps.append(gofs["PK"] - gofs["auto"])
-        assert gaps[-1] < 0.5 and gofs["auto"] >= gofs["DC"] - 1e-6, (seed, gofs)
+        over_dc.append(gofs["auto"] - gofs["DC"])
+        assert gaps[-1] < 0.5 and over_dc[-1] >= -1e-6, (seed, gofs)
         found = [r.frequency_hz for r in model.resonances_]
         low = min(system.natural_frequencies)
         assert any(abs(f - low) < 0.03 * low for f in found), (seed, found)
     assert np.mean(gaps) < 0.05, gaps
+    assert np.mean(over_dc) > 0.0, over_dc
 
 
 def test_excitation_is_the_input_power_the_slow_samples_see():

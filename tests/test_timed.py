@@ -134,8 +134,8 @@ def _dense_reference(kernel, u, times, exposure=0.0, latency=0.0, n=48, at=None,
     M = len(funcs)
     S = np.empty((M, M))
     for a in range(M):
-        for b in range(M):
-            S[a, b] = _pair(kernel, (*funcs[a], True), (*funcs[b], True), order)
+        for b in range(a, M):  # a covariance: the other triangle by symmetry
+            S[a, b] = S[b, a] = _pair(kernel, (*funcs[a], True), (*funcs[b], True), order)
     if at is None:
         return S
     cross = np.array([[_pair(kernel, (np.array([x]), np.ones(1), False), (*f, True))
@@ -596,11 +596,11 @@ def test_order_too_short_is_named_at_own_instants():
     # mean of the readings (predict at their instants), S_y formed densely here
     from gpmultirate.kernels.instants import DenseTimedTerm
 
-    u, y, t = u[:300], y[:100], t[:100]
+    u, y, t = u[:180], y[:60], t[:60]  # still more readings than coefficients
     model = gm.FIRGaussianProcess(DC(0.9, 0.8), optimizer=None, noise_level=0.01,
                                   order=40, between_ticks="exact").fit(u, y, sample_times=t)
     S = _dense_reference(model.kernel_, u, t, order=40)
-    fitted = y - 0.01 * np.linalg.solve(S + 0.01 * np.eye(100), y)
+    fitted = y - 0.01 * np.linalg.solve(S + 0.01 * np.eye(60), y)
     mean = model.predict(u, sample_times=t)
     assert np.allclose(fitted, mean, rtol=1e-7, atol=1e-9 * np.abs(mean).max())
 
@@ -662,14 +662,14 @@ def test_time_parameters_beyond_the_record_are_refused_at_once(params, name):
 
     u, y_slow, times = _record()
     tracemalloc.start()
-    started = time.perf_counter()
+    started = time.process_time()  # CPU seconds: a busy machine does not slow a refusal
     try:
         with pytest.raises(ValueError, match=f"^{name} must"):
             gm.FIRGaussianProcess(order=20, **params).fit(u, y_slow, sample_times=times)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert time.perf_counter() - started < 2.0 and peak < 20e6
+    assert time.process_time() - started < 2.0 and peak < 20e6
     # the readings of a prediction are checked against its record too
     with pytest.raises(ValueError, match=f"^{name} must"):
         TimedConvolution(u, times, 20, exposure=params.get("exposure", 0.0),
@@ -766,7 +766,7 @@ def test_the_bridge_derivatives_and_contraction_against_psi_written_out(kernel):
 
 
 @pytest.mark.parametrize("name", ["DC", "DC-negative", "TC", "SS", "PK", "PK-spread", "sum",
-                                  pytest.param("RBF", marks=pytest.mark.slow),  # dense: 45 s
+                                  pytest.param("RBF", marks=pytest.mark.slow),  # dense: 5 s
                                   "per input", "constant"])
 def test_covariance_blocks_are_the_joint_covariances_blocks(name):
     """The readings' covariance with the data they are stacked after, and their variances,
@@ -777,9 +777,12 @@ def test_covariance_blocks_are_the_joint_covariances_blocks(name):
     rng = np.random.default_rng(11)
     inputs = 2 if name == "per input" else 1
     u = rng.standard_normal((120, inputs)) if inputs > 1 else rng.standard_normal(120)
-    data = TimedConvolution(u, np.arange(15, 119, 3) + rng.uniform(0, 1, 35), 40,
-                            exposure=0.7, latency=0.2)
-    new = TimedConvolution(u, np.sort(rng.uniform(10, 119, 9)), 40, exposure=0.7, latency=0.2)
+    times = np.arange(15, 119, 3) + rng.uniform(0, 1, 35)
+    new_times = np.sort(rng.uniform(10, 119, 9))
+    if name == "RBF":  # the dense route, a double integral per pair of readings: fewer of them
+        times, new_times = times[::3], new_times[::2]
+    data = TimedConvolution(u, times, 40, exposure=0.7, latency=0.2)
+    new = TimedConvolution(u, new_times, 40, exposure=0.7, latency=0.2)
     joint = TimedConvolution.stack([data, new])
     kernel = {"per input": PerInputKernel([C(1.5) * DC(0.9, 0.6), TC(0.85)]),
               "constant": C(0.3)}.get(name, KERNELS.get(name))
