@@ -158,6 +158,24 @@ def test_covariance_matches_dense_sums_without_exposure(name):
     assert np.allclose(S, reference, rtol=1e-6, atol=1e-9 * np.abs(reference).max())
 
 
+@pytest.mark.parametrize("name", ["PK", "PK-spread", "constant"])
+@pytest.mark.parametrize("exposure", [0.0, 0.7])
+def test_low_rank_cross_covariance_is_the_dense_one(name, exposure):
+    # Cov(g(lags), y) of PK (with and without its spread) and a constant from their
+    # readings' basis, against the kernel at the real lags of every point
+    kernel = C(0.7) if name == "constant" else KERNELS[name]
+    op = TimedConvolution(_input(), TIMES, order=P, exposure=exposure, latency=0.3)
+    lags = np.array([[0.0], [0.3], [2.5], [5.75], [6.0]])
+    found = observe(kernel, op).cross_covariance(lags)
+    expected = op.dense_cross_covariance(kernel, lags)
+    assert found.shape == expected.shape == (5, TIMES.shape[0])
+    np.testing.assert_allclose(found, expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
+    # the regressor times the kernel on the integer lags: the same at lags 0..P-1
+    np.testing.assert_allclose(observe(kernel, op).regressor_times_kernel(),
+                               op.dense_cross_covariance(kernel, op.lags).T, rtol=1e-10,
+                               atol=1e-12 * np.abs(expected).max())
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(KERNELS))
 def test_covariance_matches_fine_quadrature_with_exposure(name):

@@ -113,6 +113,12 @@ class ConstantTimedTerm(_TimedTerm):
         D = np.array([[values["constant_value"]]])
         return (U @ D) @ U.T
 
+    def cross_covariance(self, lags):
+        """``Cov(g(lags), y) = c 1 U^T``: the constant at every lag with the readings of 1."""
+        U = self.observation.weighted_rows().sum(axis=1)
+        n = np.asarray(lags).shape[0]
+        return np.outer(np.full(n, self._values()["constant_value"]), U)
+
     def roles(self):
         return ConstantTerm(self.kernel, None, self.path).roles()
 
@@ -131,14 +137,28 @@ class PKTimedTerm(_TimedTerm):
     the derivatives) pass through it.
     """
 
-    def _build(self, values):
+    def _readings(self, values):
+        """``(U, d)``: the readings of the basis, ``(M, r)``, and ``D``'s diagonal."""
         spread = any(self.kernel.spread())
         rate = -0.5 * np.log(values["alpha"])
         U = self.observation.damped_sinusoids(rate, values["omega"], with_lag=spread)
         weights = [values["sigma1"] ** 2, values["sigma2"] ** 2]
         if spread:
             weights.extend(self.kernel._spread_weights(values))
-        return (U * np.array(weights)) @ U.T
+        return U, np.array(weights)
+
+    def _build(self, values):
+        U, d = self._readings(values)
+        return (U * d) @ U.T
+
+    def cross_covariance(self, lags):
+        """``Cov(g(lags), y) = V(lags) D U^T``, ``V`` the basis at ``lags`` (first column)."""
+        U, d = self._readings(self._values())
+        t = np.asarray(lags, dtype=float)
+        t = t[:, 0] if t.ndim == 2 else t
+        c, s = self.kernel.basis(t)
+        V = [c, s, t * c, t * s][:d.shape[0]]
+        return (np.column_stack(V) * d) @ U.T
 
 
 class DenseTimedTerm(_TimedTerm):
