@@ -595,9 +595,8 @@ def _promises_more(result) -> bool:
     20 s log with exposure stopped short (5,543.0 nats, against 5,956.7 from
     there) it promised 1.6e10, with gradient entries up to 1,738.
     """
-    message = result.message.decode() if isinstance(result.message, bytes) else str(
-        result.message)
-    relative = "REL" in message.upper() and "REDUCTION" in message.upper()
+    message = _message(result).upper()
+    relative = "REL" in message and "REDUCTION" in message
     if not relative or not np.isfinite(result.fun):
         return False
     g = np.where(result.free, np.asarray(result.jac, dtype=float), 0.0)
@@ -660,12 +659,16 @@ def _free_directions(z, gradient, z_bounds) -> np.ndarray:
     return ~(at_lower | at_upper)
 
 
+def _message(result) -> str:
+    """The optimizer's stop message as text (older scipy gives bytes)."""
+    message = result.message
+    return message.decode() if isinstance(message, bytes) else str(message)
+
+
 def warn_if_not_converged(result) -> None:
     """Emit a ConvergenceWarning for an L-BFGS-B run that did not converge."""
     if not result.success:
-        message = result.message
-        if isinstance(message, bytes):
-            message = message.decode()
+        message = _message(result)
         warnings.warn(
             "the marginal-likelihood optimizer did not converge "
             f"({message}, {result.nit} iterations); the hyperparameters may not be "

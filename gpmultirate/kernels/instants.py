@@ -108,16 +108,20 @@ class _TimedTerm(ObservedTerm):
 class ConstantTimedTerm(_TimedTerm):
     """A constant through timed readings: ``S = c U U^T``, ``U`` the readings of the constant 1."""
 
+    def _readings_of_one(self) -> np.ndarray:
+        """``U``, ``(M,)``: the readings of the constant response 1 (every input's rows summed)."""
+        obs = self.observation
+        return np.asarray(obs.gather() @ obs.unique_rows().sum(axis=1))
+
     def _build(self, values):
-        U = self.observation.weighted_rows().sum(axis=1, keepdims=True)
+        U = self._readings_of_one()[:, None]
         D = np.array([[values["constant_value"]]])
         return (U @ D) @ U.T
 
     def cross_covariance(self, lags):
         """``Cov(g(lags), y) = c 1 U^T``: the constant at every lag with the readings of 1."""
-        U = self.observation.weighted_rows().sum(axis=1)
         n = np.asarray(lags).shape[0]
-        return np.outer(np.full(n, self._values()["constant_value"]), U)
+        return np.outer(np.full(n, self._values()["constant_value"]), self._readings_of_one())
 
     def roles(self):
         return ConstantTerm(self.kernel, None, self.path).roles()
