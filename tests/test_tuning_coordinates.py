@@ -237,8 +237,31 @@ def test_a_converged_run_is_not_started_again():
     counted, calls = _counted(_rosenbrock)
     result = tuning.minimize_lbfgs(counted, np.array([-1.2, 1.0]), bounds)
     plain = tuning._lbfgs_run(_rosenbrock, np.array([-1.2, 1.0]), bounds)
-    assert result.fun < 1e-10 and calls[0] == plain.nfev == result.nfev
+    # converged to the gain floor (an iteration gaining under STOP_GAIN ends the run)
+    assert result.fun < 10 * tuning.STOP_GAIN and calls[0] == plain.nfev == result.nfev
     assert not tuning._promises_more(plain)
+
+
+def test_the_gain_floor_ends_a_run_alike_in_any_units_and_keeps_its_value():
+    # the evidence of data in other units moves by a constant: the same iterates and
+    # evaluations, whatever the constant; the value reported is the objective's own
+    bounds = np.array([[-5.0, 5.0], [-5.0, 5.0]])
+    runs = []
+    for constant in (0.0, 1e4, -3e6):
+        def shifted(theta, constant=constant):
+            value, grad = _rosenbrock(theta)
+            return value + constant, grad
+
+        counted, calls = _counted(shifted)
+        runs.append((tuning._lbfgs_run(counted, np.array([-1.2, 1.0]), bounds), calls[0]))
+    for (result, calls), constant in zip(runs, (0.0, 1e4, -3e6)):
+        assert result.nfev == calls == runs[0][0].nfev
+        np.testing.assert_allclose(result.x, runs[0][0].x, rtol=0, atol=1e-9)
+        assert result.fun - constant == pytest.approx(runs[0][0].fun, abs=1e-9)
+    # the floor stops where an iteration gains under about STOP_GAIN, well short of the
+    # relative ftol alone (which needs 1e-12 of the value: down to rounding here)
+    full = tuning._lbfgs_run(_rosenbrock, np.array([-1.2, 1.0]), bounds, stop_gain=None)
+    assert full.nfev > runs[0][0].nfev and full.fun < runs[0][0].fun < 10 * tuning.STOP_GAIN
 
 
 def test_a_gradient_against_its_bound_promises_nothing():
