@@ -28,22 +28,25 @@ def test_time_left_is_the_measured_cost_times_the_evaluations_to_come():
     assert np.isnan(time_left([], 10))
 
 
-def test_clock_expects_the_median_run_and_reports_the_current_one():
+def test_clock_expects_the_latest_run_of_its_kind_and_reports_the_current_one():
     clock = EvaluationClock()
     assert clock.expected() == progress.TYPICAL_EVALUATIONS and clock.summary() is None
-    for count in (10, 40, 20):
-        with clock.run():
+    for count, kind in ((10, "a"), (40, "a"), (20, "a"), (12, "a"), (54, "b")):
+        with clock.run(kind):
             f = clock.timed(lambda: None)
             for _ in range(count):
                 f()
-    assert clock.runs == [10, 40, 20] and clock.expected() == 20
-    with clock.run():
+    # the latest of its kind (the median of the earlier "a" runs would be 20)
+    assert clock.runs == [10, 40, 20, 12, 54] and clock.expected("a") == 12
+    assert clock.expected("b") == 54
+    assert clock.expected("c") == 54  # a kind not seen yet: the latest run
+    with clock.run("a"):
         slow = clock.timed(lambda: time.sleep(0.01))
         for _ in range(5):
             slow()
         text = clock.summary()
     assert text.startswith("tuning: 5 evaluation(s) of the evidence")
-    # 15 more at about 0.01 s each
+    # 7 more at about 0.01 s each
     left = float(text.rsplit("about ", 1)[1].split(" s")[0])
     assert 0.0 <= left <= 2.0
     assert clock.summary() is None  # the run is over
