@@ -493,14 +493,12 @@ def default_order(
             break
         previous = (order, value)
         if log is not None:
-            following = longer(order)
             # a doubled order cost 2-8 times as much in the benchmark: the time left, roughly
-            more = "" if decayed or order >= longest else (
-                f"; the prior has not decayed by lag {order}: next order {following}, "
-                f"about {seconds * (following / order) ** 2:.0f} s left"
-            )
-            log(f"default order: fitted order {order} in {seconds:.1f} s, the prior is "
-                f"negligible beyond lag {lag}{more}")
+            following = longer(order)
+            said = (f"the prior is negligible beyond lag {lag}" if decayed or order >= longest
+                    else f"the prior has not decayed by lag {order}: next order {following}, "
+                         f"about {seconds * (following / order) ** 2:.0f} s left")
+            log(f"default order: fitted order {order} in {seconds:.1f} s, {said}")
         if decayed or order >= longest:
             break
         order = longer(order)
