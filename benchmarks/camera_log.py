@@ -208,6 +208,31 @@ def estimate_ratios(stderr: str, shortest: float = 10.0) -> list:
     return ratios
 
 
+def run_time_ratios(stderr: str) -> list:
+    """Each line's estimate of its tuning run's whole time over the time that run took.
+
+    The estimate is the time the run had taken at the line plus the time
+    left it announced; a run starts where the last pilot (or the command's
+    first line) ended and ends at the next pilot's line or the fit's end, as
+    in :func:`estimate_ratios`.  Every line counts, however close to the end.
+    """
+    lines = stderr.replace("\r", "\n").splitlines()
+    ends = [float(m.group(1)) for line in lines
+            for m in [re.search(r"\[\s*([\d.]+) s\] (default order: fitted order|fit: )",
+                                line)] if m]
+    ratios = []
+    for line in lines:
+        m = _LEFT.search(line)
+        if not m:
+            continue
+        at, left = float(m.group(1)), float(m.group(2))
+        later = [end for end in ends if end > at]
+        start = max([0.0] + [end for end in ends if end <= at])
+        if later and later[0] > start:
+            ratios.append((at - start + left) / (later[0] - start))
+    return ratios
+
+
 def band_share(model, system, above=55.0):
     """The share of the DFT bins above ``above`` Hz where the true ``|G|`` is in the band."""
     freqs = np.fft.rfftfreq(model.observation_.n_samples, SAMPLE_TIME)
@@ -260,6 +285,7 @@ def run_command(seconds=20.0, ticks=False, seed=0, extra=(), timeout=3600, modes
             "order": int(model.coef_.shape[-1]), "frames": int(log["y"].shape[0]),
             "steps": step_times(done.stderr), "progress": done.stderr[-4000:],
             "estimate_ratios": estimate_ratios(done.stderr),
+            "run_time_ratios": run_time_ratios(done.stderr),
             "resonances_hz": found,
             "false_resonances_hz": [f for f in found if not any(
                 abs(f - hz) <= FALSE_TOLERANCE * hz for hz, _, _ in modes)]}
@@ -287,7 +313,8 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(seed)
     extra = () if args.kernel is None else ("--kernel", args.kernel)
     print("modes (Hz, damping) | wall s | CPU s | peak MB | order | fit % | band > 55 Hz | "
-          "found Hz | false | time-left estimates / actual", flush=True)
+          "found Hz | false | time-left estimates / actual (10 s or more left) | "
+          "estimated run times / actual", flush=True)
     rows = []
     for _ in range(args.logs):
         modes = draw_modes(rng)
@@ -300,13 +327,14 @@ def main(argv=None) -> int:
               f"{row['band_share_above_55hz']:.3f} | "
               f"{', '.join(f'{f:.2f}' for f in row['resonances_hz']) or '-'} | "
               f"{len(row['false_resonances_hz'])} | "
-              f"{_span(row['estimate_ratios'])}", flush=True)
+              f"{_span(row['estimate_ratios'])} | {_span(row['run_time_ratios'])}", flush=True)
     print(f"worst: wall {max(r['seconds'] for r in rows):.1f} s, peak "
           f"{max(r['command_peak_mb'] for r in rows):.0f} MB, fit "
           f"{min(r['gof'] for r in rows):.3f} %, band "
           f"{min(r['band_share_above_55hz'] for r in rows):.3f}, false resonances "
           f"{sum(len(r['false_resonances_hz']) for r in rows)}, time-left estimates / actual "
-          f"{_span([x for r in rows for x in r['estimate_ratios']])}")
+          f"{_span([x for r in rows for x in r['estimate_ratios']])}, estimated run times / "
+          f"actual {_span([x for r in rows for x in r['run_time_ratios']])}")
     return 0
 
 
