@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import linalg
-from sklearn.gaussian_process.kernels import Kernel, Sum, WhiteKernel
+from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Matern, Product, Sum, WhiteKernel
 
 from gpmultirate.noise.ar1 import AR1Noise
 from gpmultirate.noise.base import NoiseModel, instant_blocks, kernel_blocks
@@ -72,6 +72,7 @@ class KernelNoise(NoiseModel):
         self.kernel = kernel
         self.instants = instant_blocks(instants)
         self._blocks = None  # (N, dN) at this kernel's theta, formed once
+        self._distances = None  # |t_i - t_j| of each record, shared by with_theta's models
 
     @property
     def n_samples(self) -> int:
@@ -95,8 +96,16 @@ class KernelNoise(NoiseModel):
 
     def with_theta(self, theta) -> "KernelNoise":
         """The same noise model at ``theta`` (its own entries of the whole ``theta``)."""
-        return KernelNoise(self.kernel.clone_with_theta(np.asarray(theta, dtype=float)),
-                           self.instants)
+        moved = KernelNoise(self.kernel.clone_with_theta(np.asarray(theta, dtype=float)),
+                            self.instants)
+        moved._distances = self._distances = self._distances or self._named_distances()
+        return moved
+
+    def _named_distances(self):
+        """The records' distances when the kernel is a named disturbance's form, else None."""
+        if named_parts(self.kernel) is None:
+            return None
+        return [np.abs(t[:, None] - t[None, :]) for t in self.instants]
 
     def matrix(self) -> np.ndarray:
         """``N``, of shape ``(M, M)``."""
@@ -111,7 +120,12 @@ class KernelNoise(NoiseModel):
         gradient adds ``N`` and contracts ``dN`` at the same point.  Read only.
         """
         if self._blocks is None:
-            self._blocks = kernel_blocks(self.kernel, self.instants)
+            parts = named_parts(self.kernel)
+            if parts is None:
+                self._blocks = kernel_blocks(self.kernel, self.instants)
+            else:
+                self._distances = self._distances or self._named_distances()
+                self._blocks = _named_blocks(parts, self._distances)
         return self._blocks
 
     def derivatives(self) -> list[np.ndarray]:
@@ -168,6 +182,58 @@ class KernelNoise(NoiseModel):
         if ar1 is not None:
             return ar1.data_covariance(term, gradient, owner=self)
         return super().data_covariance(term, gradient)
+
+
+def named_parts(kernel):
+    """``(white, constant, matern)`` of ``WhiteKernel + ConstantKernel * Matern(nu)`` with
+    ``nu`` 1/2 or 3/2 and one length scale (the named disturbances' form), else None."""
+    if not (isinstance(kernel, Sum) and isinstance(kernel.k1, WhiteKernel)
+            and isinstance(kernel.k2, Product) and isinstance(kernel.k2.k1, ConstantKernel)
+            and isinstance(kernel.k2.k2, Matern)):
+        return None
+    matern = kernel.k2.k2
+    if matern.nu not in (0.5, 1.5) or matern.anisotropic:
+        return None
+    return kernel.k1, kernel.k2.k1, matern
+
+
+def _named_blocks(parts, distances) -> tuple[np.ndarray, np.ndarray]:
+    """``N`` and ``dN / d theta`` of ``WhiteKernel(w) + C * Matern(l, nu)`` from the records'
+    distances, the closed forms of scikit-learn's kernels and gradients (``theta`` the log
+    values of the free ones, in the kernel's order: ``w``, ``C``, ``l``): the sum's
+    evaluation with its gradients dominated a disturbance's tuning on a few hundred samples."""
+    white, constant, matern = parts
+    free = [not white.hyperparameter_noise_level.fixed,
+            not constant.hyperparameter_constant_value.fixed,
+            not matern.hyperparameter_length_scale.fixed]
+    M = sum(d.shape[0] for d in distances)
+    N, dN = np.zeros((M, M)), np.zeros((M, M, sum(free)))
+    w, c, scale = (float(white.noise_level), float(constant.constant_value),
+                   float(np.squeeze(matern.length_scale)))
+    start = 0
+    for d in distances:
+        stop = start + d.shape[0]
+        r = d / scale
+        if matern.nu == 0.5:
+            e = np.exp(-r)
+            K, dK = e, r * e  # d/dlog(l) of exp(-d/l)
+        else:
+            e = np.exp(-np.sqrt(3.0) * r)
+            K, dK = (1.0 + np.sqrt(3.0) * r) * e, 3.0 * r**2 * e
+        block = c * K
+        block[np.diag_indices_from(block)] += w
+        N[start:stop, start:stop] = block
+        gradients = []
+        if free[0]:
+            gradients.append(w * np.eye(d.shape[0]))
+        if free[1]:
+            gradients.append(c * K)
+        if free[2]:
+            gradients.append(c * dK)
+        for j, gradient in enumerate(gradients):
+            dN[start:stop, start:stop, j] = gradient
+        start = stop
+    return N, dN
 
 
 def has_white(kernel) -> bool:
