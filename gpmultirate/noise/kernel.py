@@ -96,8 +96,11 @@ class KernelNoise(NoiseModel):
 
     def with_theta(self, theta) -> "KernelNoise":
         """The same noise model at ``theta`` (its own entries of the whole ``theta``)."""
-        moved = KernelNoise(self.kernel.clone_with_theta(np.asarray(theta, dtype=float)),
-                            self.instants)
+        theta = np.asarray(theta, dtype=float)
+        parts = named_parts(self.kernel)
+        kernel = (self.kernel.clone_with_theta(theta) if parts is None
+                  else _named_kernel(parts, theta))
+        moved = KernelNoise(kernel, self.instants)
         moved._distances = self._distances = self._distances or self._named_distances()
         return moved
 
@@ -197,40 +200,66 @@ def named_parts(kernel):
     return kernel.k1, kernel.k2.k1, matern
 
 
+def _free(parts) -> list:
+    """Which of ``(white, constant, matern)``'s hyperparameters are tuned."""
+    white, constant, matern = parts
+    return [not white.hyperparameter_noise_level.fixed,
+            not constant.hyperparameter_constant_value.fixed,
+            not matern.hyperparameter_length_scale.fixed]
+
+
+def _named_kernel(parts, theta):
+    """``clone_with_theta`` of a named disturbance's form, built directly (scikit-learn's
+    clone copies and sets every parameter: a large share of an evaluation's overhead)."""
+    white, constant, matern = parts
+    values = [float(white.noise_level), float(constant.constant_value),
+              float(np.squeeze(matern.length_scale))]
+    free = _free(parts)
+    if len(theta) != sum(free):
+        raise ValueError(f"theta must have {sum(free)} entries; got {len(theta)}")
+    entries = iter(np.exp(theta))
+    values = [next(entries) if is_free else value for value, is_free in zip(values, free)]
+    return WhiteKernel(values[0], white.noise_level_bounds) + ConstantKernel(
+        values[1], constant.constant_value_bounds) * Matern(
+            values[2], matern.length_scale_bounds, nu=matern.nu)
+
+
 def _named_blocks(parts, distances) -> tuple[np.ndarray, np.ndarray]:
     """``N`` and ``dN / d theta`` of ``WhiteKernel(w) + C * Matern(l, nu)`` from the records'
     distances, the closed forms of scikit-learn's kernels and gradients (``theta`` the log
     values of the free ones, in the kernel's order: ``w``, ``C``, ``l``): the sum's
     evaluation with its gradients dominated a disturbance's tuning on a few hundred samples."""
     white, constant, matern = parts
-    free = [not white.hyperparameter_noise_level.fixed,
-            not constant.hyperparameter_constant_value.fixed,
-            not matern.hyperparameter_length_scale.fixed]
-    M = sum(d.shape[0] for d in distances)
-    N, dN = np.zeros((M, M)), np.zeros((M, M, sum(free)))
+    free = _free(parts)
     w, c, scale = (float(white.noise_level), float(constant.constant_value),
                    float(np.squeeze(matern.length_scale)))
-    start = 0
+    blocks, gradients = [], []
     for d in distances:
-        stop = start + d.shape[0]
         r = d / scale
         if matern.nu == 0.5:
-            e = np.exp(-r)
-            K, dK = e, r * e  # d/dlog(l) of exp(-d/l)
+            K = np.exp(-r)
+            dK = r * K  # d/dlog(l) of exp(-d/l)
         else:
             e = np.exp(-np.sqrt(3.0) * r)
             K, dK = (1.0 + np.sqrt(3.0) * r) * e, 3.0 * r**2 * e
-        block = c * K
+        signal = c * K
+        block = signal.copy()
         block[np.diag_indices_from(block)] += w
+        blocks.append(block)
+        parts_of = [w * np.eye(d.shape[0]), signal, c * dK]
+        gradients.append([g for g, is_free in zip(parts_of, free) if is_free])
+    if len(blocks) == 1:
+        N = blocks[0]
+        dN = (np.stack(gradients[0], axis=-1) if gradients[0]
+              else np.zeros(N.shape + (0,)))
+        return N, dN
+    M = sum(d.shape[0] for d in distances)
+    N, dN = np.zeros((M, M)), np.zeros((M, M, sum(free)))
+    start = 0
+    for block, grads in zip(blocks, gradients):
+        stop = start + block.shape[0]
         N[start:stop, start:stop] = block
-        gradients = []
-        if free[0]:
-            gradients.append(w * np.eye(d.shape[0]))
-        if free[1]:
-            gradients.append(c * K)
-        if free[2]:
-            gradients.append(c * dK)
-        for j, gradient in enumerate(gradients):
+        for j, gradient in enumerate(grads):
             dN[start:stop, start:stop, j] = gradient
         start = stop
     return N, dN
