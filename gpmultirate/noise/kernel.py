@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import linalg
-from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Matern, Product, Sum, WhiteKernel
+from sklearn.gaussian_process.kernels import (
+    ConstantKernel,
+    Kernel,
+    Matern,
+    Product,
+    Sum,
+    WhiteKernel,
+)
 
 from gpmultirate.noise.ar1 import AR1Noise
 from gpmultirate.noise.base import NoiseModel, instant_blocks, kernel_blocks
@@ -97,7 +104,7 @@ class KernelNoise(NoiseModel):
     def with_theta(self, theta) -> "KernelNoise":
         """The same noise model at ``theta`` (its own entries of the whole ``theta``)."""
         theta = np.asarray(theta, dtype=float)
-        parts = named_parts(self.kernel)
+        parts = _named_parts(self.kernel)
         kernel = (self.kernel.clone_with_theta(theta) if parts is None
                   else _named_kernel(parts, theta))
         moved = KernelNoise(kernel, self.instants)
@@ -106,7 +113,7 @@ class KernelNoise(NoiseModel):
 
     def _named_distances(self):
         """The records' distances when the kernel is a named disturbance's form, else None."""
-        if named_parts(self.kernel) is None:
+        if _named_parts(self.kernel) is None:
             return None
         return [np.abs(t[:, None] - t[None, :]) for t in self.instants]
 
@@ -123,7 +130,7 @@ class KernelNoise(NoiseModel):
         gradient adds ``N`` and contracts ``dN`` at the same point.  Read only.
         """
         if self._blocks is None:
-            parts = named_parts(self.kernel)
+            parts = _named_parts(self.kernel)
             if parts is None:
                 self._blocks = kernel_blocks(self.kernel, self.instants)
             else:
@@ -187,15 +194,16 @@ class KernelNoise(NoiseModel):
         return super().data_covariance(term, gradient)
 
 
-def named_parts(kernel):
+def _named_parts(kernel):
     """``(white, constant, matern)`` of ``WhiteKernel + ConstantKernel * Matern(nu)`` with
-    ``nu`` 1/2 or 3/2 and one length scale (the named disturbances' form), else None."""
-    if not (isinstance(kernel, Sum) and isinstance(kernel.k1, WhiteKernel)
-            and isinstance(kernel.k2, Product) and isinstance(kernel.k2.k1, ConstantKernel)
-            and isinstance(kernel.k2.k2, Matern)):
+    ``nu`` 1/2 or 3/2 and one scalar length scale (the named disturbances' form, exactly
+    these scikit-learn classes), else None."""
+    if not (type(kernel) is Sum and type(kernel.k1) is WhiteKernel
+            and type(kernel.k2) is Product and type(kernel.k2.k1) is ConstantKernel
+            and type(kernel.k2.k2) is Matern):
         return None
     matern = kernel.k2.k2
-    if matern.nu not in (0.5, 1.5) or matern.anisotropic:
+    if matern.nu not in (0.5, 1.5) or np.ndim(matern.length_scale) != 0:
         return None
     return kernel.k1, kernel.k2.k1, matern
 
@@ -227,8 +235,9 @@ def _named_kernel(parts, theta):
 def _named_blocks(parts, distances) -> tuple[np.ndarray, np.ndarray]:
     """``N`` and ``dN / d theta`` of ``WhiteKernel(w) + C * Matern(l, nu)`` from the records'
     distances, the closed forms of scikit-learn's kernels and gradients (``theta`` the log
-    values of the free ones, in the kernel's order: ``w``, ``C``, ``l``): the sum's
-    evaluation with its gradients dominated a disturbance's tuning on a few hundred samples."""
+    values of the free ones, in the kernel's order: ``w``, ``C``, ``l``).  scikit-learn's
+    evaluation of the sum with its gradients was a third of a disturbance's tuning on a few
+    hundred slow samples."""
     white, constant, matern = parts
     free = _free(parts)
     w, c, scale = (float(white.noise_level), float(constant.constant_value),
@@ -246,8 +255,8 @@ def _named_blocks(parts, distances) -> tuple[np.ndarray, np.ndarray]:
         block = signal.copy()
         block[np.diag_indices_from(block)] += w
         blocks.append(block)
-        parts_of = [w * np.eye(d.shape[0]), signal, c * dK]
-        gradients.append([g for g, is_free in zip(parts_of, free) if is_free])
+        derivatives = [w * np.eye(d.shape[0]), signal, c * dK]
+        gradients.append([g for g, is_free in zip(derivatives, free) if is_free])
     if len(blocks) == 1:
         N = blocks[0]
         dN = (np.stack(gradients[0], axis=-1) if gradients[0]
