@@ -257,21 +257,22 @@ def _named_blocks(parts, distances) -> tuple[np.ndarray, np.ndarray]:
         blocks.append(block)
         derivatives = [w * np.eye(d.shape[0]), signal, c * dK]
         gradients.append([g for g, is_free in zip(derivatives, free) if is_free])
+    # dN is a view of (len(theta), M, M): each derivative contiguous, and the contraction
+    # with W reads each one in order
     if len(blocks) == 1:
         N = blocks[0]
-        dN = (np.stack(gradients[0], axis=-1) if gradients[0]
-              else np.zeros(N.shape + (0,)))
-        return N, dN
+        stacked = (np.stack(gradients[0]) if gradients[0] else np.zeros((0,) + N.shape))
+        return N, stacked.transpose(1, 2, 0)
     M = sum(d.shape[0] for d in distances)
-    N, dN = np.zeros((M, M)), np.zeros((M, M, sum(free)))
+    N, stacked = np.zeros((M, M)), np.zeros((sum(free), M, M))
     start = 0
     for block, grads in zip(blocks, gradients):
         stop = start + block.shape[0]
         N[start:stop, start:stop] = block
         for j, gradient in enumerate(grads):
-            dN[start:stop, start:stop, j] = gradient
+            stacked[j, start:stop, start:stop] = gradient
         start = stop
-    return N, dN
+    return N, stacked.transpose(1, 2, 0)
 
 
 def has_white(kernel) -> bool:
