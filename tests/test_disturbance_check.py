@@ -231,3 +231,120 @@ def test_auto_sees_an_ar1_disturbance_at_50_db_that_the_resonance_prior_took_in(
         coverage.append(np.mean(np.abs(truth - mean) <= 1.959964 * std))
     assert chosen == 4
     assert np.mean(coverage) >= 0.90
+
+
+def _counting_candidates(monkeypatch):
+    """Record what ``noise_kernel="auto"`` tunes: per candidate its white fit (observation,
+    slow samples, prior, noise level, in the fit's units), score and optimizer evaluations,
+    and the white fit's score it is judged against."""
+    from gpmultirate.fitting import disturbance, one_order
+
+    record = {"tuned": []}
+    tune, choose = disturbance.fit_disturbance, one_order.choose_disturbance
+
+    def counted(observation, y, kernel, noise_level, *args, **kwargs):
+        fitted = tune(observation, y, kernel, noise_level, *args, **kwargs)
+        record["tuned"].append({"white_fit": (observation, y, kernel, noise_level),
+                                "score": fitted.score,
+                                "nfev": fitted.optimizer_result.nfev})
+        return fitted
+
+    def chosen(experiment, kernel, noise_level, noise_bounds, white_score, *args, **kwargs):
+        record["white_score"] = white_score
+        return choose(experiment, kernel, noise_level, noise_bounds, white_score, *args,
+                      **kwargs)
+
+    monkeypatch.setattr(disturbance, "fit_disturbance", counted)
+    monkeypatch.setattr(one_order, "choose_disturbance", chosen)
+    return record
+
+
+def _just_past_the_margin(monkeypatch):
+    """Pole 0.99 at 20 dB (the issue's case, seed 3), default order: the fit and what it
+    tuned; a disturbance is kept, gaining 10.6 nats over white noise."""
+    from gpmultirate.fitting.disturbance import AUTO_NOISE_MARGIN
+
+    record = _counting_candidates(monkeypatch)
+    _, u, y_slow = _paper_record(3, pole=0.99)
+    assert _fit(u, y_slow).noise_kernel_ != "white" and len(record["tuned"]) == 2
+    gain = max(t["score"] for t in record["tuned"]) - record["white_score"]
+    assert AUTO_NOISE_MARGIN < gain < AUTO_NOISE_MARGIN + 2.0
+    return record
+
+
+def test_auto_keeps_a_disturbance_just_past_the_margin(monkeypatch):
+    """Tuned with everything else, the Matérn 1/2 disturbance of the issue's case (pole 0.99,
+    20 dB) gains 10.6 nats over white noise, just past the margin, and is kept."""
+    _just_past_the_margin(monkeypatch)
+
+
+@pytest.mark.slow  # the held-prior optimum by Nelder-Mead from twelve starts: about 12 s
+def test_a_disturbance_kept_past_the_margin_that_a_fixed_prior_would_miss(monkeypatch):
+    """With the white fit's prior held, no Matérn disturbance of either shape gains more
+    than 7.0 nats on the case above (tuned by scipy on the dense evidence; 5.8 and 6.9),
+    where the full tuning gains 10.6: a cheaper rejection from the held prior (or from the
+    gate's grid, 4.6 nats) would keep white noise here (docs/disturbances.rst)."""
+    from scipy import optimize
+    from sklearn.gaussian_process.kernels import Matern, WhiteKernel
+
+    from gpmultirate.fitting.disturbance import AUTO_NOISE_MARGIN
+    from gpmultirate.kernels import observe
+
+    record = _just_past_the_margin(monkeypatch)
+    # the prior held at the white fit's: the best Matern disturbance by the dense evidence
+    observation, y, kernel, gamma = record["tuned"][0]["white_fit"]
+    S = np.asarray(observe(kernel, observation).covariance(), dtype=float)
+    t = observation.records[0].sample_indices.astype(float)[:, None]
+
+    def log_evidence(Ky):
+        L = np.linalg.cholesky(Ky)
+        z = np.linalg.solve(L, y)
+        return -0.5 * z @ z - np.log(np.diag(L)).sum() - 0.5 * y.shape[0] * np.log(2 * np.pi)
+
+    assert log_evidence(S + gamma * np.eye(y.shape[0])) == pytest.approx(
+        record["white_score"], rel=1e-9)
+    held = []
+    for nu in (0.5, 1.5):
+        def negative(theta, nu=nu):
+            w, c, length = np.exp(theta)
+            N = WhiteKernel(w)(t) + c * Matern(length, nu=nu)(t)
+            try:
+                return -log_evidence(S + N)
+            except np.linalg.LinAlgError:
+                return np.inf
+        starts = [np.log([gamma * (1 - share), gamma * share, length])
+                  for share in (0.5, 0.9) for length in (3.0, 30.0, 300.0)]
+        held.append(max(-optimize.minimize(negative, x0, method="Nelder-Mead",
+                                           options={"xatol": 1e-6, "fatol": 1e-8}).fun
+                        for x0 in starts) - record["white_score"])
+    assert max(held) < AUTO_NOISE_MARGIN - 3.0
+
+
+def test_auto_tunes_both_disturbances_and_keeps_white_below_the_margin(monkeypatch):
+    """A two-mass system with an AR(1) disturbance at 31.7 dB (``benchmarks/automatic.py``'s
+    ``ar1`` family, seed 803410186), the default kernel: the fixed disturbance passes the
+    gate, both candidates are tuned in full and gain about 5 nats, below the margin: white
+    noise is kept.  Every shortcut before the full tuning must keep this decision."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    from gpmultirate.fitting.disturbance import AUTO_NOISE_MARGIN
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "automatic.py"
+    spec = importlib.util.spec_from_file_location("benchmark_automatic", path)
+    benchmark = sys.modules.get(spec.name)
+    if benchmark is None:
+        benchmark = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = benchmark  # dataclasses look their module up by name
+        spec.loader.exec_module(benchmark)
+    system = benchmark.draw_system("ar1", 803410186, quick=True)
+    record = _counting_candidates(monkeypatch)
+    auto = FIRGaussianProcess(factor=system.factor, sample_time=system.sample_time)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto.fit(system.u, system.y_slow)
+    assert auto.noise_kernel_ == "white" and len(record["tuned"]) == 2
+    gains = [t["score"] - record["white_score"] for t in record["tuned"]]
+    assert all(3.0 < g < AUTO_NOISE_MARGIN for g in gains)
+    assert all(t["nfev"] > 10 for t in record["tuned"])

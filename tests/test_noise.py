@@ -77,6 +77,69 @@ def test_kernel_noise_derivatives_and_contraction_against_finite_differences():
     assert noise.structure() is None  # periodic: the dense route
 
 
+@pytest.mark.parametrize("nu", [0.5, 1.5])
+@pytest.mark.parametrize("bounds", [((1e-5, 1.0), (1e-5, 1.0), (1.0, 1e4)),
+                                    ("fixed", (1e-5, 1.0), (1.0, 1e4)),
+                                    ((1e-5, 1.0), "fixed", "fixed"),
+                                    ("fixed", "fixed", "fixed")])
+@pytest.mark.parametrize("records", [1, 2])
+def test_named_disturbances_in_closed_form_against_scikit_learn_and_finite_differences(
+        nu, bounds, records, monkeypatch):
+    """The named disturbances' form (white noise plus ``C * Matern(nu)``, nu 1/2 or 3/2) takes
+    its matrix and gradient from the records' distances, and its moved kernel is built
+    directly: the same values as scikit-learn's kernel, gradient and ``clone_with_theta``,
+    and the gradient that of central differences of the dense formula."""
+    rng = np.random.default_rng(records)
+    instants = [np.sort(rng.uniform(0.0, 300.0, 40)), 3.0 * np.arange(25) + 1.0][:records]
+    white, constant, scale = bounds
+    kernel = WhiteKernel(0.1, white) + C(0.7, constant) * Matern(7.3, scale, nu=nu)
+    theta = kernel.theta + rng.normal(size=kernel.theta.shape)
+    noise = KernelNoise(kernel, instants).with_theta(theta)
+    reference = kernel.clone_with_theta(theta)
+    assert repr(noise.kernel) == repr(reference)
+    np.testing.assert_array_equal(noise.kernel.theta, reference.theta)
+    np.testing.assert_array_equal(noise.kernel.bounds, reference.bounds)
+    import gpmultirate.noise.kernel
+
+    def generic(*args):
+        raise AssertionError("the named form went through scikit-learn's evaluation")
+
+    monkeypatch.setattr(gpmultirate.noise.kernel, "kernel_blocks", generic)
+    N, dN = noise.matrix_with_gradient()
+    blocks = [reference(t[:, None], eval_gradient=True) for t in instants]
+    np.testing.assert_allclose(N, linalg.block_diag(*(b for b, _ in blocks)), rtol=1e-13,
+                               atol=1e-15)
+    assert dN.shape == N.shape + (theta.shape[0],)
+
+    def dense(theta):  # Matern from its formula, records independent
+        values = dict(zip([h.name for h in kernel.hyperparameters if not h.fixed],
+                          np.exp(theta)))
+        w = values.get("k1__noise_level", 0.1)
+        c = values.get("k2__k1__constant_value", 0.7)
+        length = values.get("k2__k2__length_scale", 7.3)
+        out = []
+        for t in instants:
+            r = np.abs(t[:, None] - t[None, :]) / length
+            shape = np.exp(-r) if nu == 0.5 else (1 + np.sqrt(3) * r) * np.exp(-np.sqrt(3) * r)
+            out.append(w * np.eye(t.shape[0]) + c * shape)
+        return linalg.block_diag(*out)
+
+    np.testing.assert_allclose(dense(theta), N, rtol=1e-12, atol=1e-15)
+    for j in range(theta.shape[0]):
+        e = np.zeros_like(theta)
+        e[j] = 1e-6
+        numeric = (dense(theta + e) - dense(theta - e)) / 2e-6
+        np.testing.assert_allclose(dN[:, :, j], numeric, atol=1e-7)
+        start = 0
+        for t, (_, gradient) in zip(instants, blocks):
+            stop = start + t.shape[0]
+            np.testing.assert_allclose(dN[start:stop, start:stop, j], gradient[:, :, j],
+                                       rtol=1e-12, atol=1e-15)
+            start = stop
+    with pytest.raises(ValueError, match="theta must have"):
+        KernelNoise(kernel, instants).with_theta(np.zeros(theta.shape[0] + 1))
+
+
 def test_kernel_noise_checks_its_arguments():
     with pytest.raises(ValueError, match="kernel"):
         KernelNoise("matern", np.arange(3.0))
