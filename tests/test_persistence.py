@@ -10,6 +10,7 @@ import io
 import json
 import os
 import pickle
+import warnings
 
 import numpy as np
 import pytest
@@ -742,3 +743,19 @@ def test_library_version_that_is_not_a_version_refused(saved, version):
     with pytest.raises(ModelFileError, match="invalid library_version") as info:
         load_model(saved)
     assert "None.x" not in str(info.value)
+
+
+def test_a_model_reproduced_to_rounding_loads_without_a_warning():
+    # another number of BLAS threads sums in another order: 4.2e-12 relative on a camera
+    # log's model saved by the command line; a real difference still warns
+    from gpmultirate.persistence import _warn_if_not_reproduced
+
+    saved = np.array([1.0, -0.5, 0.25])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        _warn_if_not_reproduced(saved * (1 + 4e-12), saved, 2519.179277519015,
+                                2519.1792775213817)
+    with pytest.warns(UserWarning, match="differs from the saved one"):
+        _warn_if_not_reproduced(saved + 1e-6, saved, 2519.18, 2519.18)
+    with pytest.warns(UserWarning, match="log marginal likelihood"):
+        _warn_if_not_reproduced(saved, saved, 2519.18, 2519.19)
