@@ -386,6 +386,27 @@ def test_prediction_at_the_ticks_is_predict():
         assert np.allclose(at_std, std, rtol=1e-5, atol=1e-6 * std.max())
 
 
+@pytest.mark.parametrize("initial_conditions", ["zero", "periodic"])
+def test_readings_on_the_ticks_without_bands_are_the_output_there(initial_conditions):
+    # the mean alone at whole-period stamps comes from the fast output (no joint with the
+    # data): the same as the readings' conditional mean, latency included
+    u, y, ticks, times = _fit_data()
+    model = gm.FIRGaussianProcess(C(1.0) * DC(), order=P_FIT, latency=2.0,
+                                  initial_conditions=initial_conditions).fit(
+        u, y, sample_times=times + 2.0)
+    stamps = np.arange(2.0, N_FIT, 3.0)
+    alone = model.predict(u, sample_times=stamps)
+    joint, _ = model.predict(u, sample_times=stamps, return_std=True)
+    np.testing.assert_allclose(alone, joint, rtol=1e-7, atol=1e-9 * np.abs(joint).max())
+    np.testing.assert_allclose(alone, model.predict(u)[(stamps - 2.0).astype(int)],
+                               rtol=1e-12, atol=0)
+    # a stamp whose instant falls before the record: the readings' own model
+    early = np.concatenate([[1.0], stamps])
+    np.testing.assert_allclose(model.predict(u, sample_times=early),
+                               model.predict(u, sample_times=early, return_std=True)[0],
+                               rtol=1e-7, atol=1e-9 * np.abs(joint).max())
+
+
 def test_readings_predicted_as_a_dense_gaussian_conditional():
     _check_readings(0.0, 1e-6, 1)
 
