@@ -184,53 +184,48 @@ def step_times(stderr: str) -> dict:
 _LEFT = re.compile(r"\[\s*([\d.]+) s\] still on fit .*about (\d+) s left")
 
 
-def estimate_ratios(stderr: str, shortest: float = 10.0) -> list:
-    """Each estimate of the fit's time left over the time the fit then took, where that is at least ``shortest`` s.
+def _time_left_lines(stderr: str):
+    """``(at, left, start, end)`` of each time-left line of the tuning.
 
     An estimate is of the tuning under way; the pilot fits of the default
-    order are each a tuning of their own, so the time left is measured to the
-    end of the run the line belongs to: the next line of a finished pilot
-    (``default order: fitted order ...``) or the end of the fit.
+    order are each a tuning of their own, so a run starts where the last
+    pilot (or the command's first line) ended and ends at the next line of
+    a finished pilot (``default order: fitted order ...``) or the fit's end.
+    Lines after the last such end are left out.
     """
     lines = stderr.replace("\r", "\n").splitlines()
     ends = [float(m.group(1)) for line in lines
             for m in [re.search(r"\[\s*([\d.]+) s\] (default order: fitted order|fit: )",
                                 line)] if m]
-    ratios = []
     for line in lines:
         m = _LEFT.search(line)
         if not m:
             continue
         at, left = float(m.group(1)), float(m.group(2))
         later = [end for end in ends if end > at]
-        if later and later[0] - at >= shortest:
-            ratios.append(left / (later[0] - at))
-    return ratios
+        if later:
+            yield at, left, max([0.0] + [end for end in ends if end <= at]), later[0]
+
+
+def estimate_ratios(stderr: str, shortest: float = 10.0) -> list:
+    """Each estimate of the fit's time left over the time the fit then took, where that is at least ``shortest`` s.
+
+    The time left is measured to the end of the run the line belongs to
+    (:func:`_time_left_lines`).
+    """
+    return [left / (end - at) for at, left, _, end in _time_left_lines(stderr)
+            if end - at >= shortest]
 
 
 def run_time_ratios(stderr: str) -> list:
     """Each line's estimate of its tuning run's whole time over the time that run took.
 
     The estimate is the time the run had taken at the line plus the time
-    left it announced; a run starts where the last pilot (or the command's
-    first line) ended and ends at the next pilot's line or the fit's end, as
-    in :func:`estimate_ratios`.  Every line counts, however close to the end.
+    left it announced (runs as in :func:`_time_left_lines`).  Every line
+    counts, however close to the end.
     """
-    lines = stderr.replace("\r", "\n").splitlines()
-    ends = [float(m.group(1)) for line in lines
-            for m in [re.search(r"\[\s*([\d.]+) s\] (default order: fitted order|fit: )",
-                                line)] if m]
-    ratios = []
-    for line in lines:
-        m = _LEFT.search(line)
-        if not m:
-            continue
-        at, left = float(m.group(1)), float(m.group(2))
-        later = [end for end in ends if end > at]
-        start = max([0.0] + [end for end in ends if end <= at])
-        if later and later[0] > start:
-            ratios.append((at - start + left) / (later[0] - start))
-    return ratios
+    return [(at - start + left) / (end - start)
+            for at, left, start, end in _time_left_lines(stderr) if end > start]
 
 
 def band_share(model, system, above=55.0):
