@@ -640,13 +640,15 @@ def _lbfgs_run(objective_and_gradient, theta0, bounds, transform=None,
     if max_evaluations is not None:
         options["maxfun"] = int(max_evaluations)
     if transform is None:
-        start = np.asarray(theta0, dtype=float)
+        limits = np.asarray(bounds, dtype=float)
+        # where L-BFGS-B makes its first call: the start clipped into the bounds
+        start = np.clip(np.asarray(theta0, dtype=float), limits[:, 0], limits[:, 1])
         shift, objective = _gain_floor(objective_and_gradient, start, options, stop_gain)
         result = optimize.minimize(
             objective, start, jac=True, method="L-BFGS-B", bounds=bounds, options=options,
         )
         result.fun = float(result.fun) + shift
-        result.free = _free_directions(result.x, result.jac, np.asarray(bounds, float))
+        result.free = _free_directions(result.x, result.jac, limits)
         return result
 
     def in_z(z):
