@@ -260,6 +260,25 @@ def test_posterior_answers_from_what_it_holds():
     close(result.at_lags(X)[1], np.diag(cov), rtol=1e-7)
 
 
+def test_the_data_space_posterior_makes_the_priors_matrix_when_asked_for_it():
+    # the mean needs Phi K alone: a pilot fit never holds the P x P K
+    op, y, _ = problem(60, 3, 30)
+    kernel = TC(0.8)
+    made = []
+    covariance = data_covariance(kernel, op, WhiteNoise(NOISE))
+    making = covariance.term.kernel_matrix
+    covariance.term.kernel_matrix = lambda: made.append(1) or making()
+    result = DataSpacePosterior(covariance, y)
+    Ky = dense_ky(op, kernel)
+    close(result.coef, kernel(op.lags) @ op.matrix.T @ np.linalg.solve(Ky, y))
+    assert made == []
+    K = kernel(op.lags)
+    close(result.K, K)
+    close(result.covariance(), K - K @ op.matrix.T @ np.linalg.solve(Ky, op.matrix @ K),
+          rtol=1e-7)
+    assert made == [1]  # made once
+
+
 def test_spectral_covariance_matches_the_dense_matrix_for_any_scale_and_noise():
     rng = np.random.default_rng(11)
     A = rng.standard_normal((12, 5))

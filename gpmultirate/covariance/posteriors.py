@@ -81,10 +81,19 @@ class GaussianCoefficients:
     (outputs, FRF values) never need the ``P x P`` posterior covariance.
     """
 
-    def __init__(self, coef: np.ndarray, K: np.ndarray, B: np.ndarray):
+    def __init__(self, coef: np.ndarray, K, B: np.ndarray):
         self.coef = coef
-        self.K = K
+        # the prior's P x P matrix, or a function that makes it when it is first asked for
+        # (a fit that only reads the mean and the evidence never holds it)
+        self._K = K
         self.B = B
+
+    @property
+    def K(self) -> np.ndarray:
+        """The prior covariance ``K`` of the coefficients (``P x P``)."""
+        if callable(self._K):
+            self._K = self._K()
+        return self._K
 
     def linear_map(self, A: np.ndarray, full_cov: bool = False):
         """Mean and covariance (or variance) of ``A g`` for a ``(q, P)`` matrix ``A``."""
@@ -132,13 +141,14 @@ class DataSpacePosterior(GaussianCoefficients):
     def __init__(self, covariance, y: np.ndarray):
         term = covariance.term
         self.observation, self.kernel = covariance.observation, covariance.kernel
-        K = term.kernel_matrix()
         PhiK = term.regressor_times_kernel()
         self.L, self.jitter = covariance.L, covariance.jitter
         self.alpha = covariance.solve(y)
         B = covariance.whiten(PhiK)
-        # eq. (15): K Phi^T (Phi K Phi^T + gamma I)^{-1} y
-        super().__init__(PhiK.T @ self.alpha, K, B)
+        # eq. (15): K Phi^T (Phi K Phi^T + gamma I)^{-1} y; K (P x P) made when first asked
+        # for (a pilot fit of the default order reads the mean and the evidence only: 0.5 GB
+        # at order 7,992)
+        super().__init__(PhiK.T @ self.alpha, term.kernel_matrix, B)
         self.log_marginal_likelihood = log_gaussian(
             y @ self.alpha, 2.0 * np.log(np.diag(self.L)).sum(), y.shape[0]
         )
