@@ -246,6 +246,15 @@ ENVELOPE_DECAY = 4.4
 #: log evidence (nats) a doubled pilot order must gain over the previous
 #: one for the doubling to go on when the prior has not decayed
 EVIDENCE_GAIN = 2.0
+#: a last pilot's tuned prior negligible beyond at most this share of its
+#: order is cut there, its hyperparameters held (``trim`` of
+#: :func:`default_order`): the steps after the fit (bands, the state-space
+#: reduction, modal draws) cost about the square of the order, so a cut to
+#: 3/4 saves about 40 % of them, while the cut costs one posterior at the
+#: shorter order (on a camera log of ``benchmarks/camera_log.py`` cut from
+#: 7,992 to 4,037 lags: 5 s, and the steps after the fit 71 s to 26 s);
+#: closer to the order the saving falls towards that cost
+TRIM_SHARE = 0.75
 
 
 def prior_tail_lag(kernel, input_power, noise_level: float, n_lags: int,
@@ -397,6 +406,7 @@ def default_order(
     n_inputs: int = 1,
     log: Callable[[str], None] | None = None,
     evidence: Callable[[object], float] | None = None,
+    trim: Callable[[int], object] | None = None,
 ) -> DefaultOrder:
     """The default FIR order of a record: from the tuned decay of the prior, doubling.
 
@@ -417,7 +427,12 @@ def default_order(
     (at least ``MIN_DEFAULT_ORDER``) when that is at most half the last
     order fitted or when it makes the fit a long-record one (more slow
     samples than coefficients, ``n_inputs * L < n_samples``) where the last
-    fit was not; otherwise the last order fitted is kept, with its fit.
+    fit was not, fitted again; when ``L`` is at most ``TRIM_SHARE`` of the
+    last order, the order is ``L`` with the last pilot's hyperparameters
+    held (``trim``: the prior beyond ``L`` adds under ``TAIL_TOLERANCE`` of
+    the noise variance, so the cut changes the fit by less, and the steps
+    after it cost the shorter order's); otherwise the last order fitted is
+    kept, with its fit.
 
     Parameters
     ----------
@@ -441,6 +456,11 @@ def default_order(
         ``evidence(fit)``: that fit's log evidence, comparable between
         orders (the same slow samples); None: the doubling goes on while
         the prior has not decayed.
+    trim : callable, optional
+        ``trim(order)``: the fit at a shorter order with the last pilot's
+        tuned hyperparameters held, or None where it is to be fitted
+        afterwards (from those hyperparameters); without it the last
+        order fitted is kept where ``L`` is more than half of it.
 
     Returns
     -------
@@ -458,6 +478,11 @@ def default_order(
     >>> result = default_order(fit_at, lambda fit: min(700, fit.order), 10**5, 33333)
     >>> result.order, result.table["order"].tolist(), result.fit.order
     (1024, [512, 1024], 1024)
+    >>> # 700 lags of 1024 are more than TRIM_SHARE of it; 600 are not: cut there
+    >>> result = default_order(fit_at, lambda fit: min(600, fit.order), 10**5, 33333,
+    ...                        trim=lambda order: SimpleNamespace(order=order))
+    >>> result.order, result.table["order"].tolist(), result.fit.order
+    (600, [512, 1024], 600)
     """
     order = min(PILOT_ORDER, longest)
     # the longest order with more slow samples than coefficients: the doubling
@@ -509,6 +534,14 @@ def default_order(
         if log is not None:
             log(f"default order: {chosen}, fitting it (about "
                 f"{seconds * (chosen / order) ** 2:.0f} s left)")
+    elif chosen < order and trim is not None and chosen <= TRIM_SHARE * order:
+        start = time.perf_counter()
+        fit = None  # the last pilot's matrices are freed before the cut is fitted
+        fit = trim(chosen)
+        if log is not None:
+            log(f"default order: {chosen}, the prior of order {order} cut there"
+                + ("" if fit is None else
+                   f", its hyperparameters held ({time.perf_counter() - start:.1f} s)"))
     else:
         chosen = order
     table = {

@@ -114,3 +114,49 @@ def test_a_default_order_called_short_is_raised_and_never_warned_about(monkeypat
     # doubled order gained too little evidence to be kept
     direct = gm.FIRGaussianProcess(factor=3, order=order, noise_kernel="white").fit(u, y_slow)
     np.testing.assert_allclose(model.coef_, direct.coef_, rtol=1e-10, atol=1e-12)
+
+
+def test_default_order_cuts_a_last_pilot_whose_prior_is_negligible_well_within_it():
+    # at TRIM_SHARE of the order or less the cut is fitted with the last pilot's
+    # hyperparameters held; above it the pilot's fit is kept; trim None: fitted afterwards
+    for memory, cut in ((600, 600), (800, None)):
+        fitted, fit_at, tail_lag = _pilots(memory, lambda order: 0.0)
+        trims = []
+        result = orders.default_order(fit_at, tail_lag, 10**5, 33333,
+                                      trim=lambda order: trims.append(order) or "cut")
+        assert fitted == [512, 1024] and trims == ([] if cut is None else [cut])
+        assert (result.order, result.fit) == ((600, "cut") if cut else (1024, result.fit))
+    fitted, fit_at, tail_lag = _pilots(600, lambda order: 0.0)
+    result = orders.default_order(fit_at, tail_lag, 10**5, 33333, trim=lambda order: None)
+    assert result.order == 600 and result.fit is None
+
+
+def test_a_cut_default_order_predicts_as_the_pilot_it_was_cut_from(monkeypatch):
+    # a response whose prior the pilot at 1024 lags finds negligible from about 660
+    t = np.arange(1500)
+    g = 0.99 ** t * np.cos(0.3 * t)
+    rng = np.random.default_rng(1)
+    n = 6000
+    u = rng.standard_normal(n)
+    y_slow = np.convolve(u, g)[:n][::3].copy()
+    noise = 0.02 * np.std(y_slow)
+    y_slow += noise * rng.standard_normal(y_slow.shape[0])
+    model = gm.FIRGaussianProcess(factor=3, noise_kernel="white").fit(u, y_slow)
+    order = model.coef_.shape[0]
+    assert model.order_selection_["order"].tolist() == [512, 1024]
+    assert 512 < order <= orders.TRIM_SHARE * 1024 and model.order_selection_["best_order"] == order
+    monkeypatch.setattr(orders, "TRIM_SHARE", 0.0)
+    whole = gm.FIRGaussianProcess(factor=3, noise_kernel="white").fit(u, y_slow)
+    assert whole.coef_.shape[0] == 1024
+    # the pilot's tuned hyperparameters, held
+    np.testing.assert_array_equal(model.kernel_.theta, whole.kernel_.theta)
+    assert model.noise_level_ == whole.noise_level_
+    # the prior beyond the cut adds under TAIL_TOLERANCE of the noise variance: the fast
+    # output on a new input moves by a small part of the noise, the evidence by a
+    # thousandth of a nat per slow sample (2 nats here)
+    v = rng.standard_normal(3000)
+    moved = model.predict(v) - whole.predict(v)
+    assert np.sqrt(np.mean(moved**2)) < 0.1 * noise
+    assert abs(model.log_marginal_likelihood_value_
+               - whole.log_marginal_likelihood_value_) < 1e-3 * y_slow.shape[0]
+    np.testing.assert_allclose(model.coef_, whole.coef_[:order], atol=5e-3 * np.abs(g).max())

@@ -224,11 +224,34 @@ def default_order_rule(data, settings, fit_at):
     # the pilots' evidence is comparable where every order uses the same slow samples
     evidence = (None if settings.initial_conditions == "discard"
                 else lambda fitted: fitted.log_marginal_likelihood_value_)
+    # a pilot fit at the cut order is kept where the fit asks for no more than a pilot
+    held = (not settings.auto and settings.criterion == "evidence"
+            and settings.noise_kernel in ("white", "auto"))
+
+    def trim(order):
+        # the last pilot's prior cut at a shorter order: its hyperparameters held there
+        # (and where the fit goes on, its start)
+        kernel, noise = tuned[max(tuned)]
+        tuned[order] = (kernel, noise)
+        caught[order] = list(caught[max(tuned)])
+        if not held:
+            return None
+        result = last[0].optimizer_result_
+        last.clear()  # the last pilot is not held while the cut is fitted
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            cut = fit_at(data, order, replace(pilot, tuned=False), (kernel, noise))
+        caught[order] += record
+        if not np.array_equal(cut.kernel_.theta, kernel.theta):
+            return None  # outside the shorter order's bounds: tuned there from this start
+        return replace(cut, optimizer_result_=result)
+
     rule = orders.default_order(fit_pilot, tail_lag, longest, whole.y.shape[0],
-                                whole.n_inputs, log=_LOG.info, evidence=evidence)
+                                whole.n_inputs, log=_LOG.info, evidence=evidence,
+                                trim=trim)
     start = None
-    if settings.auto and last[0].noise_model is None:
-        start = (last[0].kernel_, last[0].noise_level_)
+    if settings.auto:
+        start = tuned[max(tuned)]  # the last pilot's (white) tuned prior and noise level
     elif not settings.auto and settings.tuned and settings.criterion == "evidence":
         # the order of a pilot fitted again (the doubled order lost evidence, or the fit
         # goes on with a disturbance): its tuning starts where that pilot's ended, a few
