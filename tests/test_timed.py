@@ -18,6 +18,7 @@ import gpmultirate as gm
 from gpmultirate.inference import DataSpacePosterior, log_marginal_likelihood, posterior
 from gpmultirate.kernels import DC, PK, SS, TC, observe
 from gpmultirate.observations import SampledConvolution, TimedConvolution
+from gpmultirate.observations import timed as timed_module
 from gpmultirate.observations.timed import check_sample_times
 
 P = 7
@@ -835,3 +836,54 @@ def test_covariance_blocks_are_the_joint_covariances_blocks(name):
     _, every = observe(kernel, new).covariance_blocks(0)
     np.testing.assert_allclose(every, np.diag(observe(kernel, new).covariance()), rtol=1e-10,
                                atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("initial_conditions", ["zero", "periodic"])
+def test_unique_rows_are_the_input_at_each_tick_minus_each_lag(initial_conditions):
+    # two inputs, readings near both ends with exposure and latency (ticks before the first
+    # sample), more than _ROW_CHUNK rows, and an order beyond the record for zero
+    rng = np.random.default_rng(3)
+    n = 700
+    u = rng.standard_normal((n, 2))
+    stamps = np.sort(rng.uniform(0.2, n - 0.5, 400))
+    order = 900 if initial_conditions == "zero" else 650
+    timed = TimedConvolution(u, stamps, order=order, exposure=1.7, latency=0.4,
+                             initial_conditions=initial_conditions)
+    records, ticks = timed._unique
+    assert ticks.min() < 0 and ticks.shape[0] > timed_module._ROW_CHUNK
+    rows = timed.unique_rows()
+    expected = np.zeros((ticks.shape[0], 2 * order))
+    for i, tick in enumerate(ticks):
+        for k in range(2):
+            for j in range(order):
+                t = tick - j
+                if initial_conditions == "periodic":
+                    expected[i, k * order + j] = u[t % n, k]
+                elif 0 <= t < n:
+                    expected[i, k * order + j] = u[t, k]
+    np.testing.assert_array_equal(rows, expected)
+    assert not rows.flags.writeable
+
+
+@pytest.mark.parametrize("initial_conditions", ["zero", "periodic"])
+@pytest.mark.parametrize("rate", [2.0 / 650, 0.05, 1.5])
+def test_damped_sinusoids_by_recursion_are_the_rows_times_the_bases(initial_conditions, rate):
+    # the recursion over the input against the regressor rows times the sampled bases
+    rng = np.random.default_rng(4)
+    n = 700
+    u = rng.standard_normal((n, 2))
+    stamps = np.sort(rng.uniform(0.2, n - 0.5, 300))
+    order = 900 if initial_conditions == "zero" else 650
+    timed = TimedConvolution(u, stamps, order=order, exposure=1.7, latency=0.4,
+                             initial_conditions=initial_conditions)
+    j = np.arange(order, dtype=float)
+    omega = 0.9
+    ec, es = np.exp(-rate * j) * np.cos(omega * j), np.exp(-rate * j) * np.sin(omega * j)
+    for k in range(2):
+        rows = timed.unique_rows()[:, k * order:(k + 1) * order]
+        expected = rows @ np.column_stack([ec, es, j * ec, j * es])
+        found = timed._damped_at_ticks(rate, omega, k, with_lag=True)
+        scale = np.abs(expected).max(axis=0)
+        np.testing.assert_allclose(found / scale, expected / scale, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(timed._damped_at_ticks(rate, omega, k, with_lag=False),
+                                   found[:, :2])

@@ -47,7 +47,7 @@ import copy
 import numbers
 
 import numpy as np
-from scipy import linalg, sparse
+from scipy import linalg, signal, sparse
 
 from gpmultirate.exceptions import MemoryLimitError
 from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
@@ -55,6 +55,7 @@ from gpmultirate.kernels.hold import HOLD_POINTS, bridge_shape
 from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
+from gpmultirate.observations.convolution import regressor_rows
 from gpmultirate.observations.experiment import Experiment, check_records, is_record_list
 from gpmultirate.observations.interpolated import InterpolatedConvolution
 from gpmultirate.observations.sampled import check_initial_conditions
@@ -211,6 +212,72 @@ def _phase_terms(reach: float):
         n += 1
         bound *= reach / n
     return n
+
+
+#: rows of :meth:`TimedConvolution.unique_rows` formed at a time
+_ROW_CHUNK = 256
+
+
+def _lag_rows(x: np.ndarray, ticks: np.ndarray, order: int, periodic: bool) -> np.ndarray:
+    """``x[n - j]`` for each tick ``n`` and lag ``j < order``: zero outside the record, or periodic.
+
+    Examples
+    --------
+    >>> _lag_rows(np.array([1.0, 2.0, 3.0]), np.array([-1, 0, 2, 4]), 2, False)
+    array([[0., 0.],
+           [1., 0.],
+           [3., 2.],
+           [0., 0.]])
+    >>> _lag_rows(np.array([1.0, 2.0, 3.0]), np.array([0, 4]), 3, True)
+    array([[1., 3., 2.],
+           [2., 1., 3.]])
+    """
+    n = x.shape[0]
+    if periodic:
+        return regressor_rows(x, order, np.remainder(ticks, n), periodic=True)
+    # the record extended with zeros over every tick asked for
+    low, high = min(0, int(ticks.min())), max(n - 1, int(ticks.max()))
+    extended = np.concatenate([np.zeros(-low), x, np.zeros(high - (n - 1))])
+    return regressor_rows(extended, order, ticks - low)
+
+
+def _damped_sums(x: np.ndarray, ticks: np.ndarray, order: int, periodic: bool, rate: float,
+                 omega: float, with_lag: bool) -> list:
+    """``sum_{j < order} x[n - j] q^j`` (and ``j q^j x[n - j]``) at each tick, ``q = e^(-rate + i omega)``.
+
+    ``x`` zero outside the record, or periodic, as :func:`_lag_rows`; by the
+    recursions ``z_i = x_i + q z_(i-1)`` and ``w_i = q (z_(i-1) + w_(i-1))``
+    (``w = sum_j j q^j x[i - j]``) over the extended record, the lags from
+    ``order`` on taken off as ``q^order`` times the sums ``order`` ticks
+    earlier.  ``rate > 0``.
+
+    Examples
+    --------
+    >>> x, ticks = np.array([1.0, -2.0, 0.5, 3.0]), np.array([-1, 1, 3, 5])
+    >>> q = np.exp(-0.3 + 0.7j)
+    >>> direct = [sum(x[n - j] * q**j for j in range(3) if 0 <= n - j < 4) for n in ticks]
+    >>> bool(np.allclose(_damped_sums(x, ticks, 3, False, 0.3, 0.7, False)[0], direct))
+    True
+    """
+    n = x.shape[0]
+    if periodic:
+        extended = x[np.arange(-(order - 1), n) % n]
+        at = np.remainder(ticks, n) + order - 1
+    else:
+        low, high = min(0, int(ticks.min())), max(n - 1, int(ticks.max()))
+        extended = np.concatenate([np.zeros(-low), x, np.zeros(high - (n - 1))])
+        at = ticks - low
+    q = np.exp(-rate + 1j * omega)
+    z = signal.lfilter([1.0], [1.0, -q], extended.astype(complex))
+    earlier = at - order
+    inside = earlier >= 0
+    back = np.where(inside, earlier, 0)
+    tail = q**order
+    sums = [z[at] - tail * np.where(inside, z[back], 0.0)]
+    if with_lag:
+        w = signal.lfilter([0.0, q], [1.0, -2.0 * q, q * q], extended.astype(complex))
+        sums.append(w[at] - tail * np.where(inside, w[back] + order * z[back], 0.0))
+    return sums
 
 
 class TimedConvolution(Observation):
@@ -427,18 +494,16 @@ class TimedConvolution(Observation):
             records, ticks = self._unique
             P = self.order
             rows = np.empty((ticks.shape[0], self.n_inputs * P))
-            lags = np.arange(P)
             for r, part in enumerate(self._parts):
-                mine = records == r
-                index = ticks[mine][:, None] - lags[None, :]
-                x = part._inputs
-                if part.initial_conditions == "periodic":
-                    block = x[np.remainder(index, x.shape[0])]
-                else:
-                    inside = (index >= 0) & (index < x.shape[0])
-                    block = np.where(inside[..., None], x[np.clip(index, 0, x.shape[0] - 1)], 0.0)
-                # (n, P, n_inputs) -> input-major columns
-                rows[mine] = np.transpose(block, (0, 2, 1)).reshape(index.shape[0], -1)
+                mine = np.flatnonzero(records == r)
+                periodic = part.initial_conditions == "periodic"
+                for k in range(self.n_inputs):  # input-major columns
+                    x = part._inputs[:, k]
+                    # a few rows at a time: no (rows, P) index arrays beside the result
+                    for at in range(0, mine.shape[0], _ROW_CHUNK):
+                        chunk = mine[at : at + _ROW_CHUNK]
+                        rows[chunk, k * P : (k + 1) * P] = _lag_rows(x, ticks[chunk], P,
+                                                                     periodic)
             rows.setflags(write=False)
             self._rows = rows
         return self._rows
@@ -657,12 +722,7 @@ class TimedConvolution(Observation):
         True
         """
         input = check_int(input, "input", low=0, high=self.n_inputs - 1)
-        P = self.order
-        j = np.arange(P, dtype=float)
-        ec, es = np.exp(-rate * j) * np.cos(omega * j), np.exp(-rate * j) * np.sin(omega * j)
-        columns = [ec, es, j * ec, j * es] if with_lag else [ec, es]
-        at_ticks = self.unique_rows()[:, input * P:(input + 1) * P] @ np.column_stack(columns)
-        at_points = at_ticks[self._row_id]
+        at_points = self._damped_at_ticks(rate, omega, input, with_lag)[self._row_id]
         d = self._offsets
         decay = np.exp(-rate * d)
         cos, sin = decay * np.cos(omega * d), decay * np.sin(omega * d)
@@ -672,6 +732,33 @@ class TimedConvolution(Observation):
             C1, S1 = at_points[:, 2], at_points[:, 3]
             values += [cos * C1 - sin * S1 + d * values[0], sin * C1 + cos * S1 + d * values[1]]
         return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
+
+    def _damped_at_ticks(self, rate: float, omega: float, input: int, with_lag: bool):
+        """``sum_j u[n - j] e^(-rate j) (cos, sin)(omega j)`` (and ``j`` times each) per distinct row.
+
+        A decaying basis (real ``rate > 0`` and ``omega``) by a first-order
+        complex recursion over the input, ``O(N)``, the sum over ``P`` lags as
+        the recursion's value less ``q^P`` times its value ``P`` ticks earlier
+        (``q = e^(-rate + i omega)``); the lag-weighted sums by its square.
+        Otherwise the regressor rows, ``O(R P)``.
+        """
+        P = self.order
+        # complex values (the complex step of the derivatives) keep the rows: a recursion
+        # over e^(-rate + i omega) mixes the cosine's and the sine's parts, which the step's
+        # imaginary part cannot survive
+        if not (np.isrealobj(rate) and np.isrealobj(omega) and rate > 0.0):
+            j = np.arange(P, dtype=float)
+            ec, es = np.exp(-rate * j) * np.cos(omega * j), np.exp(-rate * j) * np.sin(omega * j)
+            columns = [ec, es, j * ec, j * es] if with_lag else [ec, es]
+            return self.unique_rows()[:, input * P:(input + 1) * P] @ np.column_stack(columns)
+        records, ticks = self._unique
+        out = np.empty((ticks.shape[0], 4 if with_lag else 2))
+        for r, part in enumerate(self._parts):
+            mine = np.flatnonzero(records == r)
+            sums = _damped_sums(part._inputs[:, input], ticks[mine], P,
+                                part.initial_conditions == "periodic", rate, omega, with_lag)
+            out[mine] = np.column_stack([f(v) for v in sums for f in (np.real, np.imag)])
+        return out
 
     # -------------------------------------------------------- with a kernel
     def on_integer_lags(self):
