@@ -151,6 +151,7 @@ from gpmultirate.validation import check_positive
 __all__ = [
     "EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
     "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
+    "SPECTRA_BYTES",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
     "search_resonances", "slowest_decay",
@@ -163,6 +164,10 @@ _LOG = logging.getLogger("gpmultirate.fit")
 EVIDENCE_THRESHOLD = 12.0
 #: gain (nats) a new term must bring in the search, with the base kernel's shape fixed
 SEARCH_THRESHOLD = 2.0 * EVIDENCE_THRESHOLD
+#: bytes of the readings' damped spectra a search keeps from one scan to the next
+#: (readings at their own instants: the four decays of 2,000 readings by 1,500 scanned
+#: frequencies are about 190 MB, each 1.7 s of CPU to form)
+SPECTRA_BYTES = 2**29
 #: damping ratio above which a tuned PK term is not a resonance (no peak)
 MAX_DAMPING = 0.5
 #: held-out fit (points of fit percent) a term must add to be kept
@@ -436,7 +441,7 @@ def _scan(observation, y, input, whiten, omegas=None, alphas=None, amplitudes=No
         envelope = alpha ** (0.5 * lags)
         if timed:
             Ac, As = _timed_sinusoids(observation, whiten, input, alpha, omegas[scanned], n_fft,
-                                      None if index is None else index[scanned])
+                                      None if index is None else index[scanned], seen)
         elif n_fft is None:
             cos, sin = damped_sinusoids(lags, omegas, envelope)  # PK's basis, per frequency
             Ac, As = white @ cos, white @ sin
@@ -471,10 +476,21 @@ def _tick_regressor(observation, input: int) -> np.ndarray:
     return observation.weighted_rows()[:, input * P:(input + 1) * P]
 
 
-def _timed_sinusoids(observation, whiten, input, alpha, omegas, n_fft, index):
-    """Whitened readings of PK's cosine and sine bases at every frequency (timed readings)."""
+def _timed_sinusoids(observation, whiten, input, alpha, omegas, n_fft, index, seen=None):
+    """Whitened readings of PK's cosine and sine bases at every frequency (timed readings).
+
+    ``seen``: the scan's cache (the same grid and decays in every scan of a
+    search); the readings of the bases on the default grid are kept there
+    while they fit in ``SPECTRA_BYTES``, and only whitened in later scans.
+    """
     if index is not None:
-        spectrum = observation.damped_spectrum(alpha, n_fft, index, input)
+        key = ("spectrum", input, float(alpha))
+        spectrum = None if seen is None else seen.get(key)
+        if spectrum is None:
+            spectrum = observation.damped_spectrum(alpha, n_fft, index, input)
+            kept = 0 if seen is None else seen.get("spectra_bytes", 0) + spectrum.nbytes
+            if seen is not None and kept <= SPECTRA_BYTES:
+                seen[key], seen["spectra_bytes"] = spectrum, kept
         return whiten(spectrum.real), whiten(-spectrum.imag)
     cos, sin = [], []
     for part in np.array_split(omegas, max(1, omegas.size // 8)):  # bounded memory
@@ -538,7 +554,8 @@ def _excitation_on_grid(Phi: np.ndarray, n_fft: int, index: np.ndarray) -> np.nd
 
 def search_resonances(observation, y, base_kernel, noise_level: float, noise_bounds, *,
                       max_resonances: int = 4, sample_time: float = 1.0,
-                      random_state=None, n_folds: int = 5) -> ResonanceSearch:
+                      random_state=None, n_folds: int = 5,
+                      tune_base: bool = True) -> ResonanceSearch:
     """Add PK terms to ``base_kernel`` by marginal likelihood, with no frequency guesses.
 
     The greedy forward search of the module docstring: tune the base
@@ -575,6 +592,10 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
         Passed to the tuning.
     n_folds : int, default=5
         Contiguous blocks of slow samples of the held-out check.
+    tune_base : bool, default=True
+        False: ``base_kernel`` and ``noise_level`` are tuned already on
+        these data (a default order's pilot at this order, or cut to it),
+        and the search starts from them as they are.
 
     Returns
     -------
@@ -605,15 +626,19 @@ def search_resonances(observation, y, base_kernel, noise_level: float, noise_bou
     sample_time = check_positive(sample_time, "sample_time")
     with blas_threads_for(observation):
         return _search(observation, y, base_kernel, noise_level, noise_bounds,
-                       max_resonances, sample_time, random_state, n_folds)
+                       max_resonances, sample_time, random_state, n_folds, tune_base)
 
 
 def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonances,
-            sample_time, random_state, n_folds=5) -> ResonanceSearch:
-    _LOG.info("resonance search: order %d, up to %d resonance(s)", observation.order,
-              max_resonances)
+            sample_time, random_state, n_folds=5, tune_base=True) -> ResonanceSearch:
+    _LOG.info("resonance search: order %d, up to %d resonance(s)%s", observation.order,
+              max_resonances, "" if tune_base else ", from the tuned pilot's prior")
     evidence = LogEvidence(observation, y, base_kernel, noise_level, noise_bounds)
-    base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
+    if tune_base:
+        base, noise, result, value = _tune(evidence, base_kernel, noise_level, random_state)
+    else:
+        base, noise, result, value = (base_kernel, noise_level, None,
+                                      float(evidence(evidence.theta)))
     model_noise0, result0 = noise, result
     history = [value]
     model = _ResonantModel(evidence.moved_to(base, noise))

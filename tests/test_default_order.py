@@ -160,3 +160,18 @@ def test_a_cut_default_order_predicts_as_the_pilot_it_was_cut_from(monkeypatch):
     assert abs(model.log_marginal_likelihood_value_
                - whole.log_marginal_likelihood_value_) < 1e-3 * y_slow.shape[0]
     np.testing.assert_allclose(model.coef_, whole.coef_[:order], atol=5e-3 * np.abs(g).max())
+
+
+def test_auto_without_a_resonance_is_the_default_fit_from_the_kept_pilot():
+    # the search starts from the pilot kept at the default order and does not tune it
+    # again: where it keeps no term, the fit is the default kernel's, value for value
+    rng = np.random.default_rng(1)
+    n = 6000
+    u = rng.standard_normal(n)
+    y_slow = np.convolve(u, 0.99 ** np.arange(1500))[:n][::3].copy()
+    y_slow += 0.02 * np.std(y_slow) * rng.standard_normal(y_slow.shape[0])
+    plain = gm.FIRGaussianProcess(factor=3, noise_kernel="white").fit(u, y_slow)
+    auto = gm.FIRGaussianProcess(factor=3, noise_kernel="white", kernel="auto").fit(u, y_slow)
+    assert auto.resonances_ == [] and auto.order_selection_["order"].tolist() == [512]
+    assert auto.kernel_ == plain.kernel_ and auto.noise_level_ == plain.noise_level_
+    np.testing.assert_array_equal(auto.coef_, plain.coef_)

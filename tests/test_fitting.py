@@ -394,7 +394,8 @@ def test_a_pilots_order_fitted_again_starts_from_that_pilots_tuning(monkeypatch)
     data = (u, y, None)
     pilots, calls = {}, []
 
-    def ladder(fit_at, tail_lag, longest, n_samples, n_inputs=1, log=None, evidence=None):
+    def ladder(fit_at, tail_lag, longest, n_samples, n_inputs=1, log=None, evidence=None,
+               trim=None):
         for p in (512, 999):
             pilots[p] = fit_at(p)
         # the doubled order lost evidence: the shorter one is fitted again
@@ -410,9 +411,9 @@ def test_a_pilots_order_fitted_again_starts_from_that_pilots_tuning(monkeypatch)
     assert [c[0] for c in calls] == [512, 999, 512]
     assert calls[0][1] is None  # the first pilot from the plain prior, the next from its end
     assert calls[1][1][0].theta == pytest.approx(pilots[512].kernel_.theta)
-    kernel, noise = calls[-1][1]
+    kernel, noise, tuned = calls[-1][1]
     assert kernel.theta == pytest.approx(pilots[512].kernel_.theta)
-    assert noise == pilots[512].noise_level_
+    assert noise == pilots[512].noise_level_ and not tuned  # tuned again from there
     # the plain start repeats the pilot's run evaluation for evaluation
     assert fitted.optimizer_result_.nfev < pilots[512].optimizer_result_.nfev
     assert fitted.log_marginal_likelihood_value_ >= (

@@ -26,12 +26,15 @@ def search(observation, y, kernel, noise_level: float, noise_bounds, settings):
 
     Returns the :class:`~gpmultirate.resonances.ResonanceSearch`: the kernel
     with its PK terms, the tuned noise level, the optimizer's run and the
-    :class:`~gpmultirate.resonances.Resonance` of each term.
+    :class:`~gpmultirate.resonances.Resonance` of each term.  With
+    ``settings.start_tuned`` (the start is the default order's pilot, tuned
+    at this order or cut to it) the base is not tuned again.
     """
     return resonances.search_resonances(
         observation, y, kernel, noise_level, noise_bounds,
         max_resonances=settings.max_resonances, sample_time=settings.sample_time,
         random_state=settings.random_state, n_folds=settings.n_folds,
+        tune_base=not settings.start_tuned,
     )
 
 

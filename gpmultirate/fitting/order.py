@@ -24,6 +24,7 @@ import logging
 import time
 import warnings
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -39,6 +40,7 @@ from gpmultirate.orders import MAX_CHECKED_SAMPLES, MIN_CHECKED_ORDER
 __all__ = [
     "HELD_OUT_MARGIN",
     "ORDER_MARGIN",
+    "PilotStart",
     "RESIDUAL_CORRELATION",
     "check_long_enough",
     "check_shorter_orders",
@@ -153,7 +155,8 @@ def fit_order(data, settings, fit_at):
                 return rule.fit, rule.table
     start = time.perf_counter()
     fitted = fit_at(data, order, settings if rule is None else replace(
-        settings, order_from_data=True), start=pilot)
+        settings, order_from_data=True,
+        start_tuned=pilot is not None and pilot.tuned), start=pilot)
     if rule is None:
         return fitted, None
     _LOG.info("fitted order %d in %.1f s", fitted.observation_.order,
@@ -177,6 +180,19 @@ def pilot_lag(kernel, powers, noise_level: float, order: int) -> int:
                orders.prior_envelope_lag(kernel, len(powers), window))
 
 
+class PilotStart(NamedTuple):
+    """The start of the fit at the default order: a pilot's tuned prior and noise level.
+
+    ``tuned``: tuned at that order already (the pilot's own order, or cut
+    from it where its prior is negligible), so the resonance search starts
+    from them without tuning them again.
+    """
+
+    kernel: object
+    noise_level: float
+    tuned: bool = False
+
+
 def default_order_rule(data, settings, fit_at):
     """The default order of a record longer than ``SHORT_RECORD``.
 
@@ -189,9 +205,10 @@ def default_order_rule(data, settings, fit_at):
     Their warnings are those of the kept fit only.  Returns the rule
     and the start of the fit at its order: for the resonance search, the
     last pilot's tuned ``(kernel, noise level)`` (the search starts from
-    them instead of from the untuned prior); for a fit tuned by the
-    evidence at the order of a pilot (fitted again), that pilot's; else
-    None.
+    them instead of from the untuned prior, and does not tune them again
+    where the rule keeps that pilot's order or cuts it:
+    :class:`PilotStart`); for a fit tuned by the evidence at the order of
+    a pilot (fitted again), that pilot's; else None.
     """
     whole = experiment_of(data, None, settings)
     longest = whole.observation.order
@@ -251,13 +268,16 @@ def default_order_rule(data, settings, fit_at):
                                 trim=trim)
     start = None
     if settings.auto:
-        start = tuned[max(tuned)]  # the last pilot's (white) tuned prior and noise level
+        # the last pilot's (white) tuned prior and noise level: tuned for the search where
+        # the rule keeps that pilot's order or cuts it (the prior negligible beyond the cut)
+        start = PilotStart(*tuned[max(tuned)], tuned=pilot.tuned and rule.order in tuned
+                           and tuned[rule.order] is tuned[max(tuned)])
     elif not settings.auto and settings.tuned and settings.criterion == "evidence":
         # the order of a pilot fitted again (the doubled order lost evidence, or the fit
         # goes on with a disturbance): its tuning starts where that pilot's ended, a few
         # evaluations where the plain start took as many as the pilot (60 at order 3,996
         # of a 20 s camera log)
-        start = tuned.get(rule.order)
+        start = PilotStart(*tuned[rule.order]) if rule.order in tuned else None
     if rule.fit is not None and (settings.auto or settings.criterion != "evidence"
                                  or settings.noise_kernel not in ("white", "auto")
                                  or (settings.noise_kernel == "auto"

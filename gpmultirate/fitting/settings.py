@@ -47,6 +47,9 @@ class Settings:
     scale: object = None  # the DataScale of the data (units.normalize), set by fit
     noise_kernel: object = "white"
     order_from_data: bool = False  # the order is the default order's: it covers the memory
+    # the fit's start is the default order's last pilot, tuned at this order or cut to it
+    # (its prior negligible beyond): kernel="auto"'s search does not tune that base again
+    start_tuned: bool = False
     kernel: object = None
     order: object = None
     noise_level_bounds: object = "auto"
