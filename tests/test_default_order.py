@@ -10,7 +10,7 @@ import pytest
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 import gpmultirate as gm
-from gpmultirate import orders
+from gpmultirate import orders, resonances
 from gpmultirate.fitting import order as order_steps
 from gpmultirate.kernels import DC, PerInputKernel
 from gpmultirate.resonances import slowest_decay
@@ -160,6 +160,21 @@ def test_a_cut_default_order_predicts_as_the_pilot_it_was_cut_from(monkeypatch):
     assert abs(model.log_marginal_likelihood_value_
                - whole.log_marginal_likelihood_value_) < 1e-3 * y_slow.shape[0]
     np.testing.assert_allclose(model.coef_, whole.coef_[:order], atol=5e-3 * np.abs(g).max())
+    # kernel="auto" searches at the cut order from the pilot's tuned prior, as it is
+    monkeypatch.setattr(orders, "TRIM_SHARE", 0.75)
+    seen = []
+
+    def search(observation, y, kernel, noise_level, noise_bounds, **kwargs):
+        seen.append((observation.order, kernel.theta, noise_level, kwargs["tune_base"]))
+        raise StopIteration  # the start is all this test reads
+
+    monkeypatch.setattr(resonances, "search_resonances", search)
+    with pytest.raises(StopIteration):
+        gm.FIRGaussianProcess(factor=3, noise_kernel="white", kernel="auto").fit(u, y_slow)
+    (searched_order, theta, noise_level, tune_base), = seen
+    assert searched_order == order and tune_base is False
+    # (the search works in normalized units: the scale differs, DC's decay and beta do not)
+    np.testing.assert_allclose(theta[1:], model.kernel_.theta[1:], rtol=1e-12)
 
 
 def test_auto_without_a_resonance_is_the_default_fit_from_the_kept_pilot():

@@ -248,8 +248,7 @@ def default_order_rule(data, settings, fit_at):
     def trim(order):
         # the last pilot's prior cut at a shorter order: its hyperparameters held there
         # (and where the fit goes on, its start)
-        kernel, noise = tuned[max(tuned)]
-        tuned[order] = (kernel, noise)
+        kernel, noise = tuned[order] = tuned[max(tuned)]
         caught[order] = list(caught[max(tuned)])
         if not held:
             return None
