@@ -838,29 +838,32 @@ def test_covariance_blocks_are_the_joint_covariances_blocks(name):
                                atol=1e-12 * scale)
 
 
-@pytest.mark.parametrize("initial_conditions", ["zero", "periodic"])
-def test_unique_rows_are_the_input_at_each_tick_minus_each_lag(initial_conditions):
-    # two inputs, readings near both ends with exposure and latency (ticks before the first
-    # sample), more than _ROW_CHUNK rows, and an order beyond the record for zero
-    rng = np.random.default_rng(3)
+def _two_input_readings(initial_conditions, n_stamps, seed):
+    """Two inputs, readings near both ends with exposure and latency (ticks before the first
+    sample), and an order beyond the record for zero initial conditions."""
+    rng = np.random.default_rng(seed)
     n = 700
     u = rng.standard_normal((n, 2))
-    stamps = np.sort(rng.uniform(0.2, n - 0.5, 400))
+    stamps = np.sort(rng.uniform(0.2, n - 0.5, n_stamps))
     order = 900 if initial_conditions == "zero" else 650
-    timed = TimedConvolution(u, stamps, order=order, exposure=1.7, latency=0.4,
-                             initial_conditions=initial_conditions)
-    records, ticks = timed._unique
+    return u, order, TimedConvolution(u, stamps, order=order, exposure=1.7, latency=0.4,
+                                      initial_conditions=initial_conditions)
+
+
+@pytest.mark.parametrize("initial_conditions", ["zero", "periodic"])
+def test_unique_rows_are_the_input_at_each_tick_minus_each_lag(initial_conditions):
+    u, order, timed = _two_input_readings(initial_conditions, 400, 3)
+    n = u.shape[0]
+    _, ticks = timed._unique
     assert ticks.min() < 0 and ticks.shape[0] > timed_module._ROW_CHUNK
     rows = timed.unique_rows()
-    expected = np.zeros((ticks.shape[0], 2 * order))
-    for i, tick in enumerate(ticks):
-        for k in range(2):
-            for j in range(order):
-                t = tick - j
-                if initial_conditions == "periodic":
-                    expected[i, k * order + j] = u[t % n, k]
-                elif 0 <= t < n:
-                    expected[i, k * order + j] = u[t, k]
+    # u[tick - j] written out: every (tick, lag) pair at once
+    t = ticks[:, None] - np.arange(order)[None, :]
+    if initial_conditions == "periodic":
+        block = u[t % n]
+    else:
+        block = np.where(((t >= 0) & (t < n))[..., None], u[np.clip(t, 0, n - 1)], 0.0)
+    expected = np.hstack([block[:, :, 0], block[:, :, 1]])
     np.testing.assert_array_equal(rows, expected)
     assert not rows.flags.writeable
 
@@ -869,13 +872,7 @@ def test_unique_rows_are_the_input_at_each_tick_minus_each_lag(initial_condition
 @pytest.mark.parametrize("rate", [2.0 / 650, 0.05, 1.5])
 def test_damped_sinusoids_by_recursion_are_the_rows_times_the_bases(initial_conditions, rate):
     # the recursion over the input against the regressor rows times the sampled bases
-    rng = np.random.default_rng(4)
-    n = 700
-    u = rng.standard_normal((n, 2))
-    stamps = np.sort(rng.uniform(0.2, n - 0.5, 300))
-    order = 900 if initial_conditions == "zero" else 650
-    timed = TimedConvolution(u, stamps, order=order, exposure=1.7, latency=0.4,
-                             initial_conditions=initial_conditions)
+    _, order, timed = _two_input_readings(initial_conditions, 300, 4)
     j = np.arange(order, dtype=float)
     omega = 0.9
     ec, es = np.exp(-rate * j) * np.cos(omega * j), np.exp(-rate * j) * np.sin(omega * j)
