@@ -896,6 +896,15 @@ class PK(LagKernel):
         alpha, omega, sigma1, sigma2 = values.values()
         ct, st = self.basis(t)
         cs, ss = self.basis(s)
+        if not eval_gradient:
+            # the low-rank form in one product: one array of len(t) x len(s) (the sum of
+            # outer products held seven at once, 0.9 GB at 4,000 lags)
+            left, right, weights = [ct, st], [cs, ss], [sigma1**2, sigma2**2]
+            if any(self.spread()):
+                left += [t * ct, t * st]
+                right += [s * cs, s * ss]
+                weights += list(self._spread_weights(values))
+            return (np.column_stack(left) * weights) @ np.column_stack(right).T
         cos_part = sigma1**2 * np.outer(ct, cs)
         sin_part = sigma2**2 * np.outer(st, ss)
         K = cos_part + sin_part
@@ -905,8 +914,6 @@ class PK(LagKernel):
             w_std, r_std = self.spread()
             cc, sn = np.outer(t * ct, s * cs), np.outer(t * st, s * ss)
             K = K + A * cc + B * sn
-        if not eval_gradient:
-            return K
         mean_lag = np.add.outer(t, s) / 2.0
         # d/d(log omega): omega * dK/domega, using d cos(w t)/dw = -t sin(w t)
         d_omega = omega * (
