@@ -66,18 +66,25 @@ def test_the_estimate_is_the_measured_peak(n, factor, order, optimizer):
         assert 0.25 * estimate < peak
 
 
+def _general_fit(kernel, n, factor, order, optimizer):
+    """A fit of ``kernel`` (no structure the routes use), its measured peak and the estimate."""
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(n)
+    y = np.convolve(u, 0.9 ** np.arange(order))[:n:factor]
+    y = y + 0.01 * rng.standard_normal(y.shape[0])
+    model = gm.FIRGaussianProcess(kernel, factor=factor, order=order, optimizer=optimizer)
+    peak = _peak_of_fit(model, u, y)
+    return model, y, peak, fit_memory_estimate(y.shape[0], order,
+                                               model.kernel_.theta.shape[0] + 1)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("optimizer", [None, "marginal_likelihood"])
 def test_the_estimate_is_the_measured_peak_of_a_kernel_without_structure(optimizer):
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel
 
-    rng = np.random.default_rng(1)
-    u = rng.standard_normal(1200)
-    y = np.convolve(u, 0.9 ** np.arange(1200))[:1200:2] + 0.01 * rng.standard_normal(600)
-    model = gm.FIRGaussianProcess(factor=2, order=1200, optimizer=optimizer,
-                                  kernel=ConstantKernel(1.0) * RBF(20.0))
-    peak = _peak_of_fit(model, u, y)
-    estimate = fit_memory_estimate(y.shape[0], 1200, model.kernel_.theta.shape[0] + 1)
+    _, _, peak, estimate = _general_fit(ConstantKernel(1.0) * RBF(20.0), 1200, 2, 1200,
+                                        optimizer)
     assert 0.5 * estimate < peak < 1.5 * estimate
 
 
@@ -89,14 +96,9 @@ def test_the_estimate_covers_the_general_long_record_posterior(optimizer):
 
     from gpmultirate.kernels import TC
 
-    rng = np.random.default_rng(1)
-    u = rng.standard_normal(3000)
-    y = np.convolve(u, 0.9 ** np.arange(300))[:3000:3] + 0.01 * rng.standard_normal(1000)
-    model = gm.FIRGaussianProcess(ConstantKernel(1.0) * TC(), factor=3, order=300,
-                                  optimizer=optimizer)
-    peak = _peak_of_fit(model, u, y)
+    model, y, peak, estimate = _general_fit(ConstantKernel(1.0) * TC(), 3000, 3, 300,
+                                            optimizer)
     assert isinstance(model.posterior_, ParameterSpacePosterior)
-    estimate = fit_memory_estimate(y.shape[0], 300, model.kernel_.theta.shape[0] + 1)
     # untuned, the checks after the fit (the M x M covariance and its factor) do not run
     lower = estimate - (0 if optimizer else 8 * 2 * y.shape[0] ** 2)
     assert 0.5 * lower < peak < 1.5 * estimate
