@@ -232,20 +232,29 @@ def _lag_rows(x: np.ndarray, ticks: np.ndarray, order: int, periodic: bool) -> n
     array([[1., 3., 2.],
            [2., 1., 3.]])
     """
+    extended, at = _extended(x, ticks, order, periodic)
+    return regressor_rows(extended, order, at)
+
+
+def _extended(x: np.ndarray, ticks: np.ndarray, order: int, periodic: bool):
+    """``x`` extended over every tick asked for, and each tick's position in it.
+
+    Periodic: one period with its last ``order - 1`` samples before it (every
+    lag of a tick inside); else zeros before the record and after it, as far
+    as the ticks reach (lags before the extension's start are zero).
+    """
     n = x.shape[0]
     if periodic:
-        return regressor_rows(x, order, np.remainder(ticks, n), periodic=True)
-    # the record extended with zeros over every tick asked for
+        return x[np.arange(-(order - 1), n) % n], np.remainder(ticks, n) + order - 1
     low, high = min(0, int(ticks.min())), max(n - 1, int(ticks.max()))
-    extended = np.concatenate([np.zeros(-low), x, np.zeros(high - (n - 1))])
-    return regressor_rows(extended, order, ticks - low)
+    return np.concatenate([np.zeros(-low), x, np.zeros(high - (n - 1))]), ticks - low
 
 
 def _damped_sums(x: np.ndarray, ticks: np.ndarray, order: int, periodic: bool, rate: float,
                  omega: float, with_lag: bool) -> list:
     """``sum_{j < order} x[n - j] q^j`` (and ``j q^j x[n - j]``) at each tick, ``q = e^(-rate + i omega)``.
 
-    ``x`` zero outside the record, or periodic, as :func:`_lag_rows`; by the
+    ``x`` zero outside the record, or periodic (:func:`_extended`); by the
     recursions ``z_i = x_i + q z_(i-1)`` and ``w_i = q (z_(i-1) + w_(i-1))``
     (``w = sum_j j q^j x[i - j]``) over the extended record, the lags from
     ``order`` on taken off as ``q^order`` times the sums ``order`` ticks
@@ -259,14 +268,7 @@ def _damped_sums(x: np.ndarray, ticks: np.ndarray, order: int, periodic: bool, r
     >>> bool(np.allclose(_damped_sums(x, ticks, 3, False, 0.3, 0.7, False)[0], direct))
     True
     """
-    n = x.shape[0]
-    if periodic:
-        extended = x[np.arange(-(order - 1), n) % n]
-        at = np.remainder(ticks, n) + order - 1
-    else:
-        low, high = min(0, int(ticks.min())), max(n - 1, int(ticks.max()))
-        extended = np.concatenate([np.zeros(-low), x, np.zeros(high - (n - 1))])
-        at = ticks - low
+    extended, at = _extended(x, ticks, order, periodic)
     q = np.exp(-rate + 1j * omega)
     z = signal.lfilter([1.0], [1.0, -q], extended.astype(complex))
     earlier = at - order
