@@ -440,7 +440,8 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         # user's hyperparameters (no tuning, as a model file is read) is not judged
         specified = misspecification.check_fit(
             self.observation_, self.y_slow_, self.kernel_, self.noise_level_,
-            self._noise_model, self.noise_level_bounds_) if settings.tuned else None
+            self._noise_model, self.noise_level_bounds_,
+            posterior=self.posterior_) if settings.tuned else None
         units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
             given, self.observation_.order, settings))
         if self.excitation_model_ is None:

@@ -200,7 +200,7 @@ def _at_lower_bound(noise_level: float, bounds) -> bool:
 
 
 def check_fit(observation, y, kernel, noise_level: float, noise_model=None,
-              noise_bounds="fixed") -> MisspecificationCheck | None:
+              noise_bounds="fixed", posterior=None) -> MisspecificationCheck | None:
     """The signs that the fitted model does not describe the data; None beyond
     ``CHECKED_SAMPLES`` slow samples, with fewer than 20, or where the fitted
     data covariance is singular in floating point (not checked).
@@ -211,6 +211,11 @@ def check_fit(observation, y, kernel, noise_level: float, noise_model=None,
         The fit, as in :func:`innovations`.
     noise_bounds : pair of floats or "fixed"
         The bounds of the white noise variance (its lower bound is a sign).
+    posterior : GaussianCoefficients, optional
+        The fit's posterior of these data: where it holds the factor of
+        their covariance (:meth:`~gpmultirate.covariance.DataSpacePosterior.innovations`),
+        the innovations come from it instead of a covariance and a
+        factorization of their own.
 
     Returns
     -------
@@ -237,8 +242,10 @@ def check_fit(observation, y, kernel, noise_level: float, noise_model=None,
     M = y.shape[0]
     if M > CHECKED_SAMPLES or M < 20:
         return None
+    e = None if posterior is None else posterior.innovations(y)
     try:
-        e = innovations(observation, y, kernel, noise_level, noise_model)
+        if e is None:
+            e = innovations(observation, y, kernel, noise_level, noise_model)
     except np.linalg.LinAlgError:  # a covariance singular in floating point: not checked
         return None
     lags = max(1, min(INNOVATION_LAGS, M // 5))

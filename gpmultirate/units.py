@@ -291,6 +291,12 @@ class ScaledCoefficients(GaussianCoefficients):
     def times_root(self, A: np.ndarray) -> np.ndarray:
         raise NotImplementedError("use linear_map or pair_variances")
 
+    def innovations(self, y: np.ndarray) -> np.ndarray | None:
+        """The normalized fit's innovations of ``y`` in the data's units: the same numbers
+        (``y`` and the covariance's factor both scale by ``2**e_y``)."""
+        return self.normalized.innovations(
+            np.ldexp(np.asarray(y, dtype=float), -self.scale.output_exponent))
+
     def _lag_exponents(self, X: np.ndarray) -> np.ndarray:
         """The exponent of ``g`` at each kernel input (a lag, or an ``(input, lag)`` pair)."""
         gains = self.scale.gain_exponents

@@ -41,6 +41,30 @@ def test_innovations_are_the_whitened_data_of_the_dense_covariance():
     assert e @ e == pytest.approx(y @ np.linalg.solve(Ky, y), rel=1e-10)
 
 
+def test_a_data_space_fit_gives_its_innovations_from_its_own_factor():
+    # the fit's posterior holds the factor of Ky: the same innovations without a second
+    # covariance; in the data's units (a normalized fit) the same numbers
+    rng = np.random.default_rng(4)
+    u = 1e3 * rng.standard_normal(150)
+    y = 1e-2 * np.convolve(u, 0.8 ** np.arange(20))[:150:3] + 0.1 * rng.standard_normal(50)
+    model = gm.FIRGaussianProcess(factor=3, order=60).fit(u, y)
+    observation, kernel = model.observation_, model.kernel_
+    e = innovations(observation, y, kernel, model.noise_level_)
+    Ky = _dense_covariance(u, 3, 60, kernel, model.noise_level_ * np.eye(50))
+    assert e @ e == pytest.approx(y @ np.linalg.solve(Ky, y), rel=1e-8)
+    np.testing.assert_allclose(model.posterior_.innovations(y), e, rtol=1e-7, atol=1e-9)
+    assert model.posterior_.normalized.innovations(y) is not None  # another scale
+    assert not np.allclose(model.posterior_.normalized.innovations(y), e)
+    with_posterior = check_fit(observation, y, kernel, model.noise_level_,
+                               posterior=model.posterior_)
+    alone = check_fit(observation, y, kernel, model.noise_level_)
+    assert with_posterior.ljung_box_p_value == pytest.approx(alone.ljung_box_p_value, rel=1e-6)
+    assert with_posterior.variance_p_value == pytest.approx(alone.variance_p_value, rel=1e-6)
+    # a posterior without that factor (a long record's parameter space) answers None
+    long = gm.FIRGaussianProcess(factor=3, order=10).fit(u, y)
+    assert long.posterior_.innovations(y) is None
+
+
 def test_the_check_holds_its_level_on_data_drawn_from_the_model():
     """Monte Carlo: data drawn from the model (known hyperparameters) are flagged at about
     twice the level of each test (two tests), never far more."""

@@ -95,6 +95,15 @@ class GaussianCoefficients:
             self._K = self._K()
         return self._K
 
+    def innovations(self, y: np.ndarray) -> np.ndarray | None:
+        """``L^{-1} y`` for the factor ``L L^T`` of the data's covariance the fit holds; None here.
+
+        Only a posterior formed in data space holds that factor
+        (:class:`DataSpacePosterior`); elsewhere the innovations cost a
+        factorization of their own (:func:`~gpmultirate.misspecification.innovations`).
+        """
+        return None
+
     def linear_map(self, A: np.ndarray, full_cov: bool = False):
         """Mean and covariance (or variance) of ``A g`` for a ``(q, P)`` matrix ``A``."""
         mean = A @ self.coef
@@ -156,6 +165,11 @@ class DataSpacePosterior(GaussianCoefficients):
     def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
         return self.observation.cross_covariance(self.kernel, X) @ self.alpha
+
+    def innovations(self, y: np.ndarray) -> np.ndarray:
+        """``L^{-1} y`` with the fit's own factor of ``Phi K Phi^T + N`` (jitter included)."""
+        return linalg.solve_triangular(self.L, np.asarray(y, dtype=float), lower=True,
+                                       check_finite=False)
 
     def at_lags(self, X: np.ndarray, full_cov: bool = False):
         """Posterior mean and variance (or covariance) of ``g`` at the kernel inputs ``X``."""
