@@ -19,10 +19,11 @@ from gpmultirate.observations.interpolated import lagrange_weights
 from gpmultirate.observations.timed import predict_readings
 
 
-def _reference_rows(u, times, order, exposure, latency, nodes):
+def _reference_rows(u, times, order, exposure, latency, nodes, periodic=False):
     """Each reading as ``sum_{k >= 0} u[n - k] * (interpolated g)(k + d)`` over its window.
 
-    ``g(k + d)`` from the nodes ``k + nodes`` up to ``order - 1``, zero at negative lags.
+    ``g(k + d)`` from the nodes ``k + nodes`` up to ``order - 1``, zero at negative lags;
+    ``periodic``: the input repeats before the record (every ``k < order`` is read).
     """
     xi, w = np.polynomial.legendre.leggauss(16)
     out = np.zeros((len(times), order))
@@ -40,11 +41,46 @@ def _reference_rows(u, times, order, exposure, latency, nodes):
                 weights += list(w * (b - a) / 2 / exposure)
         for x, weight in zip(points, weights):
             n = int(np.floor(x))
-            for k in range(min(order, n + 1)):
+            for k in range(order if periodic else min(order, n + 1)):
                 lags = np.arange(k + nodes[0], min(k + nodes[-1], order - 1) + 1)
                 L = lagrange_weights(lags - k, np.array([x - n]))[0]
-                out[i, lags[lags >= 0]] += weight * L[lags >= 0] * u[n - k]
+                out[i, lags[lags >= 0]] += weight * L[lags >= 0] * u[(n - k) % len(u)]
     return out
+
+
+def test_lagrange_weights_reproduce_polynomials_of_their_degree():
+    # sum_j w_j(x) p(s_j) = p(x) for every polynomial of degree below the number of nodes
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-2.0, 3.0, 50)
+    for nodes in (np.arange(-5, 7), np.arange(-1, 3), np.arange(0, 2), np.arange(-5, 2)):
+        W = lagrange_weights(nodes, x)
+        for degree in range(nodes.shape[0]):
+            p = rng.standard_normal(degree + 1)
+            np.testing.assert_allclose(W @ np.polyval(p, nodes), np.polyval(p, x),
+                                       rtol=1e-9, atol=1e-9 * np.abs(p).sum() * 3.0**degree)
+        assert np.allclose(lagrange_weights(nodes, nodes.astype(float)), np.eye(nodes.shape[0]))
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_rows_of_two_records_and_two_inputs_match_the_reference(periodic):
+    # each record's readings see its own input (each input's lags its own columns); an
+    # order beyond twice the nodes, so that lags away from both ends are read by the taps
+    rng = np.random.default_rng(6)
+    N, P = 90, 40
+    records, blocks = [], []
+    for r in range(2):
+        u = rng.standard_normal((N, 2))
+        times = np.sort(rng.uniform(0.5, N - 0.5, 9))
+        timed = TimedConvolution(u, times, P, exposure=1.3, latency=0.1,
+                                 initial_conditions="periodic" if periodic else "zero")
+        records.append(timed)
+        blocks.append(np.hstack([_reference_rows(u[:, k], timed.sample_times, P, 1.3, 0.1,
+                                                 list(range(-5, 7)), periodic)
+                                 for k in range(2)]))
+    observation = InterpolatedConvolution(TimedConvolution.stack(records))
+    np.testing.assert_allclose(observation.matrix, np.vstack(blocks), rtol=0, atol=1e-11)
+    np.testing.assert_allclose(observation.regressor_rows(5, 13), np.vstack(blocks)[5:13],
+                               rtol=0, atol=1e-11)
 
 
 @pytest.mark.parametrize("points", [2, 4, 8])

@@ -99,11 +99,17 @@ def lagrange_weights(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
     """
     nodes = np.asarray(nodes, dtype=float)
     x = np.asarray(x, dtype=float)
-    out = np.ones((x.shape[0], nodes.shape[0]))
-    for j, node in enumerate(nodes):
-        for other in nodes:
-            if other != node:
-                out[:, j] *= (x - other) / (node - other)
+    # w_j(x) = prod_(i != j) (x - s_i) / (s_j - s_i): the products of the differences
+    # before and after j, O(S) passes over x where the pairs took O(S^2)
+    differences = x[:, None] - nodes[None, :]
+    out = np.ones_like(differences)
+    np.cumprod(differences[:, :-1], axis=1, out=out[:, 1:])
+    after = np.ones_like(differences)
+    after[:, :-1] = np.cumprod(differences[:, :0:-1], axis=1)[:, ::-1]
+    out *= after
+    gaps = nodes[:, None] - nodes[None, :]
+    np.fill_diagonal(gaps, 1.0)
+    out /= np.prod(gaps, axis=1)
     return out
 
 
