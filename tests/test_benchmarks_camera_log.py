@@ -40,3 +40,22 @@ def test_run_time_against_the_time_its_run_took():
     # the run of a line starts at the last pilot's end: (2 + 6) / 10, (10 + 60) / 40,
     # (35 + 10) / 40
     assert benchmark.run_time_ratios(STDERR) == pytest.approx([0.8, 70 / 40, 45 / 40])
+
+
+def test_each_command_reports_its_own_peak_memory():
+    # the benchmark's children's ru_maxrss is the largest of every command so far; each
+    # command prints its own peak instead: a command holding 200 MB more reports about that
+    # much more, and the one after it its own again
+    import subprocess
+
+    def peak(prelude=""):
+        done = subprocess.run([sys.executable, "-c", prelude + benchmark._OWN_PEAK, "--help"],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0
+        return int(done.stderr.strip().splitlines()[-1].split()[-1]) / 1024
+
+    small = peak()
+    large = peak("import numpy\nheld = numpy.ones(25_000_000)\n")
+    assert 10 < small < 1000
+    assert large > small + 150
+    assert peak() < large - 150
