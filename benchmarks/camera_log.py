@@ -247,14 +247,24 @@ def draw_modes(rng):
 
 
 # ``python -m gpmultirate`` that prints its own peak resident memory last: the children's
-# ``ru_maxrss`` of this process is the largest of every command run so far, not this one's
+# ``ru_maxrss`` of this process is the largest of every command run so far, not this one's,
+# and a child's own ``ru_maxrss`` starts from the forking process's size (Linux keeps it
+# across exec); the high-water mark of its memory map (``VmHWM``) is its own
 _OWN_PEAK = (
     "import resource, runpy, sys\n"
+    "def _peak_kb():\n"
+    "    try:\n"
+    "        with open('/proc/self/status') as status:\n"
+    "            for line in status:\n"
+    "                if line.startswith('VmHWM:'):\n"
+    "                    return int(line.split()[1])\n"
+    "    except OSError:\n"
+    "        pass\n"
+    "    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
     "try:\n"
     "    runpy.run_module('gpmultirate', run_name='__main__', alter_sys=True)\n"
     "finally:\n"
-    "    print(f'peak-rss-kb {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}', "
-    "file=sys.stderr)\n"
+    "    print(f'peak-rss-kb {_peak_kb()}', file=sys.stderr)\n"
 )
 
 
