@@ -64,6 +64,7 @@ __all__ = [
     "blas_threads_for",
     "gaussian_samples",
     "idle_cores",
+    "own_load",
     "inverse_from_cholesky",
     "log_gaussian",
     "log_marginal_likelihood",
