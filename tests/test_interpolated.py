@@ -359,3 +359,22 @@ def test_an_interpolated_fit_predicts_readings_by_its_interpolation():
     assert error < 0.02 * np.std(truth)
     assert np.allclose(prior_mean, mean, rtol=1e-6, atol=1e-6 * np.abs(mean).max())
     assert np.all(prior_var >= variance * (1 - 1e-6))
+
+
+def test_points_formed_a_few_at_a_time_give_the_same_rows(monkeypatch):
+    # the edge lags' entries and the Lagrange weights in chunks of a few points (a long
+    # record's millions of quadrature points): the same rows as all points at once
+    from gpmultirate.kernels import hold
+    from gpmultirate.observations import interpolated
+
+    rng = np.random.default_rng(7)
+    u = rng.standard_normal((120, 2))
+    times = np.sort(rng.uniform(1.0, 119.0, 25))
+    timed = TimedConvolution(u, times, 40, exposure=1.7, initial_conditions="periodic")
+    whole = InterpolatedConvolution(timed).matrix
+    monkeypatch.setattr(interpolated, "_POINT_CHUNK", 7)
+    monkeypatch.setattr(hold, "_WEIGHT_CHUNK", 5)
+    np.testing.assert_array_equal(InterpolatedConvolution(timed).matrix, whole)
+    x = rng.uniform(-1.0, 2.0, 23)
+    np.testing.assert_allclose(lagrange_weights(np.arange(-5, 7), x).sum(axis=1), 1.0,
+                               rtol=0, atol=1e-12)

@@ -88,6 +88,10 @@ def stencil(points: int) -> np.ndarray:
     return np.arange(1 - points // 2, points // 2 + 1)
 
 
+#: points whose Lagrange weights are formed at a time
+_WEIGHT_CHUNK = 2**16
+
+
 def lagrange_weights(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The Lagrange weights of integer ``nodes`` at the points ``x``: ``(len(x), len(nodes))``.
 
@@ -99,17 +103,20 @@ def lagrange_weights(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
     """
     nodes = np.asarray(nodes, dtype=float)
     x = np.asarray(x, dtype=float)
-    # w_j(x) = prod_(i != j) (x - s_i) / (s_j - s_i): the products of the differences
-    # before and after j, O(S) passes over x where the pairs took O(S^2)
-    differences = x[:, None] - nodes[None, :]
-    out = np.ones_like(differences)
-    np.cumprod(differences[:, :-1], axis=1, out=out[:, 1:])
-    after = np.ones_like(differences)
-    after[:, :-1] = np.cumprod(differences[:, :0:-1], axis=1)[:, ::-1]
-    out *= after
     gaps = nodes[:, None] - nodes[None, :]
     np.fill_diagonal(gaps, 1.0)
-    out /= np.prod(gaps, axis=1)
+    denominators = np.prod(gaps, axis=1)
+    out = np.empty((x.shape[0], nodes.shape[0]))
+    # w_j(x) = prod_(i != j) (x - s_i) / (s_j - s_i): the products of the differences
+    # before and after j, O(S) passes over x where the pairs took O(S^2); a few points at
+    # a time, so that the temporaries stay small beside the result
+    for start in range(0, x.shape[0], _WEIGHT_CHUNK):
+        differences = x[start:start + _WEIGHT_CHUNK, None] - nodes[None, :]
+        block = out[start:start + _WEIGHT_CHUNK]
+        block[:, 0] = 1.0
+        np.cumprod(differences[:, :-1], axis=1, out=block[:, 1:])
+        block[:, :-1] *= np.cumprod(differences[:, :0:-1], axis=1)[:, ::-1]
+        block /= denominators
     return out
 
 
