@@ -868,10 +868,7 @@ class TimedConvolution(Observation):
             return self
         blocks = self.__dict__.setdefault("_blocks", {})
         if k not in blocks:
-            block = copy.copy(self)
-            block.__dict__.pop("_blocks", None)
-            block.__dict__.pop("_on_lags", None)
-            block.__dict__.pop("_bridge_rows", None)
+            block = copy.copy(self)  # without the caches (``__getstate__``), arrays shared
             if self._stacked is not None:
                 block._stacked = [part.input_block(k) for part in self._stacked]
             block._inputs = self._inputs[:, k:k + 1]
