@@ -117,7 +117,16 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
             posterior.log_marginal_likelihood if cv_value is None else cv_value, settings,
             cross_validated=cv_value is not None,
             experiment_at=lambda longer: experiment_of(data, longer, settings))
-        if disturbance is not None:
+        if disturbance is not None and disturbance.noise_model is None:
+            # white noise after all, tuned again from the disturbance's better prior
+            if disturbance.optimizer_result is not None:
+                optimizer_result = disturbance.optimizer_result
+            evidence, kernel, noise = (disturbance.evidence, disturbance.kernel,
+                                       disturbance.noise_level)
+            posterior = disturbance.posterior
+            if cv_value is not None:
+                cv_value = disturbance.score
+        elif disturbance is not None:
             steps = [disturbance]
             # a disturbance without white noise (AR(1)) keeps the white fit's level
             noise = disturbance.noise_model.level or noise
