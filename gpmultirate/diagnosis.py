@@ -28,7 +28,9 @@ test at the analysis' level ``1 - confidence`` (Bonferroni over the three):
 The remedies follow what the estimator's automatic layer does: a peak that
 the input explains, or that falls where the model's own frequency response
 has a peak, is a resonance the default kernel misses: ``kernel="auto"``
-searches for it (``--kernel auto``); correlation beyond the order asks for
+searches for it (``--kernel auto``), and after a fit that searched already, a
+:class:`~gpmultirate.kernels.PK` term near it given by hand (the search
+dropped it or did not reach it); correlation beyond the order asks for
 a longer ``order``; a peak or a drift that the input does not explain is a
 disturbance: ``noise_kernel="auto"`` (``--noise auto``) keeps one where the
 evidence calls for it; where the fit's ``"auto"`` already kept white noise,
@@ -74,7 +76,8 @@ class ResidualFinding:
         The test's p-value (before the Bonferroni share).
     remedy : str
         The estimator option that takes the structure up, in Python's words
-        (``kernel="auto"``, ``order=...``, ``noise_kernel="auto"``).
+        (``kernel="auto"``, ``order=...``, ``noise_kernel="auto"``; after a
+        fit with ``kernel="auto"``, a PK term by hand or a longer order).
     text : str
         One sentence for a report.
     """
@@ -314,6 +317,25 @@ def whiteness_p_value(analysis, model, u, *, n_draws: int = 400, random_state=0)
     return float(stats.chi2.sf(observed / scale, dof))
 
 
+def _searched(model) -> bool:
+    """Whether ``model`` was fitted with the resonance search (``kernel="auto"``)."""
+    params = model.get_params(deep=False) if hasattr(model, "get_params") else {}
+    return isinstance(params.get("kernel"), str) and params.get("kernel") == "auto"
+
+
+def _resonance_remedy(model, frequency_hz: float, sample_time: float) -> tuple[str, str]:
+    """The remedy of a resonance the prior misses, and its words: the search
+    (``kernel="auto"``), or where the fit searched already and kept no term there, a
+    :class:`~gpmultirate.kernels.PK` term at that frequency given by hand."""
+    if not _searched(model):
+        return ('kernel="auto"',
+                'kernel="auto" searches for the resonance (--kernel auto)')
+    omega = 2.0 * np.pi * frequency_hz * sample_time
+    remedy = f"a PK term near {frequency_hz:.4g} Hz in the kernel (PK(omega={omega:.4g}))"
+    return remedy, (f'kernel="auto" kept no term there (its search dropped or did not reach '
+                    f'it): {remedy}, given by hand')
+
+
 def _disturbance(model, named: str) -> str:
     """The disturbance remedy: ``noise_kernel="auto"``, or a named disturbance where the
     fit's automatic choice already kept white noise (the evidence did not call for one)."""
@@ -439,11 +461,12 @@ def explain_residuals(analysis, model=None, *, u=None, factor=None, sample_time=
                 alias_text = ", ".join(f"{f:.4g}" for f in aliases[:6])
                 more = ", ..." if len(aliases) > 6 else ""
                 if input_correlated or resonant:
-                    remedy = "kernel=\"auto\""
                     source = (f"the model's peak at {resonant[0]:.4g} Hz" if resonant
                               else "a response to the input")
-                    why = (f"dynamics the prior misses ({source}): kernel=\"auto\" searches "
-                           "for the resonance (--kernel auto)")
+                    remedy, how = _resonance_remedy(
+                        model, resonant[0] if resonant else aliases[0] if aliases else slow_hz,
+                        sample_time)
+                    why = f"dynamics the prior misses ({source}): {how}"
                 else:
                     remedy = _disturbance(model, "matern32")
                     why = f"not explained by the input: a disturbance, {remedy} (--noise)"
@@ -454,11 +477,14 @@ def explain_residuals(analysis, model=None, *, u=None, factor=None, sample_time=
     if input_correlated and input_found is not None:
         j, lag = input_found
         beyond = order is not None and lag >= order - factor
-        remedy = "order=\"auto\"" if beyond else "kernel=\"auto\""
+        searched = _searched(model)
+        remedy = "order=\"auto\"" if beyond or searched else "kernel=\"auto\""
         why = (f"at lag {lag}, near or beyond the order {order}: a longer order "
                "(order=\"auto\", --order auto)" if beyond else
-               f"largest at lag {lag}: dynamics the prior shrank away, kernel=\"auto\" "
-               "(--kernel auto) or a longer order")
+               f"largest at lag {lag}: dynamics the prior shrank away, "
+               + ("with the resonance search's terms already in the kernel: a longer "
+                  "order, or a kernel given by hand" if searched else
+                  "kernel=\"auto\" (--kernel auto) or a longer order"))
         findings.append(ResidualFinding("input", None, (), lag, j, input_p, remedy,
                                         f"correlation with input {j} ({why})"))
     findings.sort(key=lambda f: f.p_value)

@@ -84,6 +84,32 @@ def test_a_missed_resonance_is_named_with_its_frequency_and_kernel_auto():
     _check_explanation(*_resonant(0))
 
 
+def test_after_the_resonance_search_the_remedy_is_a_pk_term_by_hand():
+    # the same residuals, read as those of a fit whose kernel="auto" kept no term at the
+    # mode: the remedy is a PK term near the mode's frequency, not the search again
+    model, analysis, modes, u = _resonant(0)
+
+    class Searched:
+        def __getattr__(self, name):
+            return getattr(model, name)
+
+        def get_params(self, deep=False):
+            return dict(model.get_params(deep=False), kernel="auto")
+
+    why = explain_residuals(analysis, Searched(), u=u)
+    peak = [f for f in why.findings if f.kind == "peak"][0]
+    assert peak.remedy.startswith("a PK term near ") and "searches for" not in why.text
+    named = float(peak.remedy.split("near ")[1].split(" Hz")[0])
+    omega = float(peak.remedy.split("omega=")[1].rstrip("))"))
+    assert omega == pytest.approx(2 * np.pi * named * model.sample_time, rel=1e-3)
+    resolution = 1.0 / (analysis.n_residuals * model.factor * model.sample_time)
+    assert min(abs(named - m) - 0.1 * m for m in modes) <= 1.5 * resolution
+    assert "kept no term there" in why.text
+    assert all(f.remedy != 'kernel="auto"' for f in why.findings), why.text
+    # the plain fit's words are unchanged
+    assert explain_residuals(analysis, model, u=u).findings[0].remedy == 'kernel="auto"'
+
+
 @pytest.mark.slow
 def test_power_on_resonant_records():
     found = sum(_explains(seed) for seed in range(1, 11))
