@@ -681,10 +681,16 @@ def _lbfgs_run(objective_and_gradient, theta0, bounds, transform=None,
     return result
 
 
-def _minimize_until_expected(objective, x0, bounds, options, stop_gain):
+def _minimize_until_expected(objective, x0, bounds, options=None, stop_gain=STOP_GAIN):
     """L-BFGS-B from ``x0``, ended early by :class:`_ExpectedGainStop` (unless ``stop_gain``
     is None: a disturbance's tuning, whose iterations along the amplitudes' ridge gain
-    little each)."""
+    little each).
+
+    ``objective(x) -> (value, gradient)`` is minimized (the negative log evidence);
+    ``options``: L-BFGS-B's (scipy's defaults when None).  Returns scipy's result; a run
+    ended by the rule reports success and says so in its message.
+    """
+    options = {} if options is None else options
     if stop_gain is None:
         return optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds,
                                  options=options)
@@ -709,8 +715,12 @@ class _ExpectedGainStop:
     the last ``MEMORY`` iterates (the two-loop recursion, scaled by the last
     pair's ``s^T y / y^T y``) and ``g`` the gradient with the entries pushed
     against a bound they sit on zeroed.  Both under ``EXPECTED_GAIN``: stop
-    (``StopIteration``).  Without a pair of positive curvature the model
-    promises nothing to trust, and the run goes on.  ``objective`` is wrapped
+    (``StopIteration``).  The model is trusted only once it holds as many
+    pairs of positive curvature as there are coordinates (or ``MEMORY``):
+    before, it knows the curvature along the steps taken only and extends
+    the last one's scale to every other direction (a first short step along
+    a steep direction promised nothing where a term of the resonance search
+    had far to go, and a true mode was dropped).  ``objective`` is wrapped
     (:meth:`objective`) to keep the gradient at each iterate: the callback
     is given the point and the value only.
     """
@@ -746,7 +756,7 @@ class _ExpectedGainStop:
                 self._pairs = (self._pairs + [(s, y)])[-self.MEMORY:]
             self.last_gain = self.value - value
         self.x, self.value, self.gradient = x, value, gradient
-        if self.last_gain >= EXPECTED_GAIN or not self._pairs:
+        if self.last_gain >= EXPECTED_GAIN or len(self._pairs) < min(x.size, self.MEMORY):
             return
         g = np.where(_free_directions(x, gradient, self._bounds), gradient, 0.0)
         self.promised = 0.5 * float(g @ self._inverse_hessian_times(g))

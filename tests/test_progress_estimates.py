@@ -36,17 +36,17 @@ def test_clock_expects_the_latest_run_of_its_kind_and_reports_the_current_one():
             f = clock.timed(lambda: None)
             for _ in range(count):
                 f()
-    # the latest of its kind (the median of the earlier "a" runs would be 20)
-    assert clock.runs == [10, 40, 20, 12, 54] and clock.expected("a") == 12
-    assert clock.expected("b") == 54
-    assert clock.expected("c") == 54  # a kind not seen yet: the latest run
+    # RUN_SHARE of the latest of its kind (the median of the earlier "a" runs would be 20)
+    assert clock.runs == [10, 40, 20, 12, 54] and clock.expected("a") == round(0.7 * 12)
+    assert clock.expected("b") == round(0.7 * 54)
+    assert clock.expected("c") == round(0.7 * 54)  # a kind not seen yet: the latest run
     with clock.run("a"):
         slow = clock.timed(lambda: time.sleep(0.01))
         for _ in range(5):
             slow()
         text = clock.summary()
     assert text.startswith("tuning: 5 evaluation(s) of the evidence")
-    # 7 more at about 0.01 s each
+    # 3 more (0.7 x 12 = 8 expected) at about 0.01 s each
     left = float(text.rsplit("about ", 1)[1].split(" s")[0])
     assert 0.0 <= left <= 2.0
     assert clock.summary() is None  # the run is over

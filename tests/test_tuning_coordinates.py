@@ -268,6 +268,23 @@ def test_the_expected_gain_stop_reads_what_is_left_from_the_runs_curvature():
         stop(optimize.OptimizeResult(x=x, fun=quadratic(x)[0]))
     g = stop.gradient
     assert 0.5 * g @ stop._inverse_hessian_times(g) == pytest.approx(stop.value, rel=1e-12)
+    # one short step along a steep direction: its pair alone promises under the limit
+    # (its scale, 1e-4, extended to the flat directions) where 9 nats are left; the model
+    # is trusted only with as many pairs as coordinates
+    steep = np.array([1.0, 1.0, 1e4])
+
+    def cliff(theta):
+        return float(0.5 * np.sum(steep * theta**2)), steep * theta
+
+    stop = tuning._ExpectedGainStop(cliff, np.tile([-5.0, 5.0], (3, 1)))
+    for x in ([3.0, 3.0, 3e-4], [3.0, 3.0, 0.0]):
+        x = np.array(x)
+        stop.objective(x)
+        stop(optimize.OptimizeResult(x=x, fun=cliff(x)[0]))
+    g = stop.gradient
+    assert stop.last_gain < tuning.EXPECTED_GAIN and stop.value == pytest.approx(9.0)
+    assert 0.5 * g @ stop._inverse_hessian_times(g) < tuning.EXPECTED_GAIN
+    assert not stop.stopped
     # a small gain on a flat stretch is not enough: the model still promises much
     stop = tuning._ExpectedGainStop(quadratic, bounds)
     for x in (np.array([3.0, -0.001]), np.array([3.0 - 1e-4, -0.001])):
