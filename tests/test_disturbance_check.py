@@ -395,3 +395,14 @@ def test_a_disturbance_that_only_found_a_better_prior_leaves_white_noise():
     first = _fit(system.u, system.y_slow, kernel="auto", noise_kernel="white")
     assert disturbed.score > first.log_marginal_likelihood_value_ + AUTO_NOISE_MARGIN
     assert disturbed.score <= again.score + AUTO_NOISE_MARGIN
+    # by cross-validation: tuned from the disturbed fit's point, the criterion does not fall
+    from gpmultirate.crossvalidation import CrossValidation
+
+    judged = white_from(disturbed, forced.observation_, forced.y_slow_,
+                        auto.noise_level_bounds_, settings, cross_validated=True)
+    level = float(forced._noise_model.sample_variance())
+    start = CrossValidation(forced.observation_, forced.y_slow_, forced.kernel_, level,
+                            auto.noise_level_bounds_, settings.n_folds)
+    assert judged.noise_model is None and judged.score >= start(start.theta) - 1e-9
+    low, high = auto.noise_level_bounds_
+    assert low <= judged.noise_level <= high

@@ -366,13 +366,18 @@ def fit_disturbance(observation, y, kernel, noise_level, noise_bounds, choice, s
         result = tuning.maximize(objective, settings.n_restarts, settings.random_state)
         if result is not None:
             kernel, noise_model = objective.split_models(result.x)
-    posterior = evidence.posterior(kernel, noise_model)
-    if objective is evidence:
-        score = posterior.log_marginal_likelihood
-    else:
-        moved = objective.moved_to(kernel, noise_model)
-        score = float(moved(moved.theta))
+    posterior, score = _scored(evidence, objective, kernel, noise_model)
     return DisturbanceFit(evidence, kernel, noise_model, posterior, result, score)
+
+
+def _scored(evidence, objective, kernel, noise):
+    """The posterior at ``(kernel, noise)`` and the tuning criterion there: its log
+    evidence, or ``objective``'s value (cross-validation) where it is not the evidence."""
+    posterior = evidence.posterior(kernel, noise)
+    if objective is evidence:
+        return posterior, posterior.log_marginal_likelihood
+    moved = objective.moved_to(kernel, noise)
+    return posterior, float(moved(moved.theta))
 
 
 def choose_disturbance(experiment, kernel, noise_level: float, noise_bounds, white_score,
@@ -461,10 +466,5 @@ def white_from(disturbed: DisturbanceFit, observation, y, noise_bounds, settings
                                     settings.n_folds)
     result = tuning.maximize(objective, 0, settings.random_state)
     kernel, level = (disturbed.kernel, level) if result is None else evidence.split(result.x)
-    posterior = evidence.posterior(kernel, level)
-    if objective is evidence:
-        score = posterior.log_marginal_likelihood
-    else:
-        moved = objective.moved_to(kernel, level)
-        score = float(moved(moved.theta))
+    posterior, score = _scored(evidence, objective, kernel, level)
     return DisturbanceFit(evidence, kernel, None, posterior, result, score, level)
