@@ -124,8 +124,9 @@ def test_scan_gain_is_the_dense_evidence_difference():
     assert best == pytest.approx(2.3, abs=0.03)
 
 
-def test_joint_model_evidence_and_gradient():
-    op, y = _small_problem(1)
+def _check_joint_model(op, y):
+    """The search's joint model of two PK terms on ``op``: its evidence against the dense
+    one, its gradient against central differences."""
     evidence = LogEvidence(op, y, C(0.3) * DC(alpha=0.8, beta=0.9), 1e-3, (1e-8, 1.0))
     model = _ResonantModel(evidence)
     model.terms = [(0, PK(alpha=0.97, omega=2.2, sigma1=0.5, sigma2=0.8)),
@@ -141,30 +142,21 @@ def test_joint_model_evidence_and_gradient():
     assert value == pytest.approx(dense, rel=1e-10)
 
 
+def test_joint_model_evidence_and_gradient():
+    _check_joint_model(*_small_problem(1))
+
+
 def test_joint_model_of_readings_with_exposure_evidence_and_gradient():
     # readings at their own instants: the terms' bases through the readings' functionals,
-    # rotated into the base kernel's eigenvectors; the evidence and gradient are the dense
-    # ones
+    # rotated into the base kernel's eigenvectors
     rng = np.random.default_rng(4)
     u = rng.standard_normal(240)
     times = np.sort(rng.uniform(60.0, 239.0, 70))
     op = gm.TimedConvolution(u, times, order=60, exposure=0.7, latency=0.2)
     t = np.arange(60)
     fast = np.convolve(u, 0.9**t + 0.97**t * np.sin(2.3 * t))[:240]
-    y = np.interp(times, np.arange(240), fast) + 0.01 * rng.standard_normal(70)
-    evidence = LogEvidence(op, y, C(0.3) * DC(alpha=0.8, beta=0.9), 1e-3, (1e-8, 1.0))
-    model = _ResonantModel(evidence)
-    model.terms = [(0, PK(alpha=0.97, omega=2.2, sigma1=0.5, sigma2=0.8)),
-                   (0, PK(alpha=0.9, omega=0.6, sigma1=0.1, sigma2=0.2))]
-    x = model._pack() + 0.05
-    value, grad = model._log_evidence(x, eval_gradient=True)
-    step = 1e-6
-    numeric = [(model._log_evidence(x + h) - model._log_evidence(x - h)) / (2 * step)
-               for h in step * np.eye(x.size)]
-    np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-5)
-    model._unpack(x)
-    dense = log_marginal_likelihood(op, model.kernel(), model.noise_level, y, False, True)
-    assert value == pytest.approx(dense, rel=1e-10)
+    _check_joint_model(op, np.interp(times, np.arange(240), fast)
+                       + 0.01 * rng.standard_normal(70))
 
 
 def test_damping_ratio_of_a_sampled_continuous_mode():
