@@ -161,6 +161,61 @@ def test_pk_keeps_its_formula_between_integer_lags():
                                0.49 * np.outer(c, c) + 0.16 * np.outer(s, s), rtol=1e-12)
 
 
+@pytest.mark.parametrize("samples_per_period, damping", [(3.0, 0.02), (12.0, 0.05), (80.0, 0.3)])
+def test_pk_with_hold_is_the_held_response_of_a_mode_at_every_real_lag(samples_per_period,
+                                                                        damping):
+    # one mode of a continuous-time plant behind the hold, integrated numerically: from lag
+    # 1 on a damped sinusoid (PK's basis), on [0, 1) its step response, zero at lag 0
+    system = _mode(samples_per_period, damping)
+    w = 2 * np.pi / samples_per_period
+    rate, omega = damping * w, w * np.sqrt(1 - damping**2)
+    lags = np.concatenate([[0.0, 1e-3, 0.2, 0.5, 0.8, 0.999], 1.0 + np.linspace(0.0, 9.0, 37)])
+    held = np.array([_held(system, t) for t in lags])
+    kernel = PK(alpha=np.exp(-2 * rate), omega=omega, hold=True)
+    c, s = kernel.basis(lags)
+    # the held response is a fixed combination of the two basis functions
+    coef, *_ = np.linalg.lstsq(np.column_stack([c, s]), held, rcond=None)
+    np.testing.assert_allclose(np.column_stack([c, s]) @ coef, held,
+                               atol=1e-9 * np.abs(held).max())
+    assert c[0] == 0.0 and s[0] == 0.0
+    # the paper's basis does not hold on the first cell: nonzero at lag 0
+    plain = PK(alpha=np.exp(-2 * rate), omega=omega).basis(lags)
+    coef, *_ = np.linalg.lstsq(np.column_stack(plain), held, rcond=None)
+    assert np.abs(np.column_stack(plain) @ coef - held).max() > 1e-3 * np.abs(held).max()
+
+
+@pytest.mark.parametrize("spread", [(0.0, 0.0), (0.04, 0.01)])
+def test_pk_with_hold_gradients_at_real_lags_by_central_differences(spread):
+    kernel = PK(alpha=0.85, omega=1.3, sigma1=0.8, sigma2=1.4, omega_std=spread[0],
+                rate_std=spread[1], hold=True)
+    X = np.array([0.0, 0.1, 0.45, 0.9, 1.0, 1.3, 2.0, 4.75])[:, None]
+    K, dK = kernel(X, eval_gradient=True)
+    for j in range(kernel.theta.size):
+        step = np.zeros_like(kernel.theta)
+        step[j] = 1e-6
+        numeric = (kernel.clone_with_theta(kernel.theta + step)(X)
+                   - kernel.clone_with_theta(kernel.theta - step)(X)) / 2e-6
+        np.testing.assert_allclose(dK[:, :, j], numeric, atol=1e-8)
+    np.testing.assert_allclose(kernel.diag(X), np.diag(K), rtol=1e-12)
+    # the spread is the first-order change of the held basis with the frequency and decay
+    if any(spread):
+        rate, omega = -0.5 * np.log(0.85), 1.3
+        (c, s), (c1, s1) = kernel.basis_derivatives(X[:, 0], 1)
+        h = 1e-6
+        moved = [PK(alpha=np.exp(-2 * (rate - h * a)), omega=omega + h * b, hold=True).basis(X[:, 0])
+                 for a, b in ((1, 0), (-1, 0))]
+        # d/dlambda along the real axis: lambda = -rate + i omega
+        np.testing.assert_allclose((moved[0][0] - moved[1][0]) / (2 * h), c1, atol=1e-7)
+        np.testing.assert_allclose((moved[0][1] - moved[1][1]) / (2 * h), s1, atol=1e-7)
+
+
+def test_pk_hold_is_checked_and_shown():
+    assert repr(PK(alpha=0.5, omega=2.0, hold=True)) == (
+        "PK(alpha=0.5, omega=2, sigma1=1, sigma2=1, hold=True)")
+    with pytest.raises(ValueError, match="hold"):
+        PK(hold="yes")(np.array([[0.0]]))
+
+
 def test_impulse_response_between_the_ticks_interpolates_the_fitted_coefficients():
     # a fit on the ticks: the posterior mean at real lags is the interpolation of the
     # mean at integer lags (the bridge has mean zero), its variance at least the

@@ -119,6 +119,7 @@ BASIC = {
     "DC": DC(alpha=0.85, beta=0.6),
     "SS": SS(alpha=0.9),
     "PK": PK(alpha=0.9, omega=0.7, sigma1=1.3, sigma2=0.6),
+    "PK-hold": PK(alpha=0.9, omega=0.7, sigma1=1.3, sigma2=0.6, hold=True),
 }
 COMPOSITE = {
     "C*DC+PK": C(2.0) * DC(alpha=0.8, beta=0.7) + PK(alpha=0.95, omega=1.2, sigma1=0.5, sigma2=0.8),

@@ -33,6 +33,10 @@ KERNELS = {
     # with the spread of kernel="auto"'s kept terms: rank four, the lag-weighted basis too
     "PK-spread": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6, omega_std=0.05,
                     rate_std=0.02),
+    # the search's terms: the first cell the mode's step response (zero at lag 0)
+    "PK-hold": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6, hold=True),
+    "PK-hold-spread": PK(alpha=0.8, omega=1.1, sigma1=1.0, sigma2=0.6, omega_std=0.05,
+                         rate_std=0.02, hold=True),
     "sum": C(1.0) * DC(alpha=0.7, beta=0.4) + PK(alpha=0.85, omega=0.9),
     "RBF": C(0.5) * RBF(length_scale=1.5),
 }

@@ -63,7 +63,8 @@ from scipy import sparse
 from gpmultirate.kernels.structure import ObservedTerm, outer_square
 
 __all__ = ["BRIDGE_SCALE", "HOLD_POINTS", "HoldTerm", "bridge_shape", "bridge_variances",
-           "hold_covariance", "hold_diagonal", "hold_weights", "lagrange_weights", "stencil"]
+           "hold_covariance", "hold_diagonal", "hold_weights", "lagrange_weights",
+           "mode_start", "stencil"]
 
 #: the integer lags each value between them is interpolated from (a polynomial of degree 11)
 HOLD_POINTS = 12
@@ -172,6 +173,90 @@ def hold_weights(lags, order: int | None = None, points: int = HOLD_POINTS):
     rows = np.broadcast_to(np.arange(t.shape[0])[:, None], columns.shape)
     W = sparse.csr_matrix((values[keep], (rows[keep], columns[keep])), shape=(t.shape[0], size))
     return W, size
+
+
+def _times(a, b):
+    """``a b`` for complex numbers held as ``(real part, imaginary part)`` pairs."""
+    return a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]
+
+
+def _over(a, b):
+    """``a / b`` for ``(real part, imaginary part)`` pairs."""
+    size = b[0] * b[0] + b[1] * b[1]
+    return (a[0] * b[0] + a[1] * b[1]) / size, (a[1] * b[0] - a[0] * b[1]) / size
+
+
+def _exp(a):
+    """``e^a`` for a ``(real part, imaginary part)`` pair."""
+    scale = np.exp(a[0])
+    return scale * np.cos(a[1]), scale * np.sin(a[1])
+
+
+def mode_start(offsets, rate, omega, derivatives: int = 0) -> list:
+    r"""What the hold takes off a mode's response on its first cell, ``[0, 1)``.
+
+    A continuous-time mode ``h(r) = e^(lambda r)``, ``lambda = -rate + i omega``,
+    behind a hold has the pulse response ``g(t) = int_(max(t - 1, 0))^t h``:
+    ``e^(lambda t) (1 - e^(-lambda)) / lambda`` from lag 1 on, PK's basis up to
+    a constant factor, and on the first cell the mode's step response,
+
+    .. math::
+
+        b(d) = \frac{e^{\lambda d} - 1}{1 - e^{-\lambda}}, \qquad 0 \le d < 1,
+
+    scaled to meet ``e^(lambda d)`` at ``d = 1``: zero at lag 0 (a reading on
+    the tick where the input changes does not see the change yet), smooth
+    across lag 1.  Returned is ``e^(lambda d) - b(d)`` and its derivatives in
+    ``lambda`` up to ``derivatives``, as ``(real part, imaginary part)`` pairs
+    (the cosine and sine bases' parts).  The parts are formed from real
+    functions of ``rate`` and ``omega``, so complex values of these (the
+    complex step of the derivatives) pass through.
+
+    Parameters
+    ----------
+    offsets : ndarray
+        Lags in ``[0, 1)``.
+    rate, omega : float
+        The decay rate and frequency per fast sample.
+    derivatives : int, default=0
+        The highest derivative in ``lambda`` (0, 1 or 2).
+
+    Returns
+    -------
+    list of (ndarray, ndarray)
+        ``derivatives + 1`` pairs, each of the shape of ``offsets``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = np.array([0.0, 0.5])
+    >>> (cos, sin), = mode_start(d, 0.1, 2.0)
+    >>> lam = -0.1 + 2.0j
+    >>> held = (np.exp(lam * d) - 1) / (1 - np.exp(-lam))
+    >>> bool(np.allclose(cos + 1j * sin, np.exp(lam * d) - held)), float(cos[0])
+    (True, 1.0)
+    """
+    d = np.asarray(offsets)
+    q = _exp((-rate * d, omega * d))                            # e^(lambda d)
+    shift = _exp((rate + 0.0 * d, -omega + 0.0 * d))           # e^(-lambda)
+    denominator = (1.0 - shift[0], -shift[1])                   # 1 - e^(-lambda)
+    numerator = (q[0] - 1.0, q[1])                              # e^(lambda d) - 1
+    held = _over(numerator, denominator)
+    out = [(q[0] - held[0], q[1] - held[1])]
+    if derivatives >= 1:
+        # b' = N' / D - N D' / D^2 with N' = d q and D' = e^(-lambda)
+        dq = (d * q[0], d * q[1])
+        first = _over((dq[0] - _times(held, shift)[0], dq[1] - _times(held, shift)[1]),
+                      denominator)
+        out.append((dq[0] - first[0], dq[1] - first[1]))
+    if derivatives >= 2:
+        # b'' = (N'' - 2 b' D' - b D'') / D with N'' = d^2 q and D'' = -e^(-lambda)
+        twice = _times(first, shift)
+        once = _times(held, shift)
+        second = _over((d * dq[0] - 2.0 * twice[0] + once[0],
+                        d * dq[1] - 2.0 * twice[1] + once[1]), denominator)
+        out.append((d * dq[0] - second[0], d * dq[1] - second[1]))
+    return out
 
 
 def bridge_shape(offsets) -> np.ndarray:

@@ -134,7 +134,8 @@ class PKTimedTerm(_TimedTerm):
     """PK through timed readings: ``S = U D U^T``, ``U`` the readings of its low-rank basis.
 
     The basis ``alpha^(x/2) cos(omega x)``, ``alpha^(x/2) sin(omega x)`` (and,
-    with PK's spread, ``x`` times each) read through the readings' separable
+    with PK's spread, its derivative in ``lambda``, ``x`` times each; on the
+    first cell the mode's step response with PK's ``hold``) read through the readings' separable
     form (:meth:`~gpmultirate.observations.TimedConvolution.damped_sinusoids`,
     ``O(R P)`` for the ``R`` distinct regressor rows, not the quadrature
     points times ``P``); complex hyperparameter values (the complex step of
@@ -145,7 +146,8 @@ class PKTimedTerm(_TimedTerm):
         """``(U, d)``: the readings of the basis, ``(M, r)``, and ``D``'s diagonal."""
         spread = any(self.kernel.spread())
         rate = -0.5 * np.log(values["alpha"])
-        U = self.observation.damped_sinusoids(rate, values["omega"], with_lag=spread)
+        U = self.observation.damped_sinusoids(rate, values["omega"], with_lag=spread,
+                                              hold=self.kernel.held())
         weights = [values["sigma1"] ** 2, values["sigma2"] ** 2]
         if spread:
             weights.extend(self.kernel._spread_weights(values))
@@ -160,9 +162,8 @@ class PKTimedTerm(_TimedTerm):
         U, d = self._readings(self._values())
         t = np.asarray(lags, dtype=float)
         t = t[:, 0] if t.ndim == 2 else t
-        c, s = self.kernel.basis(t)
-        V = [c, s, t * c, t * s][:d.shape[0]]
-        return (np.column_stack(V) * d) @ U.T
+        pairs = self.kernel.basis_derivatives(t, d.shape[0] // 2 - 1)
+        return (np.column_stack([part for pair in pairs for part in pair]) * d) @ U.T
 
 
 class DenseTimedTerm(_TimedTerm):

@@ -6,7 +6,8 @@ formulas of the paper are the prior on the pulse response at integer lags.
 Between them, TC, DC and SS take the interpolation of their integer-lag
 values by the hold (:mod:`gpmultirate.kernels.hold`: the response to a held
 pulse is smooth between the ticks); PK, one damped resonance, keeps its
-formula, which is already the held response of a continuous-time mode.  Either
+formula, which from lag 1 on is the held response of a continuous-time mode
+(with ``hold=True`` also on the first cell, zero at lag 0).  Either
 way the FIR coefficients are samples of a Gaussian process ``g(t)`` over
 continuous lag.
 
@@ -30,7 +31,7 @@ from scipy import linalg
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel, Sum
 
 from gpmultirate.kernels.filters import DCFilterTerm, suffix_after, two_sided
-from gpmultirate.kernels.hold import HoldTerm, hold_covariance, hold_diagonal
+from gpmultirate.kernels.hold import HoldTerm, hold_covariance, hold_diagonal, mode_start
 from gpmultirate.kernels.instants import PKTimedTerm
 from gpmultirate.kernels.recursion import ShiftScaledTerm
 from gpmultirate.kernels.structure import LowRankTerm, ObservedTerm, StructuredKernel
@@ -738,6 +739,16 @@ class PK(LagKernel):
     rate_std : float, default=0.0
         Standard deviation of the decay rate per fast sample (see
         ``omega_std``).
+    hold : bool, default=False
+        The resonance of a continuous-time plant behind the input's hold.
+        Without it the basis is the paper's at every lag, ``alpha^(t/2)
+        (cos, sin)(omega t)`` from lag 0.  With it the first cell ``[0, 1)``
+        is the mode's response to the held input's first period (its step
+        response, :func:`~gpmultirate.kernels.hold.mode_start`): zero at lag
+        0 and smooth across lag 1, where it meets the paper's basis, which it
+        keeps from lag 1 on.  That is the held pulse response of a mode
+        exactly, at every real lag; readings between the ticks near the input's
+        changes (a camera's exposure) see it.  Not a hyperparameter.
 
     Examples
     --------
@@ -776,6 +787,7 @@ class PK(LagKernel):
         sigma2_bounds=(1e-5, 1e5),
         omega_std: float = 0.0,
         rate_std: float = 0.0,
+        hold: bool = False,
     ):
         self.alpha = alpha
         self.omega = omega
@@ -787,6 +799,7 @@ class PK(LagKernel):
         self.sigma2_bounds = sigma2_bounds
         self.omega_std = omega_std
         self.rate_std = rate_std
+        self.hold = hold
 
     @classmethod
     def from_hz(
@@ -853,7 +866,7 @@ class PK(LagKernel):
         """The two basis functions ``alpha^(t/2) cos(omega t)`` and ``alpha^(t/2) sin(omega t)``.
 
         ``k(t, s) = sigma1^2 c(t) c(s) + sigma2^2 s(t) s(s)`` with ``(c, s)``
-        these functions.
+        these functions (on ``[0, 1)`` the mode's step response with ``hold``).
 
         Parameters
         ----------
@@ -863,8 +876,65 @@ class PK(LagKernel):
         -------
         (ndarray of shape (n,), ndarray of shape (n,))
         """
+        return self.basis_derivatives(lags, 0)[0]
+
+    def basis_derivatives(self, lags: np.ndarray, derivatives: int = 1) -> list:
+        """The basis and its derivatives in ``lambda = log(alpha) / 2 + i omega``.
+
+        With ``b(t) = c(t) + i s(t)`` the complex basis, the ``k``-th pair is
+        the real and imaginary parts of ``d^k b / d lambda^k``:
+        ``t^k (c, s)`` without ``hold``.  The derivatives in ``log(alpha)``
+        and ``log(omega)`` are ``1/2`` and ``i omega`` times the first, and the
+        spread's basis (``omega_std``, ``rate_std``) is the first pair itself.
+
+        Parameters
+        ----------
+        lags : ndarray of shape (n,)
+        derivatives : int, default=1
+            The highest derivative (0, 1 or 2).
+
+        Returns
+        -------
+        list of (ndarray, ndarray)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> lags = np.array([0.0, 0.5, 2.0])
+        >>> (c, s), (c1, s1) = PK(alpha=0.81, omega=1.0).basis_derivatives(lags)
+        >>> bool(np.allclose(c1, lags * c)), bool(np.allclose(s1, lags * s))
+        (True, True)
+        >>> (c, s), = PK(alpha=0.81, omega=1.0, hold=True).basis_derivatives(lags, 0)
+        >>> float(c[0]), bool(np.isclose(c[2], 0.81 * np.cos(2.0)))
+        (0.0, True)
+        """
         values = self.checked_values()
-        return damped_sinusoids(lags, values["omega"], values["alpha"] ** (lags / 2.0))
+        c, s = damped_sinusoids(lags, values["omega"], values["alpha"] ** (lags / 2.0))
+        out = [(c, s)]
+        for _ in range(derivatives):
+            out.append((lags * out[-1][0], lags * out[-1][1]))
+        if self.held():
+            first = np.flatnonzero(lags < 1.0)
+            if first.size:
+                rate = -0.5 * np.log(values["alpha"])
+                taken = mode_start(lags[first], rate, values["omega"], derivatives)
+                out = [(c.copy(), s.copy()) for c, s in out]
+                for (c, s), (dc, ds) in zip(out, taken):
+                    c[first] -= dc
+                    s[first] -= ds
+        return out
+
+    def held(self) -> bool:
+        """``hold`` checked: a bool.
+
+        Examples
+        --------
+        >>> PK(hold=True).held()
+        True
+        """
+        if not isinstance(self.hold, (bool, np.bool_)):
+            raise ValueError(f"hold must be True or False; got {self.hold!r}")
+        return bool(self.hold)
 
     def spread(self) -> tuple[float, float]:
         """``(omega_std, rate_std)`` checked: finite and non-negative.
@@ -893,56 +963,56 @@ class PK(LagKernel):
 
     def lag_covariance(self, t, s, eval_gradient=False):
         values = self.checked_values()
-        alpha, omega, sigma1, sigma2 = values.values()
-        ct, st = self.basis(t)
-        cs, ss = self.basis(s)
-        if not eval_gradient:
-            # the low-rank form in one product: one array of len(t) x len(s) (the sum of
-            # outer products held seven at once, 0.9 GB at 4,000 lags)
-            left, right, weights = [ct, st], [cs, ss], [sigma1**2, sigma2**2]
-            if any(self.spread()):
-                left += [t * ct, t * st]
-                right += [s * cs, s * ss]
-                weights += list(self._spread_weights(values))
-            return (np.column_stack(left) * weights) @ np.column_stack(right).T
-        cos_part = sigma1**2 * np.outer(ct, cs)
-        sin_part = sigma2**2 * np.outer(st, ss)
-        K = cos_part + sin_part
+        omega, var1, var2 = values["omega"], values["sigma1"] ** 2, values["sigma2"] ** 2
         spread = any(self.spread())
+        # the basis (and the spread's) with the derivatives the gradients take
+        depth = (1 if spread else 0) + (1 if eval_gradient else 0)
+        left, right = self.basis_derivatives(t, depth), self.basis_derivatives(s, depth)
+        A, B = self._spread_weights(values) if spread else (0.0, 0.0)
+
+        def outer(i, weights, j=None, rotate=(False, False)):
+            """``sum_p weights_p x_p(t) y_p(s)`` over the cosine and sine parts of pairs i, j."""
+            x, y = left[i], right[i if j is None else j]
+            if rotate[0]:  # i times the pair: (c, s) -> (-s, c)
+                x = (-x[1], x[0])
+            if rotate[1]:
+                y = (-y[1], y[0])
+            return (np.column_stack(x) * weights) @ np.column_stack(y).T
+
+        plain, spread_w = [var1, var2], [A, B]
+        K = outer(0, plain)
         if spread:  # the first-order change with the frequency and the decay
-            A, B = self._spread_weights(values)
-            w_std, r_std = self.spread()
-            cc, sn = np.outer(t * ct, s * cs), np.outer(t * st, s * ss)
-            K = K + A * cc + B * sn
-        mean_lag = np.add.outer(t, s) / 2.0
-        # d/d(log omega): omega * dK/domega, using d cos(w t)/dw = -t sin(w t)
-        d_omega = omega * (
-            sigma1**2 * (-np.outer(t * st, cs) - np.outer(ct, s * ss))
-            + sigma2**2 * (np.outer(t * ct, ss) + np.outer(st, s * cs))
-        )
+            K = K + outer(1, spread_w)
+        if not eval_gradient:
+            return K
+        # d/dlog(alpha) = (1/2) d/dlambda; d/dlog(omega) = i omega d/dlambda, on each side
+        d_alpha = 0.5 * (outer(1, plain, 0) + outer(0, plain, 1))
+        d_omega = omega * (outer(1, plain, 0, (True, False)) + outer(0, plain, 1, (False, True)))
+        cos_part = var1 * np.outer(left[0][0], right[0][0])
+        sin_part = var2 * np.outer(left[0][1], right[0][1])
         d_sigma1, d_sigma2 = 2.0 * cos_part, 2.0 * sin_part
         if spread:
-            t2, s2 = t * t, s * s
-            d_omega = d_omega + omega * (
-                A * (-np.outer(t2 * st, s * cs) - np.outer(t * ct, s2 * ss))
-                + B * (np.outer(t2 * ct, s * ss) + np.outer(t * st, s2 * cs))
-            )
-            d_sigma1 = d_sigma1 + 2.0 * sigma1**2 * (r_std**2 * cc + w_std**2 * sn)
-            d_sigma2 = d_sigma2 + 2.0 * sigma2**2 * (w_std**2 * cc + r_std**2 * sn)
-        return K, {
-            "alpha": mean_lag * K, "omega": d_omega,
-            "sigma1": d_sigma1, "sigma2": d_sigma2,
-        }
+            w_std, r_std = self.spread()
+            d_alpha = d_alpha + 0.5 * (outer(2, spread_w, 1) + outer(1, spread_w, 2))
+            d_omega = d_omega + omega * (outer(2, spread_w, 1, (True, False))
+                                         + outer(1, spread_w, 2, (False, True)))
+            cc = np.outer(left[1][0], right[1][0])
+            sn = np.outer(left[1][1], right[1][1])
+            d_sigma1 = d_sigma1 + 2.0 * var1 * (r_std**2 * cc + w_std**2 * sn)
+            d_sigma2 = d_sigma2 + 2.0 * var2 * (w_std**2 * cc + r_std**2 * sn)
+        return K, {"alpha": d_alpha, "omega": d_omega, "sigma1": d_sigma1, "sigma2": d_sigma2}
 
     def observed(self, observation, path=""):
         """Rank two: ``K = V D V^T`` with ``V = [c, s]`` and ``D = diag(sigma1^2, sigma2^2)``."""
         values = self.checked_values()
         lags = observation.lags[:, 0]
-        c, s = self.basis(lags)
+        pairs = self.basis_derivatives(lags, 2 if any(self.spread()) else 1)
+        (c, s), (c1, s1) = pairs[:2]
         var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
         omega = values["omega"]
-        # extended basis [c, s, t c, t s]: d/dlog(alpha) maps c -> (t/2) c and
-        # s -> (t/2) s; d/dlog(omega) maps c -> -omega t s and s -> omega t c
+        # extended basis [c, s, c', s'] (' the derivative in lambda, t times the basis
+        # without hold): d/dlog(alpha) maps c -> c'/2 and s -> s'/2; d/dlog(omega) maps
+        # c -> -omega s' and s -> omega c'
         candidates = {
             "alpha": _pair(0, 2, 0.5 * var1) + _pair(1, 3, 0.5 * var2),
             "omega": _pair(0, 3, -omega * var1) + _pair(1, 2, omega * var2),
@@ -950,21 +1020,23 @@ class PK(LagKernel):
             "sigma2": _single(1, 2.0 * var2),
         }
         if any(self.spread()):
-            return self._observed_with_spread(observation, values, lags, c, s, path)
+            return self._observed_with_spread(observation, values, pairs, path)
         weights = [candidates[h.name] for h in self.hyperparameters if not h.fixed]
         return LowRankTerm(
             self, observation, np.column_stack([c, s]), np.diag([var1, var2]),
-            np.column_stack([lags * c, lags * s]), weights, path,
+            np.column_stack([c1, s1]), weights, path,
         )
 
-    def _observed_with_spread(self, observation, values, lags, c, s, path):
-        """Rank four: ``V = [c, s, t c, t s]``, ``D = diag(sigma1^2, sigma2^2, A, B)``.
+    def _observed_with_spread(self, observation, values, pairs, path):
+        """Rank four: ``V = [c, s, c', s']``, ``D = diag(sigma1^2, sigma2^2, A, B)``.
 
-        The derivatives act on the extended basis ``[V, t c, t s, t^2 c, t^2 s]``
-        (columns 0-7): ``d/dlog(alpha)`` maps each column ``x -> (t/2) x``,
-        ``d/dlog(omega)`` maps ``c -> -omega t s``, ``s -> omega t c`` (and
-        ``t c``, ``t s`` likewise one power of ``t`` up).
+        The derivatives act on the extended basis ``[V, c', s', c'', s'']``
+        (columns 0-7; ``'`` the derivative in ``lambda``, ``t`` times the
+        column without ``hold``): ``d/dlog(alpha)`` maps each column
+        ``x -> x' / 2``, ``d/dlog(omega)`` maps ``c -> -omega s'``,
+        ``s -> omega c'`` (and ``c'``, ``s'`` likewise one derivative up).
         """
+        (c, s), (c1, s1), (c2, s2) = pairs
         var1, var2 = values["sigma1"] ** 2, values["sigma2"] ** 2
         omega = values["omega"]
         A, B = self._spread_weights(values)
@@ -991,10 +1063,9 @@ class PK(LagKernel):
             "sigma2": single((1, 2.0 * var2), (2, 2.0 * w2 * var2), (3, 2.0 * r2 * var2)),
         }
         weights = [candidates[h.name] for h in self.hyperparameters if not h.fixed]
-        tc, ts = lags * c, lags * s
         return LowRankTerm(
-            self, observation, np.column_stack([c, s, tc, ts]), np.diag([var1, var2, A, B]),
-            np.column_stack([tc, ts, lags * tc, lags * ts]), weights, path,
+            self, observation, np.column_stack([c, s, c1, s1]), np.diag([var1, var2, A, B]),
+            np.column_stack([c1, s1, c2, s2]), weights, path,
         )
 
     def observed_at_instants(self, observation, path=""):
@@ -1007,11 +1078,14 @@ class PK(LagKernel):
         """Return ``k(X, X)`` on the diagonal only."""
         values = self.checked_values()
         t = check_lags(X, "X")
-        c, s = self.basis(t)
+        spread = any(self.spread())
+        pairs = self.basis_derivatives(t, 1 if spread else 0)
+        c, s = pairs[0]
         out = values["sigma1"] ** 2 * c**2 + values["sigma2"] ** 2 * s**2
-        if any(self.spread()):
+        if spread:
             A, B = self._spread_weights(values)
-            out = out + t * t * (A * c**2 + B * s**2)
+            c1, s1 = pairs[1]
+            out = out + A * c1**2 + B * s1**2
         return out
 
     def __repr__(self) -> str:
@@ -1019,6 +1093,8 @@ class PK(LagKernel):
         w_std, r_std = self.spread()
         if w_std or r_std:
             text = f"{text[:-1]}, omega_std={w_std:.3g}, rate_std={r_std:.3g})"
+        if self.held():
+            text = f"{text[:-1]}, hold=True)"
         return text
 
 

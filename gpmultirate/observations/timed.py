@@ -51,7 +51,7 @@ from scipy import linalg, signal, sparse
 
 from gpmultirate.exceptions import MemoryLimitError
 from gpmultirate.kernels.instants import BLOCK_ENTRIES, ConstantTimedTerm, DenseTimedTerm
-from gpmultirate.kernels.hold import HOLD_POINTS, bridge_shape
+from gpmultirate.kernels.hold import HOLD_POINTS, bridge_shape, mode_start
 from gpmultirate.kernels.structure import ObservedTerm, observe
 from gpmultirate.memory import available_memory
 from gpmultirate.observations.base import Observation
@@ -710,14 +710,18 @@ class TimedConvolution(Observation):
         return out
 
     def damped_sinusoids(self, rate: float, omega: float, input: int = 0,
-                         with_lag: bool = False) -> np.ndarray:
+                         with_lag: bool = False, hold: bool = False) -> np.ndarray:
         """The readings of PK's basis ``e^(-rate x) cos(omega x)``, ``e^(-rate x) sin(omega x)``.
 
         As :meth:`lag_functionals` of these two functions (and, with
         ``with_lag``, of ``x`` times each), by their separable form: at
         ``x = j + d`` each is a combination of its values at the integer lag
         ``j`` with weights of the offset ``d``, so the regressor rows meet
-        the bases once, ``O(R P)``, and each point adds ``O(1)``.
+        the bases once, ``O(R P)``, and each point adds ``O(1)``.  With
+        ``hold`` the first cell, ``x = d``, is the mode's step response
+        (:func:`~gpmultirate.kernels.hold.mode_start`; ``with_lag`` then
+        gives its derivative in ``-rate + i omega`` there): each point's
+        value less its input at its own tick times the difference.
 
         Returns
         -------
@@ -743,7 +747,26 @@ class TimedConvolution(Observation):
         if with_lag:  # (j + d) times each: the lag-weighted rows plus d times the plain ones
             C1, S1 = at_points[:, 2], at_points[:, 3]
             values += [cos * C1 - sin * S1 + d * values[0], sin * C1 + cos * S1 + d * values[1]]
+        if hold:  # lag j = 0 of each point: its tick's input times what the hold takes off
+            now = self._inputs_at_ticks(input)[self._row_id]
+            taken = mode_start(d, rate, omega, 1 if with_lag else 0)
+            values = [v - now * part for v, part in zip(values, (x for p in taken for x in p))]
         return np.asarray(self._reading_sum(0, self.n_points) @ np.column_stack(values))
+
+    def _inputs_at_ticks(self, input: int) -> np.ndarray:
+        """``u[n]`` of ``input`` at each distinct row's tick ``n`` (zero outside, or periodic)."""
+        records, ticks = self._unique
+        out = np.zeros(ticks.shape[0])
+        for r, part in enumerate(self._parts):
+            mine = np.flatnonzero(records == r)
+            x = part._inputs[:, input]
+            at = ticks[mine]
+            if part.initial_conditions == "periodic":
+                out[mine] = x[np.remainder(at, x.shape[0])]
+            else:
+                inside = (at >= 0) & (at < x.shape[0])
+                out[mine[inside]] = x[at[inside]]
+        return out
 
     def _damped_at_ticks(self, rate: float, omega: float, input: int, with_lag: bool):
         """``sum_j u[n - j] e^(-rate j) (cos, sin)(omega j)`` (and ``j`` times each) per distinct row.
