@@ -12,7 +12,10 @@ terms one at a time, greedily:
    for a few decay rates and, for each, the best amplitude.  The current
    data covariance is factored once; a candidate enters as a rank-two
    update (matrix determinant lemma, Woodbury identity);
-2. **joint refinement**: the best candidate is added and all PK terms, the
+2. **joint refinement**: the best candidate is added as a mode behind the
+   input's hold (``PK(hold=True)``: zero at lag 0, its step response on the
+   first cell; the scan reads the paper's basis, one lag of ``P`` apart)
+   and all PK terms, the
    overall scale of the base kernel and the noise level are tuned together
    on a diagonal-plus-low-rank form of the data covariance, ``O(M P r)``
    per evaluation for ``r`` terms, on the base kernel's tuned shape; the
@@ -71,7 +74,10 @@ terms one at a time, greedily:
    search works with white noise; where the fit then chooses a coloured
    disturbance (``noise_kernel``), each term is judged again with it, by
    its evidence gain and the held-out check, for a term may have done
-   what the disturbance now does.
+   what the disturbance now does; and the base kernel of each input with
+   terms, by its evidence gain beside them (:data:`EVIDENCE_THRESHOLD`),
+   for a base the terms leave idle takes up the disturbance's slow part
+   that the input happens to share.
 
 Failure modes: a mode whose slow-rate alias falls on another mode and that
 the input does not separate from it (no power at one of the two
@@ -669,6 +675,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             alpha=alpha, omega=omega, sigma1=sigma, sigma2=sigma,
             alpha_bounds=(1e-4, slowest_decay(evidence.data.order)),
             sigma1_bounds=(sigma * 1e-4, sigma * 1e4), sigma2_bounds=(sigma * 1e-4, sigma * 1e4),
+            hold=True,
         ))
         gain = trial.value - model.value
         if gain <= SEARCH_THRESHOLD or trial.terms[-1][1] is None:
@@ -1016,7 +1023,9 @@ def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs
     evidence without it falls by more than :data:`EVIDENCE_THRESHOLD`
     nats, and the terms kept must pass :func:`held_out_resonances` with the
     disturbance (against the kernel without PK terms, hyperparameters
-    held).
+    held).  Then the base kernel of each input with kept terms is judged
+    the same way against those terms alone, and dropped where it gains no
+    more than :data:`EVIDENCE_THRESHOLD` nats.
 
     Parameters
     ----------
@@ -1038,7 +1047,8 @@ def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs
     kept : list of int
         The indices of the terms kept, in order.
     kernel : sklearn Kernel
-        ``kernel`` with only those terms (hyperparameters unchanged).
+        ``kernel`` with only those terms and the bases kept (hyperparameters
+        unchanged); ``kernel`` itself when every term and base stays.
 
     Examples
     --------
@@ -1075,7 +1085,18 @@ def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs
             [inputs[r] for r in kept], _without_pk(kernel), noise, n_folds)
         if check is not None:
             kept = [kept[i] for i in check["kept_terms"]]
-    return kept, _assembled(kernel, [terms[r] for r in kept]) if kept else _without_pk(kernel)
+    if not kept:
+        return kept, _without_pk(kernel)
+    reduced = kernel if len(kept) == len(terms) else _assembled(kernel,
+                                                                [terms[r] for r in kept])
+    # the base of an input with terms, judged as a term is: with the disturbance it may
+    # take up the disturbance's slow part that the input happens to share
+    full = value(reduced)
+    for k in sorted({inputs[r] for r in kept}):
+        without = _without_base(reduced, k)
+        if full - value(without) <= EVIDENCE_THRESHOLD:
+            reduced, full = without, value(without)
+    return kept, reduced
 
 
 def _prewhitening(residual, sizes, order: int = PREWHITENING_ORDER):
@@ -1283,9 +1304,9 @@ class _ResonantModel:
             return lambda X: X / root.reshape((-1,) + (1,) * (np.ndim(X) - 1))
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((root.size, 2 * len(self.terms)))
-        for r, (k, _) in enumerate(self.terms):
+        for r, (k, term) in enumerate(self.terms):
             rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
-            rotated = self._observed_basis(k, lags, rate, omega, False)
+            rotated = self._observed_basis(k, lags, rate, omega, False, term.held())
             W[:, 2 * r] = np.exp(x[4 + 4 * r]) * rotated[:, 0]
             W[:, 2 * r + 1] = np.exp(x[5 + 4 * r]) * rotated[:, 1]
         U, S, _ = np.linalg.svd(W / root[:, None], full_matrices=False)
@@ -1302,20 +1323,25 @@ class _ResonantModel:
             self._blocks[k] = self._spectral.rotate(self.evidence.data.input_block(k).matrix)
         return self._blocks[k]
 
-    def _observed_basis(self, k, lags, rate, omega, eval_gradient):
+    def _observed_basis(self, k, lags, rate, omega, eval_gradient, hold):
         """The rotated data of the term's basis ``[e cos, e sin]`` (and ``t e cos, t e sin``).
 
+        With ``hold`` (the search's terms: PK's ``hold``) the basis is that of
+        a mode behind the hold, zero at lag 0 and the mode's step response on
+        the first cell.
         Readings at their own instants see the basis at real lags, through
         their functionals; other data through the regressor on ``lags``.
         """
-        def basis(t):
-            ec, es = damped_sinusoids(t, omega, np.exp(-rate * t))
-            return np.column_stack([ec, es, t * ec, t * es] if eval_gradient else [ec, es])
-
         data = self.evidence.data
         if hasattr(data, "damped_sinusoids"):
-            return self._spectral.rotate(data.damped_sinusoids(rate, omega, k, eval_gradient))
-        return self._rotated_regressor(k) @ basis(lags)
+            return self._spectral.rotate(
+                data.damped_sinusoids(rate, omega, k, eval_gradient, hold=hold))
+        ec, es = damped_sinusoids(lags, omega, np.exp(-rate * lags))
+        columns = [ec, es, lags * ec, lags * es] if eval_gradient else [ec, es]
+        basis = np.column_stack(columns)
+        if hold:
+            basis[lags == 0.0] = 0.0  # on the integer lags the hold zeroes lag 0 alone
+        return self._rotated_regressor(k) @ basis
 
     def _log_evidence(self, x, eval_gradient: bool = False):
         """The log evidence at ``x`` and, with ``eval_gradient``, its gradient.
@@ -1333,10 +1359,10 @@ class _ResonantModel:
         lags = np.arange(self.evidence.data.order, dtype=float)
         W = np.empty((y.shape[0], 2 * r_terms))
         raw = []  # per term: rotated [e cos, e sin, t e cos, t e sin] and parameters
-        for r, (k, _) in enumerate(self.terms):
+        for r, (k, term) in enumerate(self.terms):
             rate, omega = np.exp(x[2 + 4 * r]), x[3 + 4 * r]
             s1, s2 = np.exp(x[4 + 4 * r]), np.exp(x[5 + 4 * r])
-            rotated = self._observed_basis(k, lags, rate, omega, eval_gradient)
+            rotated = self._observed_basis(k, lags, rate, omega, eval_gradient, term.held())
             W[:, 2 * r], W[:, 2 * r + 1] = s1 * rotated[:, 0], s2 * rotated[:, 1]
             raw.append((rotated, rate, s1, s2))
         if r_terms:
@@ -1473,6 +1499,17 @@ class _ResonantModel:
         for k, term in self.terms:
             kernels[k] = kernels[k] + term
         return like_inputs(kernels, self.base)
+
+
+def _without_base(kernel, k: int):
+    """``kernel`` with input ``k``'s kernel its PK summands alone (its base dropped)."""
+    kernels = [clone(each) for each in input_kernels(kernel)]
+    terms = resonance_summands(kernels[k])
+    alone = clone(terms[0])
+    for term in terms[1:]:
+        alone = alone + clone(term)
+    kernels[k] = alone
+    return like_inputs(kernels, kernel)
 
 
 def _without_pk(kernel):

@@ -274,18 +274,24 @@ def test_resonances_judged_again_keep_the_terms_the_disturbance_leaves(monkeypat
     reduced = C(0.4) * DC(0.7, 0.9)
     calls = []
 
-    def judged(kept):
+    def judged(kept, changed=True):
         def judge(observation, y, evidence, kernel, noise, inputs, n_folds):
             calls.append((evidence, kernel, noise, inputs))
-            return kept, reduced
+            return kept, reduced if changed else kernel
         return judge
 
-    monkeypatch.setattr(gpmultirate.resonances, "resonances_under_disturbance", judged([0, 1]))
+    monkeypatch.setattr(gpmultirate.resonances, "resonances_under_disturbance",
+                        judged([0, 1], changed=False))
     left, refitted = auto_kernel.rejudge(observation, y, start, found, 0.01, (1e-5, 1.0),
                                          settings)
     assert left == found and refitted is None
     assert calls[0][0] is start.evidence and calls[0][2] is start.noise_model
     assert calls[0][3] == [0, 0]
+    # every term kept, a base dropped (a kernel of its own): fitted again
+    monkeypatch.setattr(gpmultirate.resonances, "resonances_under_disturbance", judged([0, 1]))
+    left, refitted = auto_kernel.rejudge(observation, y, start, found, 0.01, (1e-5, 1.0),
+                                         settings)
+    assert left == found and repr(refitted.kernel) == repr(reduced)
     monkeypatch.setattr(gpmultirate.resonances, "resonances_under_disturbance", judged([1]))
     left, refitted = auto_kernel.rejudge(observation, y, start, found, 0.01, (1e-5, 1.0),
                                          settings)

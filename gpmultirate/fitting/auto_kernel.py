@@ -43,17 +43,22 @@ def rejudge(observation, y, fitted: DisturbanceFit, found: list, noise_level: fl
     """The resonances ``found`` (with white noise) that the disturbance of ``fitted`` leaves.
 
     Returns the kept :class:`~gpmultirate.resonances.Resonance` list and,
-    when terms were dropped, the disturbance tuned again from ``fitted``'s
-    noise model with the kernel without them (None when every term stays).
+    when terms or the base kernel beside them were dropped, the disturbance
+    tuned again from ``fitted``'s noise model with the kernel without them
+    (None when every term and base stays).
     ``noise_level``: the white level the disturbance started from.
     """
     kept, reduced = resonances.resonances_under_disturbance(
         observation, y, fitted.evidence, fitted.kernel, fitted.noise_model,
         [r.input for r in found], settings.n_folds)
-    if len(kept) == len(found):
+    if reduced is fitted.kernel:  # every term and base stays
         return found, None
-    _LOG.info("resonance search: %d term(s) dropped, the disturbance explains them",
-              len(found) - len(kept))
+    if len(kept) < len(found):
+        _LOG.info("resonance search: %d term(s) dropped, the disturbance explains them",
+                  len(found) - len(kept))
+    else:
+        _LOG.info("resonance search: the base kernel dropped beside the terms, the "
+                  "disturbance explains what it took")
     refitted = fit_disturbance(observation, y, reduced, noise_level, noise_bounds, None,
                                settings, start=fitted.noise_model)
     return [found[r] for r in kept], refitted
