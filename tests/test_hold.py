@@ -17,6 +17,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 from gpmultirate.kernels import DC, PK, SS, TC, observe
 from gpmultirate.kernels.hold import BRIDGE_SCALE, hold_weights
 from gpmultirate.observations import InterpolatedConvolution, TimedConvolution
+from test_kernels import finite_difference_gradient
 
 
 def _mode(samples_per_period, damping=0.05):
@@ -190,12 +191,7 @@ def test_pk_with_hold_gradients_at_real_lags_by_central_differences(spread):
                 rate_std=spread[1], hold=True)
     X = np.array([0.0, 0.1, 0.45, 0.9, 1.0, 1.3, 2.0, 4.75])[:, None]
     K, dK = kernel(X, eval_gradient=True)
-    for j in range(kernel.theta.size):
-        step = np.zeros_like(kernel.theta)
-        step[j] = 1e-6
-        numeric = (kernel.clone_with_theta(kernel.theta + step)(X)
-                   - kernel.clone_with_theta(kernel.theta - step)(X)) / 2e-6
-        np.testing.assert_allclose(dK[:, :, j], numeric, atol=1e-8)
+    np.testing.assert_allclose(dK, finite_difference_gradient(kernel, X, step=1e-6), atol=1e-8)
     np.testing.assert_allclose(kernel.diag(X), np.diag(K), rtol=1e-12)
     # the spread is the first-order change of the held basis with the frequency and decay
     if any(spread):

@@ -888,3 +888,12 @@ def test_damped_sinusoids_by_recursion_are_the_rows_times_the_bases(initial_cond
         np.testing.assert_allclose(found / scale, expected / scale, rtol=0, atol=1e-11)
         np.testing.assert_allclose(timed._damped_at_ticks(rate, omega, k, with_lag=False),
                                    found[:, :2])
+
+
+@pytest.mark.parametrize("initial_conditions", ["zero", "periodic"])
+def test_inputs_at_ticks_are_the_rows_at_lag_zero(initial_conditions):
+    # the held basis's first cell reads the input at each point's own tick: the rows' lag 0
+    _, order, timed = _two_input_readings(initial_conditions, 300, 4)
+    for k in range(2):
+        np.testing.assert_array_equal(timed._inputs_at_ticks(k),
+                                      timed.unique_rows()[:, k * order])

@@ -983,6 +983,8 @@ class PK(LagKernel):
         K = outer(0, plain)
         if spread:  # the first-order change with the frequency and the decay
             K = K + outer(1, spread_w)
+        if s is t:  # symmetric to rounding, as a kernel on one set of lags is
+            K = 0.5 * (K + K.T)
         if not eval_gradient:
             return K
         # d/dlog(alpha) = (1/2) d/dlambda; d/dlog(omega) = i omega d/dlambda, on each side
