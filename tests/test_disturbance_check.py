@@ -356,6 +356,7 @@ def test_auto_tunes_both_disturbances_and_keeps_white_below_the_margin(monkeypat
     assert all(t["nfev"] > 10 for t in record["tuned"])
 
 
+@pytest.mark.slow  # four fits with kernel="auto", a white tuning and a cross-validated one: 4 s
 def test_a_disturbance_that_only_found_a_better_prior_leaves_white_noise():
     """kernel="auto" on a two-mass system with white noise: the Matérn disturbance, tuned
     with the prior from the white fit, gains more than AUTO_NOISE_MARGIN over it with a
