@@ -148,7 +148,7 @@ from gpmultirate.kernels import (
     resonance_summands,
     without_resonances,
 )
-from gpmultirate.kernels.lag import damped_sinusoids
+from gpmultirate.kernels.lag import damped_sinusoids, mode_basis
 from gpmultirate.metrics import fit_percent
 from gpmultirate.noise import WhiteNoise
 from gpmultirate.orders import MAX_CHECKED_SAMPLES
@@ -1336,12 +1336,8 @@ class _ResonantModel:
         if hasattr(data, "damped_sinusoids"):
             return self._spectral.rotate(
                 data.damped_sinusoids(rate, omega, k, eval_gradient, hold=hold))
-        ec, es = damped_sinusoids(lags, omega, np.exp(-rate * lags))
-        columns = [ec, es, lags * ec, lags * es] if eval_gradient else [ec, es]
-        basis = np.column_stack(columns)
-        if hold:
-            basis[lags == 0.0] = 0.0  # on the integer lags the hold zeroes lag 0 alone
-        return self._rotated_regressor(k) @ basis
+        pairs = mode_basis(lags, rate, omega, 1 if eval_gradient else 0, hold)
+        return self._rotated_regressor(k) @ np.column_stack([x for pair in pairs for x in pair])
 
     def _log_evidence(self, x, eval_gradient: bool = False):
         """The log evidence at ``x`` and, with ``eval_gradient``, its gradient.

@@ -40,7 +40,7 @@ from gpmultirate.validation import as_real_array, check_bounds, check_positive
 
 __all__ = [
     "TC", "DC", "SS", "PK", "LagKernel", "ShiftScaledKernel", "check_lags", "correlation",
-    "damped_sinusoids", "resonance_summands", "without_resonances",
+    "damped_sinusoids", "mode_basis", "resonance_summands", "without_resonances",
 ]
 
 # what the tuning strategy should know of each hyperparameter (see Role)
@@ -81,6 +81,37 @@ def damped_sinusoids(lags: np.ndarray, omega, envelope: np.ndarray):
     if np.ndim(omega) == 0:
         return envelope * np.cos(phase), envelope * np.sin(phase)
     return envelope[:, None] * np.cos(phase), envelope[:, None] * np.sin(phase)
+
+
+def mode_basis(lags: np.ndarray, rate, omega, derivatives: int = 0, hold: bool = False) -> list:
+    """PK's basis at ``lags`` and its derivatives in ``lambda = -rate + i omega``.
+
+    The one place the basis of a kept term is formed: by :meth:`PK.basis_derivatives`
+    (``rate = -log(alpha) / 2``) and by the resonance search's joint model.  The
+    ``k``-th pair is the real and imaginary parts of ``d^k b / d lambda^k`` for the
+    complex basis ``b(t) = e^(lambda t)``, ``t^k (c, s)``; with ``hold`` the first
+    cell, ``[0, 1)``, is the mode's step response
+    (:func:`~gpmultirate.kernels.hold.mode_start`), zero at lag 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> (c, s), (c1, s1) = mode_basis(np.array([0.0, 2.0]), 0.1, 1.0, 1, hold=True)
+    >>> float(c[0]), bool(np.isclose(c1[1], 2.0 * np.exp(-0.2) * np.cos(2.0)))
+    (0.0, True)
+    """
+    c, s = damped_sinusoids(lags, omega, np.exp(-rate * lags))
+    out = [(c, s)]
+    for _ in range(derivatives):
+        out.append((lags * out[-1][0], lags * out[-1][1]))
+    first = np.flatnonzero(lags < 1.0) if hold else np.empty(0, dtype=np.int64)
+    if first.size:
+        taken = mode_start(lags[first], rate, omega, derivatives)
+        out = [(c.copy(), s.copy()) for c, s in out]
+        for (c, s), (dc, ds) in zip(out, taken):
+            c[first] -= dc
+            s[first] -= ds
+    return out
 
 
 def check_lags(X, name: str = "X") -> np.ndarray:
@@ -909,20 +940,8 @@ class PK(LagKernel):
         (0.0, True)
         """
         values = self.checked_values()
-        c, s = damped_sinusoids(lags, values["omega"], values["alpha"] ** (lags / 2.0))
-        out = [(c, s)]
-        for _ in range(derivatives):
-            out.append((lags * out[-1][0], lags * out[-1][1]))
-        if self.held():
-            first = np.flatnonzero(lags < 1.0)
-            if first.size:
-                rate = -0.5 * np.log(values["alpha"])
-                taken = mode_start(lags[first], rate, values["omega"], derivatives)
-                out = [(c.copy(), s.copy()) for c, s in out]
-                for (c, s), (dc, ds) in zip(out, taken):
-                    c[first] -= dc
-                    s[first] -= ds
-        return out
+        return mode_basis(lags, -0.5 * np.log(values["alpha"]), values["omega"], derivatives,
+                          self.held())
 
     def held(self) -> bool:
         """``hold`` checked: a bool.
