@@ -1094,8 +1094,9 @@ def resonances_under_disturbance(observation, y, evidence, kernel, noise, inputs
     full = value(reduced)
     for k in sorted({inputs[r] for r in kept}):
         without = _without_base(reduced, k)
-        if full - value(without) <= EVIDENCE_THRESHOLD:
-            reduced, full = without, value(without)
+        left = value(without)
+        if full - left <= EVIDENCE_THRESHOLD:
+            reduced, full = without, left
     return kept, reduced
 
 

@@ -135,8 +135,9 @@ class PKTimedTerm(_TimedTerm):
 
     The basis ``alpha^(x/2) cos(omega x)``, ``alpha^(x/2) sin(omega x)`` (and,
     with PK's spread, its derivative in ``lambda``, ``x`` times each; on the
-    first cell the mode's step response with PK's ``hold``) read through the readings' separable
-    form (:meth:`~gpmultirate.observations.TimedConvolution.damped_sinusoids`,
+    first cell the mode's step response with PK's ``hold``) read through the
+    readings' separable form
+    (:meth:`~gpmultirate.observations.TimedConvolution.damped_sinusoids`,
     ``O(R P)`` for the ``R`` distinct regressor rows, not the quadrature
     points times ``P``); complex hyperparameter values (the complex step of
     the derivatives) pass through it.

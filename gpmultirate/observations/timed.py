@@ -756,16 +756,11 @@ class TimedConvolution(Observation):
     def _inputs_at_ticks(self, input: int) -> np.ndarray:
         """``u[n]`` of ``input`` at each distinct row's tick ``n`` (zero outside, or periodic)."""
         records, ticks = self._unique
-        out = np.zeros(ticks.shape[0])
+        out = np.empty(ticks.shape[0])
         for r, part in enumerate(self._parts):
             mine = np.flatnonzero(records == r)
-            x = part._inputs[:, input]
-            at = ticks[mine]
-            if part.initial_conditions == "periodic":
-                out[mine] = x[np.remainder(at, x.shape[0])]
-            else:
-                inside = (at >= 0) & (at < x.shape[0])
-                out[mine[inside]] = x[at[inside]]
+            out[mine] = _lag_rows(part._inputs[:, input], ticks[mine], 1,
+                                  part.initial_conditions == "periodic")[:, 0]
         return out
 
     def _damped_at_ticks(self, rate: float, omega: float, input: int, with_lag: bool):
