@@ -75,7 +75,7 @@ def _fit(kernel, u, y, n, **kwargs):
                                      sample_time=T, **kwargs).fit(u, y)
 
 
-def _gofs(system, n, seed):
+def _gofs(system, n, seed, noise_kernel="auto"):
     """Validation GoF of DC, PK at the true frequencies and auto, and the auto model."""
     rng = np.random.default_rng(seed)
     u, y, u_val, y_val = _experiment(system, n, rng)
@@ -83,7 +83,7 @@ def _gofs(system, n, seed):
     for name, kernel in (("DC", _paper_kernel("DC")),
                          ("PK", _paper_kernel("PK", system.natural_frequencies)),
                          ("auto", "auto")):
-        model = _fit(kernel, u, y, n)
+        model = _fit(kernel, u, y, n, noise_kernel=noise_kernel)
         out[name] = goodness_of_fit(y_val, model.predict(u_val))
     return out, model
 
@@ -343,7 +343,10 @@ def test_targets_on_paper_systems():
     (The same targets on random two-mass systems: the next test, which asks more.)
     """
     systems = [sim.paper_system(T, perturbation=0.1, random_state=s) for s in range(5)]
-    scores = [_gofs(system, 600, seed)[0] for seed, system in enumerate(systems)]
+    # white-noise records, the three kernels with white noise: the search's targets (the
+    # disturbance's choice after the search, 13 of this test's 36 s, has tests of its own)
+    scores = [_gofs(system, 600, seed, noise_kernel="white")[0]
+              for seed, system in enumerate(systems)]
     mean = {k: np.mean([s[k] for s in scores]) for k in ("DC", "PK", "auto")}
     assert mean["auto"] >= mean["PK"] - 0.05, mean
     assert mean["auto"] > mean["DC"], mean
