@@ -244,15 +244,14 @@ def mode_start(offsets, rate, omega, derivatives: int = 0) -> list:
     held = _over(numerator, denominator)
     out = [(q[0] - held[0], q[1] - held[1])]
     if derivatives >= 1:
-        # b' = N' / D - N D' / D^2 with N' = d q and D' = e^(-lambda)
+        # b' = (N' - b D') / D with N' = d q and D' = e^(-lambda)
         dq = (d * q[0], d * q[1])
-        first = _over((dq[0] - _times(held, shift)[0], dq[1] - _times(held, shift)[1]),
-                      denominator)
+        once = _times(held, shift)
+        first = _over((dq[0] - once[0], dq[1] - once[1]), denominator)
         out.append((dq[0] - first[0], dq[1] - first[1]))
     if derivatives >= 2:
         # b'' = (N'' - 2 b' D' - b D'') / D with N'' = d^2 q and D'' = -e^(-lambda)
         twice = _times(first, shift)
-        once = _times(held, shift)
         second = _over((d * dq[0] - 2.0 * twice[0] + once[0],
                         d * dq[1] - 2.0 * twice[1] + once[1]), denominator)
         out.append((d * dq[0] - second[0], d * dq[1] - second[1]))
