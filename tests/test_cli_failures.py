@@ -527,3 +527,33 @@ def test_an_output_near_the_float_range_fits(tmp_path):
     assert main(_fit_argv(path, tmp_path / "out")) == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert 0.0 <= summary["model"]["noise"]["ljung_box_p_value"] <= 1.0
+
+
+@pytest.mark.parametrize("surfaced", [True, False])
+def test_a_ctrl_c_that_surfaces_as_an_import_error_is_the_interruption(surfaced, monkeypatch,
+                                                                       capsys):
+    """SIGINT while a C extension initializes: Python raises the import's error, not
+    KeyboardInterrupt (measured: ``ImportError: initialization failed``, status 2).  The
+    command notes the signal and reports the interruption; the same error without a Ctrl-C
+    stays an error."""
+    import types
+
+    from gpmultirate import cli
+
+    def handler(command, args):
+        if surfaced:
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1.0)  # the handler runs at the next bytecode
+            except KeyboardInterrupt:
+                pass
+        raise ImportError("initialization failed")
+
+    parser = types.SimpleNamespace(parse_args=lambda argv: types.SimpleNamespace(
+        command_parser=None, handler=handler))
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    assert cli.main([]) == (130 if surfaced else 2)
+    err = capsys.readouterr().err.strip()
+    assert err == ("gpmultirate: interrupted" if surfaced
+                   else "gpmultirate: error: ImportError: initialization failed")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
