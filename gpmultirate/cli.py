@@ -44,6 +44,7 @@ from gpmultirate.arguments import (FIT_KERNELS, JOURNAL_NAME, METHODS, OneLineEr
                                    order_or_auto, sample_time, without_abbreviations)
 from gpmultirate.arguments import add_sensor_arguments, add_slow_arguments
 from gpmultirate.design.command import add_design_parser
+from gpmultirate.interrupts import NotedInterrupt
 
 __all__ = ["build_parser", "main"]
 
@@ -551,39 +552,6 @@ def _predict(parser, args) -> int:
     return 0
 
 
-class _NotedInterrupt:
-    """Python's own Ctrl-C handler, taking note that the signal came.
-
-    A SIGINT that lands while a C extension initializes surfaces as that
-    import's error (``ImportError: initialization failed``), not as
-    ``KeyboardInterrupt``; with the note, :func:`main` reports it as the
-    interruption it is.  Installed only in the main thread and only over
-    Python's default handler.
-    """
-
-    def __init__(self):
-        self.received = False
-
-    def __call__(self, number, frame):
-        self.received = True
-        raise KeyboardInterrupt
-
-    @contextlib.contextmanager
-    def installed(self):
-        import signal
-        import threading
-
-        if (threading.current_thread() is not threading.main_thread()
-                or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
-            yield self
-            return
-        signal.signal(signal.SIGINT, self)
-        try:
-            yield self
-        finally:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
 def main(argv=None) -> int:
     """Run the ``gpmultirate`` command.
 
@@ -604,34 +572,28 @@ def main(argv=None) -> int:
         :class:`SystemExit` with status 2, as argparse does.
     """
     command = None
-    noted = _NotedInterrupt()
+    noted = NotedInterrupt()
     try:
         with noted.installed():
             args = build_parser().parse_args(argv)
             command = args.command_parser
             return args.handler(command, args)
     except Exception as error:  # every error is one line, not a traceback
-        if not noted.received:
-            return _error(command, error)
+        if not noted.received:  # else a Ctrl-C surfaced as it (a C extension's import)
+            message = one_line(error)
+            if command is None:
+                print(f"gpmultirate: error: {message}", file=sys.stderr, flush=True)
+                return 2
+            # a library message that starts with a parameter's name: name the option
+            option = "--" + message.split(" ", 1)[0].replace("_", "-")
+            known = any(option in action.option_strings for action in command._actions)
+            command.error(f"argument {option}: {message}" if known and isinstance(
+                error, ValueError) else message)
     except KeyboardInterrupt:
         pass
-    # a Ctrl-C, or another error it surfaced as (a C extension's import under way)
     print(f"{'gpmultirate' if command is None else command.prog}: interrupted",
           file=sys.stderr, flush=True)
     return 130
-
-
-def _error(command, error) -> int:
-    """One line for ``error``: ``gpmultirate: error: ...`` (status 2), or the usage error."""
-    message = one_line(error)
-    if command is None:
-        print(f"gpmultirate: error: {message}", file=sys.stderr, flush=True)
-        return 2
-    # a library message that starts with a parameter's name: name the option
-    option = "--" + message.split(" ", 1)[0].replace("_", "-")
-    known = any(option in action.option_strings for action in command._actions)
-    command.error(f"argument {option}: {message}" if known and isinstance(
-        error, ValueError) else message)
 
 
 if __name__ == "__main__":  # pragma: no cover
