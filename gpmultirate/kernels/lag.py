@@ -780,6 +780,18 @@ class PK(LagKernel):
         keeps from lag 1 on.  That is the held pulse response of a mode
         exactly, at every real lag; readings between the ticks near the input's
         changes (a camera's exposure) see it.  Not a hyperparameter.
+    posterior_spread : bool, default=False
+        What ``omega_std`` and ``rate_std`` are.  False: knowledge of the
+        frequency held before the data; the kernel's covariance carries the
+        spread and a fit conditions on the data with it, which narrows it.
+        True: the uncertainty of a frequency and decay tuned on the data (the
+        terms of ``kernel="auto"``): a fit leaves the spread
+        out of its evidence and its conditioning and adds it to the
+        posterior covariance afterwards
+        (:class:`~gpmultirate.covariance.SpreadPosterior`), so that the same
+        data do not narrow it a second time.  Only read on a PK summand of
+        the kernel (a term of a sum, per input), as ``kernel="auto"`` places
+        them; the kernel's own covariance is the same either way.
 
     Examples
     --------
@@ -819,6 +831,7 @@ class PK(LagKernel):
         omega_std: float = 0.0,
         rate_std: float = 0.0,
         hold: bool = False,
+        posterior_spread: bool = False,
     ):
         self.alpha = alpha
         self.omega = omega
@@ -831,6 +844,7 @@ class PK(LagKernel):
         self.omega_std = omega_std
         self.rate_std = rate_std
         self.hold = hold
+        self.posterior_spread = posterior_spread
 
     @classmethod
     def from_hz(
@@ -954,6 +968,42 @@ class PK(LagKernel):
         if not isinstance(self.hold, (bool, np.bool_)):
             raise ValueError(f"hold must be True or False; got {self.hold!r}")
         return bool(self.hold)
+
+    def spread_after_conditioning(self) -> bool:
+        """``posterior_spread`` checked: whether a fit adds the spread after conditioning.
+
+        Examples
+        --------
+        >>> PK(omega_std=0.01, posterior_spread=True).spread_after_conditioning()
+        True
+        """
+        if not isinstance(self.posterior_spread, (bool, np.bool_)):
+            raise ValueError(
+                f"posterior_spread must be True or False; got {self.posterior_spread!r}")
+        return bool(self.posterior_spread)
+
+    def spread_columns(self, lags: np.ndarray) -> np.ndarray:
+        """``(n, 2)`` columns ``V`` of the spread's covariance: ``V V^T`` is the kernel's
+        first-order part in the frequency and the decay (zero without ``omega_std`` and
+        ``rate_std``), ``sqrt(A) c'`` and ``sqrt(B) s'``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> kernel = PK(alpha=0.81, omega=1.0, omega_std=0.02, rate_std=0.01)
+        >>> lags = np.array([0.0, 1.5, 4.0])
+        >>> V = kernel.spread_columns(lags)
+        >>> plain = kernel.set_params(omega_std=0.0, rate_std=0.0)
+        >>> bool(np.allclose(V @ V.T, PK(alpha=0.81, omega=1.0, omega_std=0.02,
+        ...      rate_std=0.01)(lags[:, None]) - plain(lags[:, None])))
+        True
+        """
+        values = self.checked_values()
+        A, B = self._spread_weights(values)
+        if not (A or B):
+            return np.zeros((np.shape(lags)[0], 2))
+        c1, s1 = self.basis_derivatives(np.asarray(lags, dtype=float), 1)[1]
+        return np.column_stack([np.sqrt(A) * c1, np.sqrt(B) * s1])
 
     def spread(self) -> tuple[float, float]:
         """``(omega_std, rate_std)`` checked: finite and non-negative.
@@ -1116,6 +1166,8 @@ class PK(LagKernel):
             text = f"{text[:-1]}, omega_std={w_std:.3g}, rate_std={r_std:.3g})"
         if self.held():
             text = f"{text[:-1]}, hold=True)"
+        if self.spread_after_conditioning():
+            text = f"{text[:-1]}, posterior_spread=True)"
         return text
 
 
