@@ -76,6 +76,7 @@ from gpmultirate.covariance.posteriors import (
     GaussianCoefficients,
     ParameterSpacePosterior,
     PrecisionPosterior,
+    SpreadPosterior,
     gaussian_samples,
 )
 from gpmultirate.covariance.precision import PrecisionCovariance
@@ -99,6 +100,7 @@ __all__ = [
     "PrecisionPosterior",
     "Remainder",
     "SpectralCovariance",
+    "SpreadPosterior",
     "WoodburyCovariance",
     "cholesky_or_raise",
     "data_covariance",

@@ -11,6 +11,10 @@ Every :class:`~gpmultirate.covariance.DataCovariance` answers
 * :class:`PrecisionPosterior` (a tridiagonal prior precision): the posterior
   precision ``C = L L^T``.
 
+:class:`SpreadPosterior` adds to any of them, after conditioning, the spread
+of the frequencies and decays of PK terms tuned on the data
+(:mod:`gpmultirate.kernels.spread`).
+
 Each holds the observation and the kernel it answers for, so it answers the
 posterior at real lags (``at_lags``) on its own.
 """
@@ -21,13 +25,15 @@ import numpy as np
 from scipy import linalg
 
 from gpmultirate.covariance.base import inverse_from_cholesky, log_gaussian
-from gpmultirate.kernels.structure import cross_kernel
+from gpmultirate.kernels.spread import spread_factor
+from gpmultirate.kernels.structure import cross_kernel, observe
 
 __all__ = [
     "DataSpacePosterior",
     "GaussianCoefficients",
     "ParameterSpacePosterior",
     "PrecisionPosterior",
+    "SpreadPosterior",
     "gaussian_samples",
 ]
 
@@ -133,6 +139,11 @@ class GaussianCoefficients:
         cov = self.K - self.B.T @ self.B
         return 0.5 * (cov + cov.T)
 
+    def readings_spread(self, readings) -> np.ndarray | float:
+        """The variance a posterior adds after conditioning to ``readings`` (noise-free
+        data of an observation); none here (:class:`SpreadPosterior` adds its terms')."""
+        return 0.0
+
 
 class DataSpacePosterior(GaussianCoefficients):
     """Posterior of the FIR coefficients given slow data, in the M x M data space.
@@ -165,6 +176,16 @@ class DataSpacePosterior(GaussianCoefficients):
     def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
         """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
         return self.observation.cross_covariance(self.kernel, X) @ self.alpha
+
+    def given_data(self, cross: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and explained variance of quantities whose covariance with the data is ``cross``.
+
+        ``cross`` of shape ``(q, M)``: the mean ``cross Ky^{-1} y`` and
+        ``diag(cross Ky^{-1} cross^T)``, which a quantity's prior variance
+        less is its posterior variance (readings stacked with the data).
+        """
+        V = linalg.solve_triangular(self.L, cross.T, lower=True, check_finite=False)
+        return cross @ self.alpha, np.einsum("ij,ij->j", V, V)
 
     def innovations(self, y: np.ndarray) -> np.ndarray:
         """``L^{-1} y`` with the fit's own factor of ``Phi K Phi^T + N`` (jitter included)."""
@@ -333,3 +354,110 @@ class PrecisionPosterior(_FactoredCoefficients):
             return mean, 0.5 * (cov + cov.T)
         var = kernel.diag(X) - np.einsum("ij,ij->i", J, cross) + np.einsum("ij,ij->i", JS, JS)
         return mean, np.maximum(var, 0.0)
+
+
+class SpreadPosterior(GaussianCoefficients):
+    """A posterior with the spread of its PK terms' frequencies added after conditioning.
+
+    ``conditioned`` is the posterior given the data under the kernel without
+    the spread (:func:`~gpmultirate.kernels.spread.conditioning_kernel`);
+    every covariance adds the spread's, ``V V^T`` with ``V`` the columns of
+    :func:`~gpmultirate.kernels.spread.spread_factor` of ``prior_kernel``
+    (at the coefficients' lags, at real lags, through readings).  The mean,
+    the evidence, the innovations and what the data explain
+    (:meth:`given_data`) are ``conditioned``'s.
+
+    Parameters
+    ----------
+    conditioned : GaussianCoefficients
+        A posterior of a route (:class:`DataSpacePosterior`,
+        :class:`ParameterSpacePosterior`, ...), with ``observation`` and
+        ``kernel``.
+    prior_kernel : sklearn Kernel
+        ``conditioned.kernel`` with the spreads
+        (``PK(posterior_spread=True)`` terms).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate import DownsampledConvolution
+    >>> from gpmultirate.inference import posterior
+    >>> from gpmultirate.kernels import DC, PK
+    >>> from gpmultirate.kernels.spread import conditioning_kernel
+    >>> rng = np.random.default_rng(0)
+    >>> op = DownsampledConvolution(rng.standard_normal(300), factor=2, order=40)
+    >>> g = 0.9 ** np.arange(40) * np.cos(0.7 * np.arange(40))
+    >>> y = op.matvec(g) + 0.01 * rng.standard_normal(op.n_outputs)
+    >>> kernel = C(0.1) * DC(0.8, 0.5) + PK(0.81, 0.7, omega_std=0.01, posterior_spread=True)
+    >>> plain = posterior(op, conditioning_kernel(kernel), 1e-4, y)
+    >>> spread = SpreadPosterior(plain, kernel)
+    >>> bool(np.allclose(spread.coef, plain.coef))
+    True
+    >>> lags = np.array([[10.0], [30.5]])
+    >>> bool(np.all(spread.at_lags(lags)[1] > plain.at_lags(lags)[1]))
+    True
+    """
+
+    def __init__(self, conditioned, prior_kernel):
+        self.conditioned = conditioned
+        self.observation, self.kernel = conditioned.observation, conditioned.kernel
+        self.prior_kernel = prior_kernel
+        self.log_marginal_likelihood = conditioned.log_marginal_likelihood
+        self.V = spread_factor(prior_kernel, self.observation.lags)
+        super().__init__(conditioned.coef, None, None)
+
+    def given_data(self, cross: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """What the data explain (:meth:`DataSpacePosterior.given_data`), without the spread."""
+        return self.conditioned.given_data(cross)
+
+    @property
+    def alpha(self) -> np.ndarray:
+        """``Ky^{-1} y`` of a data-space ``conditioned`` (:class:`DataSpacePosterior`)."""
+        return self.conditioned.alpha
+
+    @property
+    def K(self) -> np.ndarray:
+        """The prior covariance of the coefficients with the spread, ``K0 + V V^T``."""
+        return self.conditioned.K + self.V @ self.V.T
+
+    def innovations(self, y: np.ndarray) -> np.ndarray | None:
+        return self.conditioned.innovations(y)
+
+    def linear_map(self, A: np.ndarray, full_cov: bool = False):
+        mean, second = self.conditioned.linear_map(A, full_cov)
+        AV = A @ self.V
+        if full_cov:
+            return mean, second + AV @ AV.T
+        return mean, second + np.einsum("ij,ij->i", AV, AV)
+
+    def pair_variances(self, A1: np.ndarray, A2: np.ndarray | None):
+        var1, var2, cov = self.conditioned.pair_variances(A1, A2)
+        V1 = A1 @ self.V
+        var1 = var1 + np.einsum("ij,ij->i", V1, V1)
+        if A2 is None:
+            return var1, None, None
+        V2 = A2 @ self.V
+        return (var1, var2 + np.einsum("ij,ij->i", V2, V2),
+                cov + np.einsum("ij,ij->i", V1, V2))
+
+    def covariance(self) -> np.ndarray:
+        return self.conditioned.covariance() + self.V @ self.V.T
+
+    def mean_at_lags(self, X: np.ndarray) -> np.ndarray:
+        """Posterior mean of ``g`` at the kernel inputs ``X`` (real lags, as a column)."""
+        return self.conditioned.mean_at_lags(X)
+
+    def at_lags(self, X: np.ndarray, full_cov: bool = False):
+        """Posterior mean and variance (or covariance) of ``g`` at the kernel inputs ``X``."""
+        mean, second = self.conditioned.at_lags(X, full_cov=full_cov)
+        W = spread_factor(self.prior_kernel, X)
+        if full_cov:
+            return mean, second + W @ W.T
+        return mean, second + np.einsum("ij,ij->i", W, W)
+
+    def readings_spread(self, readings) -> np.ndarray:
+        """The spread's variance of each noise-free reading of ``readings``."""
+        with_spread = observe(self.prior_kernel, readings).covariance_blocks(0)[1]
+        without = observe(self.kernel, readings).covariance_blocks(0)[1]
+        return np.maximum(with_spread - without, 0.0)

@@ -1049,14 +1049,17 @@ def predict_readings(posterior, data, kernel, readings: TimedConvolution):
     the readings stacked with it as a record of the same system; data on the
     integer lags see ``g`` between the ticks only through ``g(0..P-1)``, so
     the readings are the prior given those, averaged over their posterior.
+    ``kernel`` is the kernel the posterior conditioned with; the spread a
+    posterior adds after conditioning
+    (:meth:`~gpmultirate.covariance.GaussianCoefficients.readings_spread`)
+    is added to the variances.
     """
     if isinstance(data, TimedConvolution):
         joint = TimedConvolution.stack([data, readings])
         # only the readings' covariance with the data and their own variances
         cross, prior = observe(kernel, joint).covariance_blocks(data.n_outputs)
-        mean = cross @ posterior.alpha
-        V = linalg.solve_triangular(posterior.L, cross.T, lower=True, check_finite=False)
-        var = prior - np.einsum("ij,ij->j", V, V)
+        mean, explained = posterior.given_data(cross)
+        var = prior - explained + posterior.readings_spread(readings)
         return mean, np.maximum(var, 0.0)
     term = observe(kernel, readings)
     _, prior = term.covariance_blocks(0)
