@@ -439,7 +439,7 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
         # the innovations in the fit's own units, before the rescaling; a fit with the
         # user's hyperparameters (no tuning, as a model file is read) is not judged
         specified = misspecification.check_fit(
-            self.observation_, self.y_slow_, self.kernel_, self.noise_level_,
+            self.observation_, self.y_slow_, self._evidence.kernel, self.noise_level_,
             self._noise_model, self.noise_level_bounds_,
             posterior=self.posterior_) if settings.tuned else None
         units.rescale_gaussian_process(self, scale, lambda: between_ticks.experiment_of(
@@ -560,7 +560,7 @@ class FIRGaussianProcess(StateSpaceMixin, FIRModelMixin, BaseEstimator):
                 return self._predict_normalized(x, posterior, False)[ticks]
             readings = TimedConvolution(
                 x, sample_times, self._order, exposure, latency, self.initial_conditions)
-            kernel = self.kernel_ if scale is None else self._evidence.kernel
+            kernel = self._evidence.kernel  # what the posterior conditioned with
             readings = self.observation_.readings_model(readings)
             with blas_threads_for(readings):
                 mean, var = readings.posterior_readings(posterior, self._evidence.data, kernel)

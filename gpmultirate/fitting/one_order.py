@@ -20,7 +20,10 @@ from gpmultirate.fitting import auto_kernel
 from gpmultirate.fitting.between_ticks import experiment_of
 from gpmultirate.fitting.disturbance import choose_disturbance
 from gpmultirate.fitting.prior import starting_prior
+from gpmultirate.fitting.spread import spread_of_fit
+from gpmultirate.covariance import SpreadPosterior
 from gpmultirate.inference import LogEvidence, blas_threads_for
+from gpmultirate.kernels.spread import conditioning_kernel
 from gpmultirate.memory import check_fit_memory
 
 __all__ = ["Fit", "fit_at_order"]
@@ -46,6 +49,7 @@ class Fit:
     cv_log_predictive_likelihood_: float | None = None
     noise_kernel_: object = "white"
     noise_model: object = None
+    spread_kernel: object = None
 
     def attributes(self) -> dict:
         """The estimator's attributes of this fit (``_noise_model`` and ``_evidence`` private:
@@ -57,6 +61,8 @@ class Fit:
                  "cv_log_predictive_likelihood_")
         out = {name: getattr(self, name) for name in names}
         out["_noise_model"], out["_evidence"] = self.noise_model, self.evidence
+        if self.spread_kernel is not None:  # the kernel with its terms' spread
+            out["kernel_"] = self.spread_kernel
         return out
 
 
@@ -74,20 +80,27 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     The steps: the experiment and the starting prior, the memory guard, the
     resonance search (``kernel="auto"``), the tuning by the criterion, the
     posterior, the disturbance choice (``noise_kernel``) and, when a
-    disturbance is kept after a search, the search's terms judged again.
+    disturbance is kept after a search, the search's terms judged again;
+    last, the spread of the terms' frequencies added to the posterior
+    (:mod:`gpmultirate.fitting.spread`).  Every step before conditions on
+    the kernel without that spread: ``kernel_`` is the kernel with it, the
+    evidence and the order steps hold the kernel without it.
     """
     experiment = experiment_of(data, order, settings)
     observation, y = experiment.observation, experiment.y
     kernel, noise, noise_bounds = starting_prior(experiment, settings, start)
+    template = kernel  # the kernel with its terms' posterior spread, if it has any
+    kernel = conditioning_kernel(kernel)
     # refuse now what would be killed for lack of memory halfway
     n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
     check_fit_memory(observation.n_outputs, observation.n_coefficients, n_free + 1,
                      n_inputs=experiment.n_inputs)
-    optimizer_result = found = cv_value = noise_model = None
+    optimizer_result = found = cv_value = noise_model = searched_kernel = None
     with blas_threads_for(observation):
         if settings.auto:
             searched = auto_kernel.search(observation, y, kernel, noise, noise_bounds, settings)
-            kernel, noise = searched.kernel, searched.noise_level
+            template, noise = searched.kernel, searched.noise_level
+            kernel = searched_kernel = conditioning_kernel(template)
             optimizer_result, found = searched.optimizer_result, searched.resonances
             evidence = searched.evidence  # the search's reduction of the data, if it made one
             if evidence is None:
@@ -147,6 +160,12 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     moved_evidence = evidence.moved_to(kernel, noise if noise_model is None else noise_model)
     if optimizer_result is not None:
         tuning.warn_at_bounds(units.evidence_in_data_units(moved_evidence, settings.scale))
+    # the search's spread holds where its kernel and white noise are the fit's
+    spread_kernel = spread_of_fit(
+        None if template is kernel else template, kernel, moved_evidence,
+        tuned_again=settings.auto and not (noise_model is None and kernel is searched_kernel))
+    if spread_kernel is not kernel:
+        posterior = SpreadPosterior(posterior, spread_kernel)
     coef = posterior.coef
     return Fit(
         experiment=experiment,
@@ -165,4 +184,5 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
         cv_log_predictive_likelihood_=cv_value,
         noise_kernel_="white" if noise_model is None else noise_model.kernel,
         noise_model=noise_model,
+        spread_kernel=None if spread_kernel is kernel else spread_kernel,
     )

@@ -1,0 +1,140 @@
+"""The spread of tuned frequencies, added to a fit's posterior after conditioning.
+
+A fit conditions on the data with its kernel's posterior-spread PK terms
+(``PK(posterior_spread=True)``: the terms of ``kernel="auto"``) without their
+spread (:func:`~gpmultirate.kernels.spread.conditioning_kernel`), and adds
+the spread to the posterior afterwards
+(:class:`~gpmultirate.covariance.SpreadPosterior`).  :func:`spread_of_fit`
+gives the kernel with the spread at the fit's values: the spread the kernel
+came with (a model file's, or the resonance search's where the fit ended
+with the search's own kernel and white noise), or, where the terms were
+tuned again under the fit's final noise model (a disturbance), the Laplace
+approximation of that evidence (:func:`laplace_spreads`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.base import clone
+
+from gpmultirate.kernels import input_kernels, like_inputs
+from gpmultirate.kernels.spread import posterior_spread_terms
+
+__all__ = ["laplace_spreads", "spread_of_fit"]
+
+
+def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
+    """``kernel`` with each posterior-spread PK term given the spread of the evidence's Laplace approximation.
+
+    The Hessian of ``evidence`` (a :class:`~gpmultirate.inference.LogEvidence`
+    under its noise model) over every free coordinate of its ``theta``, by
+    central differences of the analytic gradient; ``-H^{-1}`` is the
+    posterior covariance of the coordinates.  A term's ``omega_std`` is
+    ``omega`` times the standard deviation of ``log(omega)``, its ``rate_std``
+    half that of ``log(alpha)`` (the decay rate is ``-log(alpha) / 2``).
+    The coordinates inside their bounds are taken jointly; one on a bound,
+    or all where their Hessian is not negative definite, gets the standard
+    deviation with the others held (``1 / sqrt(-H_ii)``), none where that
+    curvature is not negative either.
+
+    Parameters
+    ----------
+    evidence : LogEvidence
+    kernel : sklearn Kernel, optional
+        The kernel at which to take the Hessian (default: ``evidence.kernel``).
+    step : float, default=1e-4
+        The relative step of the central differences.
+
+    Returns
+    -------
+    sklearn Kernel
+        ``kernel`` with ``omega_std`` and ``rate_std`` set on its
+        posterior-spread PK summands.
+    """
+    kernel = evidence.kernel if kernel is None else kernel
+    terms = posterior_spread_terms(kernel)
+    if not terms:
+        return kernel
+    moved = evidence.moved_to(kernel, evidence.noise)
+    x = moved.theta
+    bounds = moved.bounds
+    names = [h.name for h in kernel.hyperparameters if not h.fixed
+             for _ in range(h.n_elements)]
+    interior = (x > bounds[:, 0] + step) & (x < bounds[:, 1] - step)
+    free = np.flatnonzero(bounds[:, 1] > bounds[:, 0])
+    hessian = np.empty((free.size, free.size))
+    for a, i in enumerate(free):
+        h = step * max(1.0, abs(x[i]))
+        up, down = x.copy(), x.copy()
+        up[i] += h
+        down[i] -= h
+        hessian[a] = (moved(up, eval_gradient=True)[1][free]
+                      - moved(down, eval_gradient=True)[1][free]) / (2.0 * h)
+    hessian = 0.5 * (hessian + hessian.T)
+    curvature = -np.diag(hessian)
+    # each coordinate with the others held; the interior ones jointly where they can be
+    variances = np.where(curvature > 0, 1.0 / np.where(curvature > 0, curvature, 1.0), 0.0)
+    inside = np.flatnonzero(interior[free])
+    try:
+        block = -hessian[np.ix_(inside, inside)]
+        np.linalg.cholesky(block)
+        variances[inside] = np.diag(np.linalg.inv(block))
+    except np.linalg.LinAlgError:
+        pass
+    variance = dict(zip(free.tolist(), variances))
+
+    def std(path, name):
+        label = f"{path}__{name}"
+        if label not in names:  # fixed: no spread from it
+            return 0.0
+        return float(np.sqrt(max(variance.get(names.index(label), 0.0), 0.0)))
+
+    spreads = {id(term): (float(term.omega) * std(path, "omega"), 0.5 * std(path, "alpha"))
+               for _, path, term in terms}
+    return _with_spreads(kernel, spreads)
+
+
+def _with_spreads(kernel, spreads: dict):
+    """``kernel`` with the PK summands keyed (by ``id``) in ``spreads`` given ``(omega_std, rate_std)``."""
+    from sklearn.gaussian_process.kernels import Sum
+
+    from gpmultirate.kernels import PK
+
+    def walk(each):
+        if isinstance(each, PK) and id(each) in spreads:
+            w_std, r_std = spreads[id(each)]
+            return clone(each).set_params(omega_std=w_std, rate_std=r_std)
+        if isinstance(each, Sum):
+            return Sum(walk(each.k1), walk(each.k2))
+        return each
+
+    return like_inputs([walk(each) for each in input_kernels(kernel)], kernel)
+
+
+def spread_of_fit(template, kernel, evidence, tuned_again: bool):
+    """The fit's kernel with its terms' spread: what the posterior adds after conditioning.
+
+    Parameters
+    ----------
+    template : sklearn Kernel or None
+        The kernel with the spread the fit started from (the user's, a
+        model file's, or the resonance search's), or None (no
+        posterior-spread term: ``kernel`` is returned).
+    kernel : sklearn Kernel
+        The fit's conditioning kernel at its final values.
+    evidence : LogEvidence
+        The fit's evidence at its final noise model.
+    tuned_again : bool
+        Whether the terms were tuned after ``template``'s spread was taken
+        (under a disturbance, or with their set changed): the spread is then
+        the Laplace approximation of ``evidence``.
+
+    Returns
+    -------
+    sklearn Kernel
+    """
+    if template is None or not posterior_spread_terms(kernel):
+        return kernel
+    if tuned_again or template.theta.shape != kernel.theta.shape:
+        return laplace_spreads(evidence, kernel)
+    return template.clone_with_theta(kernel.theta)
