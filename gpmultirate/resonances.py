@@ -66,10 +66,14 @@ terms one at a time, greedily:
    ``rate_std`` (:class:`~gpmultirate.kernels.PK`), the standard
    deviations of their frequency and decay rate in the Laplace
    approximation of the evidence at the tuned values (its Hessian by
-   central differences of the analytic gradient): without them a PK term of rank
-   two knows the phase of its response at every lag, and a tuned
-   frequency off by a fraction of a percent leaves the truth outside the
-   95 % band at long lags;
+   central differences of the analytic gradient), as a posterior spread
+   (``posterior_spread=True``): the fit conditions on the data without it
+   and adds it to the posterior afterwards
+   (:mod:`gpmultirate.kernels.spread`; in the prior, the same data narrowed
+   it to a tenth to a third of its effect at long lags).  Without it a PK
+   term of rank two knows the phase of its response at every lag, and a
+   tuned frequency off by a fraction of a percent leaves the truth outside
+   the 95 % band at long lags;
 7. **under the disturbance** (:func:`resonances_under_disturbance`): the
    search works with white noise; where the fit then chooses a coloured
    disturbance (``noise_kernel``), each term is judged again with it, by
@@ -245,7 +249,9 @@ class ResonanceSearch:
     Attributes
     ----------
     kernel : sklearn Kernel
-        The tuned kernel: the base kernel plus one PK term per resonance.
+        The tuned kernel: the base kernel plus one PK term per resonance,
+        each with the spread of its frequency and decay
+        (``PK(posterior_spread=True)``).
     noise_level : float
         The tuned noise variance.
     optimizer_result : scipy.optimize.OptimizeResult or None
@@ -260,8 +266,7 @@ class ResonanceSearch:
         The log evidence of the tuned base kernel, after each term the
         search added and, when a term was added, of the kernel the
         pruning kept (and of the kernel the held-out check kept, when it
-        dropped some terms but not all) and, last, of the kernel
-        whose terms carry the spread of their frequency and decay.
+        dropped some terms but not all) and, last, of the kernel kept.
     held_out : dict or None
         The held-out check (:func:`held_out_resonances`) when it ran:
         ``"base"`` and ``"found"``, the held-out fit in percent (of the
@@ -271,9 +276,10 @@ class ResonanceSearch:
         same of the outputs themselves (``"raw_base"``, ``"raw_found"``,
         ``"raw_kept"``) and ``"dropped"``, the number of terms it removed.
     evidence : LogEvidence or None
-        The log evidence of the data at ``kernel`` and ``noise_level``: the
-        search's reduction of the data, which the fit goes on with instead
-        of reducing the data again.
+        The log evidence of the data at ``kernel`` without the spread
+        (:func:`~gpmultirate.kernels.spread.conditioning_kernel`) and
+        ``noise_level``: the search's reduction of the data, which the fit
+        goes on with instead of reducing the data again.
     """
 
     kernel: Kernel
@@ -717,11 +723,9 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
-    if terms:  # the prior carries what the data leave uncertain of each frequency and decay
+    conditioning = kernel
+    if terms:  # what the data leave uncertain of each frequency and decay, for the posterior
         kernel, terms = _with_spreads(kernel, terms, retuned.model(final).term_spreads())
-        moved = evidence.moved_to(kernel, noise)
-        value = float(moved(moved.theta))
-        history.append(value)
     return ResonanceSearch(
         kernel=kernel, noise_level=noise, optimizer_result=result,
         resonances=[
@@ -733,7 +737,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
             for (k, term), gain in zip(terms, gains)
         ],
         log_marginal_likelihood=value, history=history,
-        evidence=evidence.moved_to(kernel, noise),
+        evidence=evidence.moved_to(conditioning, noise),
         held_out=None if check is None else {
             name: check[name] for name in ("base", "found", "kept", "raw_base", "raw_found",
                                            "raw_kept", "dropped")},
@@ -1168,11 +1172,13 @@ def _with_spreads(kernel, terms, spreads):
 
     The spreads are the Laplace approximation of the evidence at the tuned
     values (``_ResonantModel.term_spreads``); the terms get them as
-    ``omega_std`` and ``rate_std`` (:class:`~gpmultirate.kernels.PK`), so
-    the posterior bands carry the frequency the data leave uncertain.
+    ``omega_std`` and ``rate_std`` with ``posterior_spread=True``
+    (:class:`~gpmultirate.kernels.PK`): a fit adds the spread to its
+    posterior after conditioning (:mod:`gpmultirate.kernels.spread`), so
+    the bands carry the frequency the data leave uncertain.
     Returns the kernel and its terms.
     """
-    spread = [(k, clone(term).set_params(omega_std=w, rate_std=r))
+    spread = [(k, clone(term).set_params(omega_std=w, rate_std=r, posterior_spread=True))
               for (k, term), (w, r) in zip(terms, spreads)]
     return _assembled(kernel, spread), spread
 
@@ -1271,7 +1277,7 @@ class _ResonantModel:
     def _bounds(self):
         evidence = self.evidence
         log_noise = np.log(self.noise_level)
-        bounds = [(-np.log(1e3), np.log(1e3)),
+        bounds = [_scale_range(evidence),
                   tuple(np.log(evidence.noise_bounds)) if evidence.noise_is_free
                   else (log_noise, log_noise)]
         for _, term in self.terms:
@@ -1521,6 +1527,25 @@ def _tune(evidence, kernel, noise, random_state, max_evaluations=None):
         return kernel, noise, None, float(evidence(evidence.theta))
     kernel, noise = evidence.split(result.x)
     return kernel, noise, result, float(-result.fun)
+
+
+def _scale_range(evidence) -> tuple[float, float]:
+    """The log scales of the base kernel that keep each of its amplitudes within its bounds.
+
+    The whole range: a response the terms explain needs no base, and a
+    bound on the scale (a factor of 1,000 either way) keeps the
+    base's variance where the evidence would lower it by many nats.
+    """
+    positions = evidence.scale_positions()
+    if not positions:
+        return (0.0, 0.0)
+    theta = evidence.kernel.theta
+    bounds = evidence.kernel.bounds.reshape(-1, 2)
+    low, high = -np.inf, np.inf
+    for i, power in positions:
+        ends = sorted(((bounds[i, 0] - theta[i]) / power, (bounds[i, 1] - theta[i]) / power))
+        low, high = max(low, ends[0]), min(high, ends[1])
+    return (min(low, 0.0), max(high, 0.0))
 
 
 def _scaled(evidence, log_scale: float):
