@@ -17,5 +17,7 @@ the estimator adopts the result:
 * :mod:`~gpmultirate.fitting.auto_kernel`: the resonance search of
   ``kernel="auto"`` and its terms judged again under a disturbance;
 * :mod:`~gpmultirate.fitting.disturbance`: the choice between white noise
-  and a disturbance model.
+  and a disturbance model;
+* :mod:`~gpmultirate.fitting.spread`: the spread of tuned frequencies that
+  the posterior adds after conditioning.
 """
