@@ -142,6 +142,7 @@ from gpmultirate.covariance import (
     woodbury_gain,
 )
 from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
+from gpmultirate.fitting.spread import marginal_variances
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
@@ -1450,11 +1451,9 @@ class _ResonantModel:
         rate, frequency and log amplitudes) by central differences of its
         gradient; its negative inverse is the posterior covariance of the
         coordinates, whose frequency and decay-rate entries give the
-        standard deviations (the rate's through its log).  A term at a
-        bound of its frequency or decay, or where the curvature is not
-        negative definite, gets the standard deviation of its coordinate
-        with the others held (``1 / sqrt(-H_ii)``), or none where that
-        curvature is not negative either.
+        standard deviations (the rate's through its log).  Directions
+        without negative curvature are left out
+        (:func:`~gpmultirate.fitting.spread.marginal_variances`).
         """
         x = self._pack()
         bounds = self._bounds()
@@ -1467,15 +1466,7 @@ class _ResonantModel:
             down[i] -= h
             hessian[a] = (self._log_evidence(up, True)[1][free]
                           - self._log_evidence(down, True)[1][free]) / (2.0 * h)
-        hessian = 0.5 * (hessian + hessian.T)
-        try:
-            np.linalg.cholesky(-hessian)
-            variances = np.diag(np.linalg.inv(-hessian))
-        except np.linalg.LinAlgError:
-            curvature = -np.diag(hessian)
-            variances = np.where(curvature > 0, 1.0 / np.where(curvature > 0, curvature, 1.0),
-                                 0.0)
-        variance = dict(zip(free.tolist(), variances))
+        variance = dict(zip(free.tolist(), marginal_variances(hessian)))
         spreads = []
         for r in range(len(self.terms)):
             rate = np.exp(x[2 + 4 * r])

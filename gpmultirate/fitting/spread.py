@@ -20,7 +20,7 @@ from sklearn.base import clone
 from gpmultirate.kernels import input_kernels, like_inputs
 from gpmultirate.kernels.spread import posterior_spread_terms
 
-__all__ = ["laplace_spreads", "spread_of_fit"]
+__all__ = ["laplace_spreads", "marginal_variances", "spread_of_fit"]
 
 
 def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
@@ -32,10 +32,10 @@ def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
     posterior covariance of the coordinates.  A term's ``omega_std`` is
     ``omega`` times the standard deviation of ``log(omega)``, its ``rate_std``
     half that of ``log(alpha)`` (the decay rate is ``-log(alpha) / 2``).
-    The coordinates inside their bounds are taken jointly; one on a bound,
-    or all where their Hessian is not negative definite, gets the standard
-    deviation with the others held (``1 / sqrt(-H_ii)``), none where that
-    curvature is not negative either.
+    The coordinates inside their bounds are taken jointly
+    (:func:`marginal_variances`); one on a bound gets the standard deviation
+    with the others held (``1 / sqrt(-H_ii)``), none where that curvature is
+    not negative.
 
     Parameters
     ----------
@@ -72,15 +72,10 @@ def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
                       - moved(down, eval_gradient=True)[1][free]) / (2.0 * h)
     hessian = 0.5 * (hessian + hessian.T)
     curvature = -np.diag(hessian)
-    # each coordinate with the others held; the interior ones jointly where they can be
+    # a coordinate on its bound with the others held; the interior ones jointly
     variances = np.where(curvature > 0, 1.0 / np.where(curvature > 0, curvature, 1.0), 0.0)
     inside = np.flatnonzero(interior[free])
-    try:
-        block = -hessian[np.ix_(inside, inside)]
-        np.linalg.cholesky(block)
-        variances[inside] = np.diag(np.linalg.inv(block))
-    except np.linalg.LinAlgError:
-        pass
+    variances[inside] = marginal_variances(hessian[np.ix_(inside, inside)])
     variance = dict(zip(free.tolist(), variances))
 
     def std(path, name):
@@ -92,6 +87,35 @@ def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
     spreads = {id(term): (float(term.omega) * std(path, "omega"), 0.5 * std(path, "alpha"))
                for _, path, term in terms}
     return _with_spreads(kernel, spreads)
+
+
+def marginal_variances(hessian: np.ndarray) -> np.ndarray:
+    """The variances of the Laplace approximation, ``diag((-H)^+)`` over its curved directions.
+
+    ``-H`` is eigendecomposed; the directions of positive curvature give the
+    covariance ``sum_k q_k q_k^T / w_k`` (``diag((-H)^{-1})`` where ``-H`` is
+    positive definite).  A direction that is flat or bends up (an amplitude
+    near zero whose evidence keeps rising slowly towards its bound) has no
+    curvature to measure and is left out, so the coordinates it does not
+    touch keep their joint variances.  Holding every other coordinate
+    instead (``1 / (-H_ii)``) ignored the correlations of a frequency with
+    its decay and amplitudes: on a two-input system with a flat amplitude
+    that gave the frequency 0.6 of its joint standard deviation.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> H = -np.array([[2.0, 1.0], [1.0, 2.0]])
+    >>> bool(np.allclose(marginal_variances(H), np.diag(np.linalg.inv(-H))))
+    True
+    >>> marginal_variances(np.diag([-4.0, 1e-3])).round(6).tolist()
+    [0.25, 0.0]
+    """
+    w, Q = np.linalg.eigh(-0.5 * (hessian + hessian.T))
+    if w.size == 0 or w.max() <= 0.0:
+        return np.zeros(w.size)
+    keep = w > 1e-12 * w.max()
+    return np.einsum("ik,k->i", Q[:, keep] ** 2, 1.0 / w[keep])
 
 
 def _with_spreads(kernel, spreads: dict):
