@@ -142,7 +142,7 @@ from gpmultirate.covariance import (
     woodbury_gain,
 )
 from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
-from gpmultirate.fitting.spread import marginal_variances
+from gpmultirate.fitting.spread import gradient_hessian, marginal_variances
 from gpmultirate.exceptions import NumericalWarning
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
@@ -1458,14 +1458,7 @@ class _ResonantModel:
         x = self._pack()
         bounds = self._bounds()
         free = np.flatnonzero(bounds[:, 1] > bounds[:, 0])
-        hessian = np.empty((free.size, free.size))
-        for a, i in enumerate(free):
-            h = step * max(1.0, abs(x[i]))
-            up, down = x.copy(), x.copy()
-            up[i] += h
-            down[i] -= h
-            hessian[a] = (self._log_evidence(up, True)[1][free]
-                          - self._log_evidence(down, True)[1][free]) / (2.0 * h)
+        hessian = gradient_hessian(lambda z: self._log_evidence(z, True)[1], x, free, step)
         variance = dict(zip(free.tolist(), marginal_variances(hessian)))
         spreads = []
         for r in range(len(self.terms)):

@@ -20,7 +20,7 @@ from sklearn.base import clone
 from gpmultirate.kernels import input_kernels, like_inputs
 from gpmultirate.kernels.spread import posterior_spread_terms
 
-__all__ = ["laplace_spreads", "marginal_variances", "spread_of_fit"]
+__all__ = ["gradient_hessian", "laplace_spreads", "marginal_variances", "spread_of_fit"]
 
 
 def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
@@ -62,15 +62,7 @@ def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
              for _ in range(h.n_elements)]
     interior = (x > bounds[:, 0] + step) & (x < bounds[:, 1] - step)
     free = np.flatnonzero(bounds[:, 1] > bounds[:, 0])
-    hessian = np.empty((free.size, free.size))
-    for a, i in enumerate(free):
-        h = step * max(1.0, abs(x[i]))
-        up, down = x.copy(), x.copy()
-        up[i] += h
-        down[i] -= h
-        hessian[a] = (moved(up, eval_gradient=True)[1][free]
-                      - moved(down, eval_gradient=True)[1][free]) / (2.0 * h)
-    hessian = 0.5 * (hessian + hessian.T)
+    hessian = gradient_hessian(lambda z: moved(z, eval_gradient=True)[1], x, free, step)
     curvature = -np.diag(hessian)
     # a coordinate on its bound with the others held; the interior ones jointly
     variances = np.where(curvature > 0, 1.0 / np.where(curvature > 0, curvature, 1.0), 0.0)
@@ -87,6 +79,30 @@ def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
     spreads = {id(term): (float(term.omega) * std(path, "omega"), 0.5 * std(path, "alpha"))
                for _, path, term in terms}
     return _with_spreads(kernel, spreads)
+
+
+def gradient_hessian(gradient, x: np.ndarray, free: np.ndarray, step: float = 1e-4):
+    """The Hessian over the coordinates ``free`` of ``x`` by central differences of ``gradient``.
+
+    ``gradient(z)`` is the analytic gradient at ``z`` (all coordinates);
+    each coordinate is stepped by ``step * max(1, |x_i|)``; the result is
+    symmetrized.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> A = np.array([[2.0, 1.0], [1.0, 3.0]])
+    >>> gradient_hessian(lambda z: -A @ z, np.zeros(2), np.arange(2)).round(9).tolist()
+    [[-2.0, -1.0], [-1.0, -3.0]]
+    """
+    hessian = np.empty((free.size, free.size))
+    for a, i in enumerate(free):
+        h = step * max(1.0, abs(x[i]))
+        up, down = x.copy(), x.copy()
+        up[i] += h
+        down[i] -= h
+        hessian[a] = (gradient(up)[free] - gradient(down)[free]) / (2.0 * h)
+    return 0.5 * (hessian + hessian.T)
 
 
 def marginal_variances(hessian: np.ndarray) -> np.ndarray:
