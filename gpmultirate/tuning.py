@@ -932,8 +932,11 @@ def warn_at_bounds(evidence, theta=None) -> None:
 
 
 # Fisher scoring settings: stop when the predicted gain of a full step is below
-# "tol" nats (the evidence's own units, so independent of the data's units).
-FISHER_OPTIONS = {"maxiter": 500, "tol": 1e-6}
+# "tol" nats (the evidence's own units, so independent of the data's units), or
+# when "stall" iterations in a row together gained less than "tol" (accepted
+# steps along a direction the evidence does not feel, a near-zero amplitude's:
+# on one disturbance fit 950 of 1,015 evaluations gained nothing)
+FISHER_OPTIONS = {"maxiter": 500, "tol": 1e-6, "stall": 20}
 
 
 def fisher_scoring(value_grad_fisher, theta0, bounds, transform):
@@ -953,7 +956,8 @@ def fisher_scoring(value_grad_fisher, theta0, bounds, transform):
     and accepts it when the evidence does not decrease; otherwise ``lambda``
     grows tenfold.  Coordinates at a bound whose gradient points outward are
     held.  Converged when the predicted gain ``g^T B^{-1} g / 2`` is below
-    ``FISHER_OPTIONS["tol"]`` nats.
+    ``FISHER_OPTIONS["tol"]`` nats, or when the last
+    ``FISHER_OPTIONS["stall"]`` iterations together gained less than that.
 
     ``value_grad_fisher(theta)`` returns the log evidence with its gradient
     and Fisher information in ``theta`` (``-inf`` and None where the evidence
@@ -984,7 +988,12 @@ def fisher_scoring(value_grad_fisher, theta0, bounds, transform):
     damping = 1e-3
     success, message = False, "maximum number of iterations reached"
     iteration = 0
+    recent = [f]  # the evidence at the start of the last iterations
     for iteration in range(1, FISHER_OPTIONS["maxiter"] + 1):
+        if len(recent) > FISHER_OPTIONS["stall"]:
+            if f - recent.pop(0) < FISHER_OPTIONS["tol"]:
+                success, message = True, "the evidence stopped increasing"
+                break
         held = ((z <= low) & (gz < 0)) | ((z >= high) & (gz > 0))
         free = ~held
         if not np.any(free):
@@ -1022,6 +1031,7 @@ def fisher_scoring(value_grad_fisher, theta0, bounds, transform):
             correction += np.outer(residual, residual) / denominator
         z, gz = z_new, gz_new
         damping = max(damping / 10.0, 1e-9)
+        recent.append(f)
     return optimize.OptimizeResult(
         x=np.clip(theta, bounds[:, 0], bounds[:, 1]), fun=-f, jac=-gz, nit=iteration,
         nfev=nfev, njev=nfev, success=success, message=message,

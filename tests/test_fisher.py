@@ -261,3 +261,22 @@ def test_disturbance_tuned_by_fisher_scoring_reaches_the_lbfgs_optimum(monkeypat
         lbfgs = gm.FIRGaussianProcess(**settings).fit(u, y[::3])
     assert fisher.log_marginal_likelihood_value_ >= lbfgs.log_marginal_likelihood_value_ - 1e-3
     assert fisher.optimizer_result_.nfev <= lbfgs.optimizer_result_.nfev
+
+
+def test_fisher_scoring_stops_where_the_evidence_stopped_increasing():
+    """A coordinate the evidence does not feel, with a gradient that says otherwise (a
+    near-zero amplitude's, to rounding): its steps are accepted (the evidence does not
+    decrease) and the predicted gain stays above the tolerance; the run stops after
+    ``stall`` iterations without gain, at the maximum of the other coordinate."""
+    from gpmultirate.tuning import FISHER_OPTIONS, DecayRateTransform, fisher_scoring
+
+    def value_grad_fisher(theta):
+        value = -(theta[0] - 1.0) ** 2
+        return value, np.array([-2.0 * (theta[0] - 1.0), 0.1]), np.diag([2.0, 1.0])
+
+    bounds = np.array([[-10.0, 10.0], [-1e6, 1e6]])
+    result = fisher_scoring(value_grad_fisher, np.array([3.0, 0.0]), bounds,
+                            DecayRateTransform([]))
+    assert result.message == "the evidence stopped increasing"
+    assert result.nit <= FISHER_OPTIONS["stall"] + 5
+    assert result.x[0] == pytest.approx(1.0, abs=1e-6)
