@@ -142,8 +142,8 @@ from gpmultirate.covariance import (
     woodbury_gain,
 )
 from gpmultirate.crossvalidation import contiguous_folds, held_out_predictions
-from gpmultirate.fitting.spread import gradient_hessian, marginal_variances
 from gpmultirate.exceptions import NumericalWarning
+from gpmultirate.fitting.spread import gradient_hessian, marginal_variances
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels import (
     PK,

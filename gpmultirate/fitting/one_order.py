@@ -15,13 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from gpmultirate import tuning, units
+from gpmultirate.covariance import SpreadPosterior
 from gpmultirate.crossvalidation import CrossValidation
 from gpmultirate.fitting import auto_kernel
 from gpmultirate.fitting.between_ticks import experiment_of
 from gpmultirate.fitting.disturbance import choose_disturbance
 from gpmultirate.fitting.prior import starting_prior
 from gpmultirate.fitting.spread import spread_of_fit
-from gpmultirate.covariance import SpreadPosterior
 from gpmultirate.inference import LogEvidence, blas_threads_for
 from gpmultirate.kernels.spread import conditioning_kernel
 from gpmultirate.memory import check_fit_memory
