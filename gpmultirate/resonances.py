@@ -154,6 +154,7 @@ from gpmultirate.kernels import (
     without_resonances,
 )
 from gpmultirate.kernels.lag import damped_sinusoids, mode_basis
+from gpmultirate.kernels.spread import with_spreads
 from gpmultirate.metrics import fit_percent
 from gpmultirate.noise import WhiteNoise
 from gpmultirate.orders import MAX_CHECKED_SAMPLES
@@ -731,7 +732,10 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
     conditioning = kernel
     if terms:  # what the data leave uncertain of each frequency and decay, for the posterior
-        kernel, terms = _with_spreads(kernel, terms, retuned.model(final).term_spreads())
+        # the Laplace spreads at the tuned values, for the fit to add after conditioning
+        spreads = retuned.model(final).term_spreads()
+        kernel = with_spreads(kernel, {id(term): spread
+                                       for (_, term), spread in zip(terms, spreads)})
     return ResonanceSearch(
         kernel=kernel, noise_level=noise, optimizer_result=result,
         resonances=[
@@ -1171,22 +1175,6 @@ class _Retuned:
     def __call__(self, indices):
         model = self.model(indices)
         return model.kernel(), model.noise_level, model.value
-
-
-def _with_spreads(kernel, terms, spreads):
-    """``kernel`` with each PK term of ``terms`` given its ``(omega_std, rate_std)``.
-
-    The spreads are the Laplace approximation of the evidence at the tuned
-    values (``_ResonantModel.term_spreads``); the terms get them as
-    ``omega_std`` and ``rate_std`` with ``posterior_spread=True``
-    (:class:`~gpmultirate.kernels.PK`): a fit adds the spread to its
-    posterior after conditioning (:mod:`gpmultirate.kernels.spread`), so
-    the bands carry the frequency the data leave uncertain.
-    Returns the kernel and its terms.
-    """
-    spread = [(k, clone(term).set_params(omega_std=w, rate_std=r, posterior_spread=True))
-              for (k, term), (w, r) in zip(terms, spreads)]
-    return _assembled(kernel, spread), spread
 
 
 @dataclass

@@ -15,10 +15,7 @@ approximation of that evidence (:func:`laplace_spreads`).
 from __future__ import annotations
 
 import numpy as np
-from sklearn.base import clone
-
-from gpmultirate.kernels import input_kernels, like_inputs
-from gpmultirate.kernels.spread import posterior_spread_terms
+from gpmultirate.kernels.spread import posterior_spread_terms, with_spreads
 
 __all__ = ["gradient_hessian", "laplace_spreads", "marginal_variances", "spread_of_fit"]
 
@@ -78,7 +75,7 @@ def laplace_spreads(evidence, kernel=None, step: float = 1e-4):
 
     spreads = {id(term): (float(term.omega) * std(path, "omega"), 0.5 * std(path, "alpha"))
                for _, path, term in terms}
-    return _with_spreads(kernel, spreads)
+    return with_spreads(kernel, spreads)
 
 
 def gradient_hessian(gradient, x: np.ndarray, free: np.ndarray, step: float = 1e-4):
@@ -132,23 +129,6 @@ def marginal_variances(hessian: np.ndarray) -> np.ndarray:
         return np.zeros(w.size)
     keep = w > 1e-12 * w.max()
     return np.einsum("ik,k->i", Q[:, keep] ** 2, 1.0 / w[keep])
-
-
-def _with_spreads(kernel, spreads: dict):
-    """``kernel`` with the PK summands keyed (by ``id``) in ``spreads`` given ``(omega_std, rate_std)``."""
-    from sklearn.gaussian_process.kernels import Sum
-
-    from gpmultirate.kernels import PK
-
-    def walk(each):
-        if isinstance(each, PK) and id(each) in spreads:
-            w_std, r_std = spreads[id(each)]
-            return clone(each).set_params(omega_std=w_std, rate_std=r_std)
-        if isinstance(each, Sum):
-            return Sum(walk(each.k1), walk(each.k2))
-        return each
-
-    return like_inputs([walk(each) for each in input_kernels(kernel)], kernel)
 
 
 def spread_of_fit(template, kernel, evidence, tuned_again: bool):

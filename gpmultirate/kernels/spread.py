@@ -27,7 +27,7 @@ from sklearn.gaussian_process.kernels import Sum
 from gpmultirate.kernels.inputs import PerInputKernel, input_kernels, like_inputs
 from gpmultirate.kernels.lag import PK
 
-__all__ = ["conditioning_kernel", "posterior_spread_terms", "spread_factor"]
+__all__ = ["conditioning_kernel", "posterior_spread_terms", "spread_factor", "with_spreads"]
 
 
 def posterior_spread_terms(kernel) -> list:
@@ -89,18 +89,35 @@ def conditioning_kernel(kernel):
     """
     if not any(any(term.spread()) for _, _, term in posterior_spread_terms(kernel)):
         return kernel
-    kernels = [_without_spread(each) for each in input_kernels(kernel)]
-    return like_inputs(kernels, kernel)
+    plain = {id(term): (0.0, 0.0) for _, _, term in posterior_spread_terms(kernel)}
+    return with_spreads(kernel, plain)
 
 
-def _without_spread(kernel):
-    if isinstance(kernel, PK):
-        if kernel.spread_after_conditioning():
-            return clone(kernel).set_params(omega_std=0.0, rate_std=0.0)
-        return kernel
-    if isinstance(kernel, Sum):
-        return Sum(_without_spread(kernel.k1), _without_spread(kernel.k2))
-    return kernel
+def with_spreads(kernel, spreads: dict):
+    """``kernel`` with the PK summands keyed by ``id`` in ``spreads`` given a posterior spread.
+
+    Each such term is cloned with ``(omega_std, rate_std) = spreads[id(term)]``
+    and ``posterior_spread=True``; the other summands are kept, the sums and
+    the inputs' kernels rebuilt in the same order (the same hyperparameters).
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import ConstantKernel as C
+    >>> from gpmultirate.kernels import DC
+    >>> term = PK(omega=0.5)
+    >>> spread = with_spreads(C(1.0) * DC() + term, {id(term): (0.01, 0.002)})
+    >>> spread.k2.spread(), spread.k2.posterior_spread
+    ((0.01, 0.002), True)
+    """
+    def walk(each):
+        if isinstance(each, PK) and id(each) in spreads:
+            w_std, r_std = spreads[id(each)]
+            return clone(each).set_params(omega_std=w_std, rate_std=r_std, posterior_spread=True)
+        if isinstance(each, Sum):
+            return Sum(walk(each.k1), walk(each.k2))
+        return each
+
+    return like_inputs([walk(each) for each in input_kernels(kernel)], kernel)
 
 
 def spread_factor(kernel, X: np.ndarray) -> np.ndarray:
