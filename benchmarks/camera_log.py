@@ -309,6 +309,21 @@ def run_command(seconds=20.0, ticks=False, seed=0, extra=(), timeout=3600, modes
                 abs(f - hz) <= FALSE_TOLERANCE * hz for hz, _, _ in modes)]}
 
 
+def after_fit_share(steps: dict) -> float:
+    """The time of the steps after the fit over the fit's (:func:`step_times`).
+
+    Examples
+    --------
+    >>> after_fit_share({"fit": 40.0, "bands": 2.0, "state space": 6.0, "total": 48.0})
+    0.2
+    """
+    return sum(t for name, t in steps.items() if name not in ("fit", "total")) / steps["fit"]
+
+
+def _steps(steps: dict) -> str:
+    return ", ".join(f"{name} {t:.1f} s" for name, t in steps.items()) or "-"
+
+
 def _span(ratios) -> str:
     return f"{min(ratios):.2f}-{max(ratios):.2f} ({len(ratios)})" if ratios else "-"
 
@@ -346,13 +361,15 @@ def main(argv=None) -> int:
               f"{', '.join(f'{f:.2f}' for f in row['resonances_hz']) or '-'} | "
               f"{len(row['false_resonances_hz'])} | "
               f"{_span(row['estimate_ratios'])} | {_span(row['run_time_ratios'])}", flush=True)
+        print(f"    steps: {_steps(row['steps'])}", flush=True)
     print(f"worst: wall {max(r['seconds'] for r in rows):.1f} s, peak "
           f"{max(r['command_peak_mb'] for r in rows):.0f} MB, fit "
           f"{min(r['gof'] for r in rows):.3f} %, band "
           f"{min(r['band_share_above_55hz'] for r in rows):.3f}, false resonances "
           f"{sum(len(r['false_resonances_hz']) for r in rows)}, time-left estimates / actual "
           f"{_span([x for r in rows for x in r['estimate_ratios']])}, estimated run times / "
-          f"actual {_span([x for r in rows for x in r['run_time_ratios']])}")
+          f"actual {_span([x for r in rows for x in r['run_time_ratios']])}, the steps after "
+          f"the fit / the fit {_span([after_fit_share(r['steps']) for r in rows if r['steps']])}")
     return 0
 
 
