@@ -1340,13 +1340,15 @@ class _ResonantModel:
         pairs = mode_basis(lags, rate, omega, 1 if eval_gradient else 0, hold)
         return self._rotated_regressor(k) @ np.column_stack([x for pair in pairs for x in pair])
 
-    def _log_evidence(self, x, eval_gradient: bool = False):
+    def _log_evidence(self, x, eval_gradient: bool = False, eval_fisher: bool = False):
         """The log evidence at ``x`` and, with ``eval_gradient``, its gradient.
 
         With ``K = diag(d) + W W^T`` (``W`` the observed, rotated bases
         times the standard deviations), ``A = K^{-1}`` (Woodbury) and
         ``a = A y``: ``d f = 1/2 a^T dK a - 1/2 tr(A dK)``, where
-        ``dK = dW W^T + W dW^T`` for the parameters of a term.
+        ``dK = dW W^T + W dW^T`` for the parameters of a term.  With
+        ``eval_fisher`` also the Fisher information
+        ``F_ij = 1/2 tr(A dK_i A dK_j)`` (:meth:`_fisher`).
         """
         c, gamma = np.exp(x[0]), np.exp(x[1])
         d = self._spectral.diagonal(c, gamma)
@@ -1368,7 +1370,7 @@ class _ResonantModel:
         else:
             quad, log_det = y @ (inv_d * y), np.sum(np.log(d))
         remainder = WhiteNoise(float(gamma)).remainder(self.evidence.data)
-        rest, rest_grad, _ = remainder.log_likelihood()
+        rest, rest_grad, rest_fisher = remainder.log_likelihood()
         value = log_gaussian(quad, log_det, y.shape[0]) + rest
         if not eval_gradient:
             return value
@@ -1380,20 +1382,79 @@ class _ResonantModel:
         grad = np.empty_like(x, dtype=float)
         grad[0] = 0.5 * np.sum((a**2 - diag_A) * c * self._s)
         grad[1] = 0.5 * np.sum(a**2 - diag_A) * gamma + rest_grad
+        dWs = []  # per term: dW of its two columns for (log rate, omega, log s1, log s2)
         for r, (rotated, rate, s1, s2) in enumerate(raw):
             wa = W[:, 2 * r : 2 * r + 2].T @ a  # W^T a for the term's two columns
             aw = AW[:, 2 * r : 2 * r + 2]
-
-            def contribution(dW):
-                # d f = (W^T a) . (dW^T a) - sum(A W * dW), over the two columns
-                return float(wa @ (dW.T @ a) - np.sum(aw * dW))
-
             c_, s_, tc, ts = rotated.T
-            grad[2 + 4 * r] = contribution(np.column_stack([-rate * s1 * tc, -rate * s2 * ts]))
-            grad[3 + 4 * r] = contribution(np.column_stack([-s1 * ts, s2 * tc]))
-            grad[4 + 4 * r] = contribution(np.column_stack([s1 * c_, np.zeros_like(c_)]))
-            grad[5 + 4 * r] = contribution(np.column_stack([np.zeros_like(s_), s2 * s_]))
-        return value, grad
+            zero = np.zeros_like(c_)
+            dW = np.stack([np.column_stack([-rate * s1 * tc, -rate * s2 * ts]),
+                           np.column_stack([-s1 * ts, s2 * tc]),
+                           np.column_stack([s1 * c_, zero]),
+                           np.column_stack([zero, s2 * s_])])  # (4, M, 2)
+            # d f = (W^T a) . (dW^T a) - sum(A W * dW), over the two columns
+            grad[2 + 4 * r : 6 + 4 * r] = (np.einsum("pmc,m,c->p", dW, a, wa)
+                                           - np.einsum("pmc,mc->p", dW, aw))
+            dWs.append(dW)
+        if not eval_fisher:
+            return value, grad
+        fisher = self._fisher(c * self._s, gamma, d, W, dWs,
+                              update if r_terms else None, AW if r_terms else None)
+        fisher[1, 1] += rest_fisher
+        return value, grad, fisher
+
+    @staticmethod
+    def _fisher(v_scale, gamma, d, W, dWs, update, AW):
+        """``F_ij = 1/2 tr(A dK_i A dK_j)`` of the parameters ``(log c, log gamma, terms...)``.
+
+        ``dK`` is ``diag(v)`` for ``log c`` (``v = c s``) and ``log gamma``
+        (``v = gamma``), and ``dW W^T + W dW^T`` for a term's parameter, with
+        ``dW`` nonzero in the term's two columns of ``W``.  With
+        ``A = D^{-1} - P P^T`` (Woodbury, ``P = D^{-1} W G^{-T}``):
+
+        * ``tr(A diag(v) A diag(w)) = sum v w (1/d^2 - 2 diag(P P^T) / d)
+          + <P^T diag(v) P, P^T diag(w) P>``;
+        * ``tr(A diag(v) A dK_j) = 2 sum_m v_m (A W)_m . (A dW_j)_m`` over
+          the term's columns;
+        * ``tr(A dK_i A dK_j) = 2 tr(Q_i Q_j) + 2 tr(G H_ij)`` with
+          ``Q_i = W^T A dW_i``, ``G = W^T A W`` and ``H_ij = dW_i^T A dW_j``.
+
+        ``O(M r^2)`` for ``r`` terms, like the gradient.
+        """
+        n_terms = len(dWs)
+        n = 2 + 4 * n_terms
+        fisher = np.empty((n, n))
+        diagonals = np.stack([v_scale, np.full_like(d, gamma)])  # (2, M)
+        if update is None:
+            fisher[:2, :2] = 0.5 * (diagonals / d) @ (diagonals / d).T
+            return fisher
+        P = update.E
+        pp = np.einsum("mk,mk->m", P, P)
+        inner = (diagonals * (1.0 / d**2 - 2.0 * pp / d)) @ diagonals.T
+        projected = np.einsum("vm,mk,ml->vkl", diagonals, P, P)
+        fisher[:2, :2] = 0.5 * (inner + np.einsum("vkl,wkl->vw", projected, projected))
+        if not n_terms:
+            return fisher
+        M = d.shape[0]
+        stacked = np.concatenate(dWs, axis=0)  # (4 n_terms, M, 2)
+        A_dW = update.solve(stacked.transpose(1, 0, 2).reshape(M, -1)).reshape(M, -1, 2)
+        A_dW = A_dW.transpose(1, 0, 2)  # (4 n_terms, M, 2): A dW_i
+        columns = np.repeat(np.arange(n_terms), 4)  # the term of each parameter
+        AW_i = np.stack([AW[:, 2 * t : 2 * t + 2] for t in columns])  # (p, M, 2)
+        # diagonal against a term's parameter: 2 sum_m v_m (A W)_m . (A dW_j)_m
+        fisher[:2, 2:] = np.einsum("vm,pmc,pmc->vp", diagonals, AW_i, A_dW)
+        fisher[2:, :2] = fisher[:2, 2:].T
+        G = W.T @ AW  # (2R, 2R)
+        Q = np.einsum("mk,pmc->pkc", AW, stacked)  # W^T A dW_i: (p, 2R, 2)
+        H = np.einsum("pmc,qmd->pqcd", stacked, A_dW)  # dW_i^T A dW_j: (p, q, 2, 2)
+        # by 2 x 2 blocks of the terms' columns: X[i, j] = Q_i's block of term j's columns,
+        # Y[i, j] = G's block (term j's rows, term i's columns)
+        X = Q.reshape(Q.shape[0], n_terms, 2, 2)[:, columns]
+        blocks = G.reshape(n_terms, 2, n_terms, 2).transpose(0, 2, 1, 3)
+        Y = blocks[columns[None, :], columns[:, None]]
+        fisher[2:, 2:] = (np.einsum("ijab,jiba->ij", X, X)
+                          + np.einsum("ijab,ijba->ij", Y, H))
+        return fisher
 
     def _unpack(self, x):
         self.log_scale, self.noise_level = float(x[0]), float(np.exp(x[1]))
@@ -1414,23 +1475,26 @@ class _ResonantModel:
 
     # ------------------------------------------------------------- search
     def optimized(self):
-        """A copy with the terms, ``c`` and ``gamma`` tuned jointly (L-BFGS-B)."""
+        """A copy with the terms, ``c`` and ``gamma`` tuned jointly (Fisher scoring).
+
+        :func:`gpmultirate.tuning.fisher_scoring` with this model's Fisher
+        information (:meth:`_fisher`), in the coordinates of :meth:`_pack`.
+        """
         trial = self._copy()
         bounds = trial._bounds()
         x0 = np.clip(trial._pack(), bounds[:, 0], bounds[:, 1])
 
-        def objective(x):
+        def value_grad_fisher(x):
             try:
-                value, grad = trial._log_evidence(x, eval_gradient=True)
+                return trial._log_evidence(x, eval_gradient=True, eval_fisher=True)
             except (np.linalg.LinAlgError, ValueError):
-                return np.inf, np.zeros_like(x)
-            return -value, -grad
+                return -np.inf, None, None
 
-        if not np.all(np.isfinite(bounds)):  # scipy refuses them: the start, untuned
-            trial.value = -objective(x0)[0]
+        start = -value_grad_fisher(x0)[0]
+        if not np.all(np.isfinite(bounds)):  # no box to search in: the start, untuned
+            trial.value = -start
             return trial
-        start = objective(x0)[0]
-        best = optimize.minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds)
+        best = tuning.fisher_scoring(value_grad_fisher, x0, bounds, _IDENTITY)
         x, fun = (best.x, best.fun) if np.isfinite(best.fun) and best.fun <= start else (x0, start)
         trial._unpack(x)
         trial.value = -float(fun)
@@ -1479,6 +1543,10 @@ class _ResonantModel:
         for k, term in self.terms:
             kernels[k] = kernels[k] + term
         return like_inputs(kernels, self.base)
+
+
+#: the search's own coordinates are the optimizer's (:meth:`_ResonantModel._pack`)
+_IDENTITY = tuning.DecayRateTransform([])
 
 
 def _without_base(kernel, k: int):

@@ -18,6 +18,7 @@ from gpmultirate.kernels import DC, PK, PerInputKernel
 from gpmultirate.kernels.lag import resonance_summands
 from gpmultirate.kernels.spread import conditioning_kernel
 from gpmultirate.metrics import goodness_of_fit
+from gpmultirate.kernels import observe
 from gpmultirate.resonances import (
     EVIDENCE_THRESHOLD,
     Resonance,
@@ -145,9 +146,36 @@ def _check_joint_terms(op, y, hold):
     numeric = [(model._log_evidence(x + h) - model._log_evidence(x - h)) / (2 * step)
                for h in step * np.eye(x.size)]
     np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-5)
+    # the Fisher information against 1/2 tr(K^-1 dK_i K^-1 dK_j), with dK_i central
+    # differences of the dense data covariance of the model's kernel and noise
+    value_f, grad_f, fisher = model._log_evidence(x, eval_gradient=True, eval_fisher=True)
+    assert value_f == value
+    np.testing.assert_array_equal(grad_f, grad)
+
+    dense_fisher = dense_fisher_of(model, x)
+    np.testing.assert_allclose(fisher, dense_fisher, rtol=1e-5,
+                               atol=1e-6 * np.abs(dense_fisher).max())
+    # and without terms: the diagonal parameters alone
+    bare = model._copy()
+    bare.terms = []
+    fisher0 = bare._log_evidence(x[:2], eval_gradient=True, eval_fisher=True)[2]
+    np.testing.assert_allclose(fisher0, dense_fisher_of(bare, x[:2]), rtol=1e-6)
     model._unpack(x)
     dense = log_marginal_likelihood(op, model.kernel(), model.noise_level, y, False, True)
     assert value == pytest.approx(dense, rel=1e-10)
+
+
+def dense_fisher_of(model, x, step=1e-5):
+    """``1/2 tr(K^-1 dK_i K^-1 dK_j)`` of ``model`` at ``x`` from its dense data covariance."""
+    def covariance(z):
+        copy = model._copy()
+        copy._unpack(z)
+        Ky = observe(copy.kernel(), model.evidence.data).covariance()
+        return Ky + copy.noise_level * np.eye(Ky.shape[0])
+
+    inverse = np.linalg.inv(covariance(x))
+    dK = [(covariance(x + h) - covariance(x - h)) / (2 * step) for h in step * np.eye(x.size)]
+    return np.array([[0.5 * np.sum((inverse @ a) * (inverse @ b).T) for b in dK] for a in dK])
 
 
 def test_joint_model_evidence_and_gradient():
