@@ -238,7 +238,9 @@ class Resonance:
         ``r = -log(alpha) / 2`` per fast sample of the response envelope,
         ``r / sqrt(r^2 + omega^2)``.
     evidence_gain : float
-        Gain of the tuned log evidence (nats) when the term was added.
+        Gain of the log evidence (nats) of the kept kernel over the kernel
+        without the term, the other terms, the base kernel's scale and the
+        noise tuned again without it.
     input : int
         The input whose kernel holds the term.
     """
@@ -273,7 +275,8 @@ class ResonanceSearch:
         The log evidence of the tuned base kernel, after each term the
         search added and, when a term was added, of the kernel the
         pruning kept (and of the kernel the held-out check kept, when it
-        dropped some terms but not all) and, last, of the kernel kept.
+        dropped some terms but not all) and, last, of the kept terms tuned
+        together once more with the scale and the noise (the kernel kept).
     held_out : dict or None
         The held-out check (:func:`held_out_resonances`) when it ran:
         ``"base"`` and ``"found"``, the held-out fit in percent (of the
@@ -726,7 +729,16 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                 if gains:
                     history.append(value)
                     kernel, noise, value = retuned(final)
-        if not gains:  # every term pruned: the tuned base kernel
+        if gains:
+            # the kept terms, the scale and the noise tuned together once more, from the
+            # scaled base kernel (the held-out check's and the spreads' model): the search's
+            # scale is bounded about the pilot's, and where the terms explain the data the
+            # evidence takes the base kernel further down; each term's gain is then taken
+            # against the others re-tuned without it from the same point
+            kernel, noise, value = retuned(final)
+            gains = [_Gain(g.input, value - retuned.model([i for i in final if i != r]).value)
+                     for g, r in zip(gains, final)]
+        else:  # every term pruned: the tuned base kernel
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
@@ -1244,7 +1256,9 @@ class _ResonantModel:
     ``Q (diag(c s + gamma) + V D V^T) Q^T`` with ``V = Q^T U``: a diagonal
     plus a rank-``2 n_terms`` update, so the log evidence costs
     ``O(M P n_terms)`` for any values of the terms, ``c`` and ``gamma``, and
-    all of them are tuned jointly (L-BFGS-B) each time a term is added.
+    all of them are tuned jointly each time a term is added, by Fisher
+    scoring (:func:`gpmultirate.tuning.fisher_scoring`) with the model's
+    own Fisher information (:meth:`_fisher`), also ``O(M P n_terms)``.
     """
 
     def __init__(self, evidence):
