@@ -889,6 +889,8 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
                 if side == "lower" and name.startswith("noise_kernel__") and \
                         name.endswith("noise_level"):
                     continue  # the disturbance explains all the noise: no white part needed
+                if side == "lower" and _component_absent(kernel, params, name, edge):
+                    continue  # a resonance's cosine or sine part not needed: its phase is set
                 if name == "noise_level":
                     value, bound = noise, evidence.noise_bounds[column]
                 elif name.startswith("noise_kernel__"):
@@ -900,6 +902,29 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
                     bound = _value_bounds(kernel, name)[column]
                 found.append((name, float(np.ravel(value)[0]), side, float(bound)))
     return found
+
+
+#: a PK amplitude on a lower bound this far below the term's other amplitude is a part
+#: the data do not need (its variance a millionth of the term's or less), not a bound
+#: that decided: the search's terms start with bounds 1e-4 times the scanned amplitude,
+#: and a term whose phase the data fix takes one part there (the robot arm with
+#: ``kernel="auto"``)
+ABSENT_PART = 1e-3
+
+
+def _component_absent(kernel, params, name: str, log_edge: float) -> bool:
+    """Whether ``name`` is a PK amplitude whose lower bound (``log_edge``, in ``theta``)
+    is below ``ABSENT_PART`` times the same term's other amplitude."""
+    owner_name, _, leaf = name.rpartition("__")
+    if leaf not in ("sigma1", "sigma2"):
+        return False
+    from gpmultirate.kernels import PK
+
+    owner = params.get(owner_name) if owner_name else kernel
+    if not isinstance(owner, PK):
+        return False
+    other = owner.sigma2 if leaf == "sigma1" else owner.sigma1
+    return bool(np.exp(log_edge) <= ABSENT_PART * float(other))
 
 
 def _value_bounds(kernel, name: str):

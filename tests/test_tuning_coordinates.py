@@ -328,3 +328,31 @@ def test_a_gradient_against_its_bound_promises_nothing():
     assert not tuning._promises_more(result)
     result.free = np.array([True])
     assert tuning._promises_more(result)  # the same gradient off the bound would
+
+
+def test_a_resonance_part_on_a_negligible_lower_bound_is_not_a_bound_that_decided():
+    """A PK amplitude on a lower bound below ``ABSENT_PART`` times the term's other amplitude
+    is a part the data do not need (the term's phase set): not listed; a lower bound near
+    the other amplitude, or an upper bound, is."""
+    from gpmultirate import DownsampledConvolution
+    from gpmultirate.inference import LogEvidence
+    from gpmultirate.kernels import DC, PK
+    from gpmultirate.tuning import ABSENT_PART, hyperparameters_at_bounds
+
+    rng = np.random.default_rng(0)
+    op = DownsampledConvolution(rng.standard_normal(300), factor=3, order=60)
+    y = rng.standard_normal(op.n_outputs)
+
+    def listed(sigma1, sigma1_bounds, sigma2=0.5, sigma2_bounds=(1e-5, 10.0)):
+        kernel = C(1.0) * DC(0.9, 0.9) + PK(alpha=0.95, omega=1.0, sigma1=sigma1,
+                                             sigma2=sigma2, sigma1_bounds=sigma1_bounds,
+                                             sigma2_bounds=sigma2_bounds)
+        evidence = LogEvidence(op, y, kernel, 0.1, (1e-4, 10.0))
+        return [name for name, *_ in hyperparameters_at_bounds(evidence)]
+
+    tiny = 0.5 * ABSENT_PART * 0.5
+    assert listed(tiny, (tiny, 10.0)) == []
+    assert listed(0.1, (0.1, 10.0)) == ["k2__sigma1"]  # the bound is near the other part
+    assert listed(0.5, (1e-5, 10.0), sigma2=10.0) == ["k2__sigma2"]  # an upper bound
+    # the same rule for the sine part
+    assert listed(0.5, (1e-5, 10.0), sigma2=tiny, sigma2_bounds=(tiny, 10.0)) == []
