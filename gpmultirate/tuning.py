@@ -868,7 +868,8 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
     bounds = evidence.bounds
     kernel, noise = evidence.split(theta)
     params = kernel.get_params()
-    names = [role.name for role in evidence.roles()]
+    roles = evidence.roles()
+    names = [role.name for role in roles]
     coloured = getattr(evidence, "coloured", False)
     if coloured:
         _, noise_model = evidence.split_models(theta)
@@ -889,7 +890,7 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
                 if side == "lower" and name.startswith("noise_kernel__") and \
                         name.endswith("noise_level"):
                     continue  # the disturbance explains all the noise: no white part needed
-                if side == "lower" and _component_absent(kernel, params, name, edge):
+                if side == "lower" and i < len(roles) and _part_absent(roles[i], params, edge):
                     continue  # a resonance's cosine or sine part not needed: its phase is set
                 if name == "noise_level":
                     value, bound = noise, evidence.noise_bounds[column]
@@ -912,19 +913,14 @@ def hyperparameters_at_bounds(evidence, theta=None) -> list[tuple[str, float, st
 ABSENT_PART = 1e-3
 
 
-def _component_absent(kernel, params, name: str, log_edge: float) -> bool:
-    """Whether ``name`` is a PK amplitude whose lower bound (``log_edge``, in ``theta``)
-    is below ``ABSENT_PART`` times the same term's other amplitude."""
-    owner_name, _, leaf = name.rpartition("__")
-    if leaf not in ("sigma1", "sigma2"):
+def _part_absent(role, params, log_edge: float) -> bool:
+    """Whether ``role``'s lower bound (``log_edge``, in ``theta``) is below
+    ``ABSENT_PART`` times its partner's value (:attr:`Role.partner`), at the tuned point."""
+    if role.partner is None:
         return False
-    from gpmultirate.kernels import PK
-
-    owner = params.get(owner_name) if owner_name else kernel
-    if not isinstance(owner, PK):
-        return False
-    other = owner.sigma2 if leaf == "sigma1" else owner.sigma1
-    return bool(np.exp(log_edge) <= ABSENT_PART * float(other))
+    owner_name = role.name[: len(role.name) - len(role.leaf_name)]
+    partner = params[owner_name + role.partner]
+    return bool(np.exp(log_edge) <= ABSENT_PART * float(partner))
 
 
 def _value_bounds(kernel, name: str):

@@ -817,6 +817,9 @@ class PK(LagKernel):
         "sigma1": ("amplitude", 0.5),
         "sigma2": ("amplitude", 0.5),
     }
+    #: the cosine and sine parts' amplitudes, each the other's partner (a part on a lower
+    #: bound negligible against its partner is a part the data do not need)
+    tuning_partners = {"sigma1": "sigma2", "sigma2": "sigma1"}
 
     def __init__(
         self,

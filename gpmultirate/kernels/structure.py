@@ -95,6 +95,12 @@ class Role:
     transform : ThetaTransform
         How the value maps to its ``theta`` entry (``log`` unless the owner
         declares otherwise).
+    partner : str or None
+        For an amplitude of one part of a term (PK's ``sigma1``, the cosine
+        part): the owner's parameter of the other part (``sigma2``), against
+        which a lower bound is negligible or not
+        (:func:`gpmultirate.tuning.hyperparameters_at_bounds`); the owner
+        declares it in ``tuning_partners``.
     """
 
     name: str
@@ -103,6 +109,7 @@ class Role:
     leaf_name: str
     power: float = 1.0
     transform: ThetaTransform = LOG
+    partner: str | None = None
 
 
 def no_gradient(A) -> np.ndarray:
@@ -298,6 +305,7 @@ class ObservedTerm:
     def roles(self) -> list[Role]:
         """One :class:`Role` per free entry of ``kernel.theta``, in order."""
         declared = getattr(self.kernel, "tuning_roles", {})
+        partners = getattr(self.kernel, "tuning_partners", {})
         transform_of = getattr(self.kernel, "theta_transform", None)
         roles = []
         for h in self.kernel.hyperparameters:
@@ -305,7 +313,8 @@ class ObservedTerm:
                 continue
             kind, power = declared.get(h.name, ("other", 1.0))
             transform = LOG if transform_of is None else transform_of(h.name)
-            role = Role(self.path + h.name, kind, self.kernel, h.name, power, transform)
+            role = Role(self.path + h.name, kind, self.kernel, h.name, power, transform,
+                        partners.get(h.name))
             roles += [role] * h.n_elements
         return roles
 
