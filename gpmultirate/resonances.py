@@ -129,7 +129,6 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
 
