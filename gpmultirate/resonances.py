@@ -726,8 +726,7 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                 gains = [gains[r] for r in check["kept_terms"]]
                 final = [kept[i] for i in check["kept_terms"]]
                 if gains:
-                    history.append(value)
-                    kernel, noise, value = retuned(final)
+                    history.append(value)  # the set the evidence kept, before the check
         if gains:
             # the kept terms, the scale and the noise tuned together once more, from the
             # scaled base kernel (the held-out check's and the spreads' model): the search's
