@@ -144,6 +144,9 @@ def maximize(evidence, n_restarts: int = 0, random_state=None, max_evaluations=N
         resonances = [i for i, role in enumerate(roles) if role.kind == "frequency"]
         if resonances and not coloured:
             theta0 = grid_search_resonances(evidence, theta0, bounds, resonances)
+        if resonances:
+            # a disturbance's tuning starts from the white fit's frequencies: it refines
+            # them, it does not move a term onto another mode or the Nyquist frequency
             bounds = resonance_window(theta0, bounds, resonances)
         transform = DecayRateTransform(
             [i for i, role in enumerate(roles) if role.kind == "decay"]

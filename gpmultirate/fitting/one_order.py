@@ -95,16 +95,31 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
     check_fit_memory(observation.n_outputs, observation.n_coefficients, n_free + 1,
                      n_inputs=experiment.n_inputs)
-    optimizer_result = found = cv_value = noise_model = searched_kernel = None
+    optimizer_result = found = cv_value = noise_model = searched_kernel = decided = None
     with blas_threads_for(observation):
         if settings.auto:
-            searched = auto_kernel.search(observation, y, kernel, noise, noise_bounds, settings)
-            template, noise = searched.kernel, searched.noise_level
-            kernel = searched_kernel = conditioning_kernel(template)
-            optimizer_result, found = searched.optimizer_result, searched.resonances
-            evidence = searched.evidence  # the search's reduction of the data, if it made one
-            if evidence is None:
-                evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
+            longer = lambda order: experiment_of(data, order, settings)  # noqa: E731
+            under = auto_kernel.search_under_disturbance(experiment, kernel, noise,
+                                                         noise_bounds, settings, longer)
+            if under is not None and under.decided is not None:
+                # the search ran under the disturbance the data call for
+                searched, decided = under.searched, under.decided
+                kernel, _, optimizer_result = under.start
+                noise = decided.noise_model.level or under.start[1]
+                evidence = decided.evidence
+            else:
+                start, tuned = (under.start, True) if under is not None else (
+                    (kernel, noise, None), False)
+                searched = auto_kernel.search(observation, y, start[0], start[1],
+                                              noise_bounds, settings, tuned=tuned)
+                template, noise = searched.kernel, searched.noise_level
+                kernel = searched_kernel = conditioning_kernel(template)
+                optimizer_result = (start[2] if searched.optimizer_result is None
+                                    else searched.optimizer_result)
+                evidence = searched.evidence  # the search's reduction of the data, if any
+                if evidence is None:
+                    evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
+            found = searched.resonances
         else:
             evidence = LogEvidence(observation, y, kernel, noise, noise_bounds)
         objective = evidence
@@ -119,17 +134,20 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
             if result is not None:
                 optimizer_result = result
                 kernel, noise = evidence.split(result.x)
-        posterior = evidence.posterior(kernel, noise)
-        if objective is not evidence:
-            moved = objective.moved_to(kernel, noise)
-            cv_value = float(moved(moved.theta))
-        # the criterion of the tuning judges: the evidence, or the cross-validated
-        # log predictive likelihood (cv_value, the white fit's, is then set)
-        disturbance = choose_disturbance(
-            experiment, kernel, noise, noise_bounds,
-            posterior.log_marginal_likelihood if cv_value is None else cv_value, settings,
-            cross_validated=cv_value is not None,
-            experiment_at=lambda longer: experiment_of(data, longer, settings))
+        if decided is not None:  # chosen with the search, under its disturbance
+            template, kernel, disturbance = searched.kernel, decided.kernel, decided
+        else:
+            posterior = evidence.posterior(kernel, noise)
+            if objective is not evidence:
+                moved = objective.moved_to(kernel, noise)
+                cv_value = float(moved(moved.theta))
+            # the criterion of the tuning judges: the evidence, or the cross-validated
+            # log predictive likelihood (cv_value, the white fit's, is then set)
+            disturbance = choose_disturbance(
+                experiment, kernel, noise, noise_bounds,
+                posterior.log_marginal_likelihood if cv_value is None else cv_value, settings,
+                cross_validated=cv_value is not None,
+                experiment_at=lambda longer: experiment_of(data, longer, settings))
         if disturbance is not None and disturbance.noise_model is None:
             # white noise after all, tuned again from the disturbance's better prior
             if disturbance.optimizer_result is not None:

@@ -7,7 +7,8 @@ family; :class:`DownsampledConvolution` is the paper's eq. (8) and
 first-order response;
 :class:`SampledConvolution` observes any instants, several inputs and
 periodic or unknown initial conditions, and :class:`RecordStack` stacks
-several records.
+several records; :class:`WhitenedObservation` is an observation seen through a
+fixed noise covariance (white noise in its coordinates).
 """
 
 from gpmultirate.observations.base import ColumnBlock, Observation, UniformSampling
@@ -27,6 +28,7 @@ from gpmultirate.observations.sampled import (
 )
 from gpmultirate.observations.interpolated import InterpolatedConvolution, interpolation_error
 from gpmultirate.observations.timed import TimedConvolution
+from gpmultirate.observations.whitened import WhitenedObservation
 
 __all__ = [
     "INITIAL_CONDITIONS",
@@ -40,6 +42,7 @@ __all__ = [
     "ReducedObservation",
     "SampledConvolution",
     "TimedConvolution",
+    "WhitenedObservation",
     "UniformSampling",
     "build_experiment",
     "check_initial_conditions",
