@@ -81,14 +81,30 @@ terms one at a time, greedily:
    what the disturbance now does; and the base kernel of each input with
    terms, by its evidence gain beside them (:data:`EVIDENCE_THRESHOLD`),
    for a base the terms leave idle takes up the disturbance's slow part
-   that the input happens to share.
+   that the input happens to share.  Where the data call for a
+   disturbance before any term is found, a fit runs the whole search on
+   the samples whitened by that disturbance's covariance
+   (:func:`gpmultirate.fitting.auto_kernel.search_under_disturbance`,
+   :class:`~gpmultirate.observations.WhitenedObservation`): white noise
+   there, so every step above applies unchanged, and the held-out check
+   is left to this step, under the disturbance itself.
+
+A search step refines the scan's best candidate and, when that one fails
+(:data:`SEARCH_THRESHOLD`, or not resonant), the scan's best outside
+:data:`RUNNER_UP_SPAN` of it when the scan gave that one more than
+:data:`EVIDENCE_THRESHOLD` nats: the scan holds
+the base kernel's shape, and its order of two modes is not always the
+order their refinements give.
 
 Failure modes: a mode whose slow-rate alias falls on another mode and that
 the input does not separate from it (no power at one of the two
 frequencies, or the same content at both) is represented by one term, the
 better-supported of the two, whose frequency may be the alias: the slow
 samples predict as well, the response between them is wrong at the
-other frequency; the data cannot say more.  The spread is first order in
+other frequency; the data cannot say more.  Under a slow drift that a
+fit takes for white noise (no disturbance chosen before the search), the
+drift dominates the scans: terms near the slow-rate images of zero
+frequency follow it, and weak modes go unseen.  The spread is first order in
 the frequency: at a high signal-to-noise ratio with a frequency the data
 resolve poorly, the band is still too narrow (a Monte Carlo of
 ``tests/test_resonances.py`` measures it).  The held-out check does not
@@ -161,7 +177,8 @@ from gpmultirate.validation import check_positive
 
 __all__ = [
     "EVIDENCE_THRESHOLD", "HELD_OUT_GAIN", "MAX_DAMPING", "MIN_EXCITATION",
-    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "SEARCH_THRESHOLD",
+    "PERSISTENT_CYCLES", "PERSISTENT_DAMPING", "PREWHITENING_ORDER", "RUNNER_UP_SPAN",
+    "SEARCH_THRESHOLD",
     "SPECTRA_BYTES",
     "Resonance", "ResonanceSearch", "alias_twins", "damping_ratio", "excitation",
     "held_out_resonances", "persistent_aliases", "resonance_scan", "resonances_under_disturbance",
@@ -737,16 +754,28 @@ def _search(observation, y, base_kernel, noise_level, noise_bounds, max_resonanc
                 final = [kept[i] for i in check["kept_terms"]]
                 if gains:
                     history.append(value)  # the set the evidence kept, before the check
-        if gains:
+        while gains:
             # the kept terms, the scale and the noise tuned together once more, from the
             # scaled base kernel (the held-out check's and the spreads' model): the search's
             # scale is bounded about the pilot's, and where the terms explain the data the
             # evidence takes the base kernel further down; each term's gain is then taken
-            # against the others re-tuned without it from the same point
+            # against the others re-tuned without it from the same point, and a term this
+            # tuning leaves weak or without a peak (its amplitudes taken to nothing where a
+            # drift took its place) goes as in the pruning, the rest tuned again
             kernel, noise, value = retuned(final)
-            gains = [_Gain(g.input, value - retuned.model([i for i in final if i != r]).value)
-                     for g, r in zip(gains, final)]
-        else:  # every term pruned: the tuned base kernel
+            tuned = dict(zip(sorted(final), retuned.model(final).terms))
+            values = [value - retuned.model([i for i in final if i != r]).value for r in final]
+            weak = [i for i, r in enumerate(final) if values[i] <= EVIDENCE_THRESHOLD
+                    or damping_ratio(tuned[r][1].alpha, tuned[r][1].omega) >= MAX_DAMPING]
+            if not weak:
+                gains = [_Gain(g.input, v) for g, v in zip(gains, values)]
+                break
+            drop = min(weak, key=lambda i: values[i])
+            _LOG.info("resonance search: a term dropped, %.1f nats after the last tuning",
+                      values[drop])
+            gains = gains[:drop] + gains[drop + 1:]
+            final = final[:drop] + final[drop + 1:]
+        if not gains:  # every term pruned: the tuned base kernel
             kernel, noise, result, value = base, model_noise0, result0, history[0]
         history.append(value)
     terms = _terms_of(kernel, [r.input for r in gains]) if gains else []
