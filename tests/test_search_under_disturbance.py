@@ -183,3 +183,34 @@ def test_drifting_systems_keep_both_modes(benchmark, seed):
     assert scored["resonances"]["found"] == 2 and scored["resonances"]["false"] == 0
     # the search with white noise: 88.5 % and 99.26 % (the oracle 99.99 % and 99.96 %)
     assert scored["gof"] > oracle["gof"] - 0.1
+
+
+@pytest.mark.slow
+def test_terms_that_explain_the_colour_bring_the_search_with_white_noise_back(
+        monkeypatch, caplog):
+    from gpmultirate.fitting import auto_kernel
+
+    # with the margin out of reach, white noise tuned from the disturbance's prior
+    # always comes within it: the fit goes on with the search under white noise
+    monkeypatch.setattr(auto_kernel, "AUTO_NOISE_MARGIN", 1e9)
+    u, y = drifting_record()
+    with caplog.at_level(logging.INFO, logger="gpmultirate.fit"):
+        model = gm.FIRGaussianProcess("auto", factor=3, order=100).fit(u, y)
+    assert "searched again with white noise" in caplog.text
+    assert caplog.text.count("resonance search: order 100") == 2
+    assert [round(2 * np.pi * r.frequency_hz, 1) for r in model.resonances_] == [2.4]
+
+
+@pytest.mark.slow
+def test_a_named_disturbance_is_searched_under_and_kept(monkeypatch, caplog):
+    from gpmultirate.fitting import auto_kernel
+
+    monkeypatch.setattr(auto_kernel, "AUTO_NOISE_MARGIN", 1e9)  # not asked for a name
+    u, y = drifting_record()
+    with caplog.at_level(logging.INFO, logger="gpmultirate.fit"):
+        model = gm.FIRGaussianProcess("auto", factor=3, order=100,
+                                      noise_kernel="ar1").fit(u, y)
+    assert "resonance search: under the disturbance" in caplog.text
+    assert "searched again" not in caplog.text
+    assert [round(2 * np.pi * r.frequency_hz, 1) for r in model.resonances_] == [2.4]
+    assert "Matern" in repr(model.noise_kernel_)

@@ -92,11 +92,12 @@ def search_under_disturbance(experiment, kernel, noise_level: float, noise_bound
     white noise there, so the scans, the pruning and the held-out check
     work unchanged), from the prior tuned with it.  The disturbance is then
     tuned again with the terms found, from its own values
-    (:func:`~gpmultirate.fitting.disturbance.fit_disturbance`), and kept when
-    it still gains ``AUTO_NOISE_MARGIN`` nats over white noise tuned from
-    there (:func:`~gpmultirate.fitting.disturbance.white_from`); otherwise
-    the terms explained what looked like a disturbance, and the fit goes on
-    with the search with white noise.
+    (:func:`~gpmultirate.fitting.disturbance.fit_disturbance`).  With
+    ``noise_kernel="auto"`` it is kept when it still gains
+    ``AUTO_NOISE_MARGIN`` nats over white noise tuned from there
+    (:func:`~gpmultirate.fitting.disturbance.white_from`); otherwise the
+    terms explained what looked like a disturbance, and the fit goes on
+    with the search with white noise.  A disturbance the user named stays.
 
     Returns None where it does not apply (``noise_kernel="white"``,
     cross-validation, no tuning, readings without a regressor, more than
@@ -134,6 +135,8 @@ def search_under_disturbance(experiment, kernel, noise_level: float, noise_bound
     level = first.noise_model.level or noise_level
     decided = fit_disturbance(observation, y, terms, level, noise_bounds, None, settings,
                               start=first.noise_model)
+    if settings.noise_kernel != "auto":  # the disturbance the user named stays
+        return UnderDisturbance(searched, decided, start)
     white = white_from(decided, observation, y, noise_bounds, settings)
     if white is not None and decided.score <= white.score + AUTO_NOISE_MARGIN:
         _LOG.info("resonance search: with its terms white noise comes within %.1f nats of "
