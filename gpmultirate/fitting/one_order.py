@@ -78,8 +78,11 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     search starts.
 
     The steps: the experiment and the starting prior, the memory guard, the
-    resonance search (``kernel="auto"``), the tuning by the criterion, the
-    posterior, the disturbance choice (``noise_kernel``) and, when a
+    resonance search (``kernel="auto"``: under the disturbance the data call
+    for, where they call for one before any term is found,
+    :func:`~gpmultirate.fitting.auto_kernel.search_under_disturbance`), the
+    tuning by the criterion, the posterior, the disturbance choice
+    (``noise_kernel``, made with the search when it ran under one) and, when a
     disturbance is kept after a search, the search's terms judged again;
     last, the spread of the terms' frequencies added to the posterior
     (:mod:`gpmultirate.fitting.spread`).  Every step before conditions on
@@ -96,15 +99,18 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     check_fit_memory(observation.n_outputs, observation.n_coefficients, n_free + 1,
                      n_inputs=experiment.n_inputs)
     optimizer_result = found = cv_value = noise_model = searched_kernel = decided = None
+
+    def experiment_at(longer):  # the experiment at another order, for the disturbance check
+        return experiment_of(data, longer, settings)
+
     with blas_threads_for(observation):
         if settings.auto:
-            longer = lambda order: experiment_of(data, order, settings)  # noqa: E731
             under = auto_kernel.search_under_disturbance(experiment, kernel, noise,
-                                                         noise_bounds, settings, longer)
+                                                         noise_bounds, settings, experiment_at)
             if under is not None and under.decided is not None:
                 # the search ran under the disturbance the data call for
                 searched, decided = under.searched, under.decided
-                kernel, _, optimizer_result = under.start
+                optimizer_result = under.start[2]
                 noise = decided.noise_model.level or under.start[1]
                 evidence = decided.evidence
             else:
@@ -146,8 +152,7 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
             disturbance = choose_disturbance(
                 experiment, kernel, noise, noise_bounds,
                 posterior.log_marginal_likelihood if cv_value is None else cv_value, settings,
-                cross_validated=cv_value is not None,
-                experiment_at=lambda longer: experiment_of(data, longer, settings))
+                cross_validated=cv_value is not None, experiment_at=experiment_at)
         if disturbance is not None and disturbance.noise_model is None:
             # white noise after all, tuned again from the disturbance's better prior
             if disturbance.optimizer_result is not None:
