@@ -69,12 +69,15 @@ class UnderDisturbance(NamedTuple):
     ``decided``: the disturbance fit with the search's terms (the fit's
     noise model and prior), or None; ``start``: the base kernel and white
     noise level tuned on the data, and the optimizer's run (None where
-    nothing was tuned).
+    nothing was tuned); ``white``: whether the disturbance check kept white
+    noise at ``start`` as it is (a search with white noise that keeps no term
+    ends there, and needs no second check).
     """
 
     searched: object
     decided: DisturbanceFit | None
     start: tuple
+    white: bool = False
 
 
 def search_under_disturbance(experiment, kernel, noise_level: float, noise_bounds, settings,
@@ -120,7 +123,7 @@ def search_under_disturbance(experiment, kernel, noise_level: float, noise_bound
     first = choose_disturbance(experiment, kernel, noise_level, noise_bounds, white_score,
                                settings, experiment_at=experiment_at)
     if first is None or first.noise_model is None:
-        return UnderDisturbance(None, None, start)
+        return UnderDisturbance(None, None, start, white=first is None)
     covariance = first.noise_model.add_to(np.zeros((y.shape[0], y.shape[0])))
     whitened = WhitenedObservation(observation, covariance)
     _LOG.info("resonance search: under the disturbance %s", first.noise_model.kernel)

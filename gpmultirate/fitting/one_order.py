@@ -98,7 +98,7 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
     n_free = sum(h.n_elements for h in kernel.hyperparameters if not h.fixed)
     check_fit_memory(observation.n_outputs, observation.n_coefficients, n_free + 1,
                      n_inputs=experiment.n_inputs)
-    optimizer_result = found = cv_value = noise_model = searched_kernel = decided = None
+    optimizer_result = found = cv_value = noise_model = searched_kernel = decided = under = None
 
     def experiment_at(longer):  # the experiment at another order, for the disturbance check
         return experiment_of(data, longer, settings)
@@ -142,6 +142,9 @@ def fit_at_order(data, order, settings, start=None) -> Fit:
                 kernel, noise = evidence.split(result.x)
         if decided is not None:  # chosen with the search, under its disturbance
             template, kernel, disturbance = searched.kernel, decided.kernel, decided
+        elif under is not None and under.white and not found:
+            # no term on the prior the disturbance check kept white noise for: it stays
+            posterior, disturbance = evidence.posterior(kernel, noise), None
         else:
             posterior = evidence.posterior(kernel, noise)
             if objective is not evidence:
