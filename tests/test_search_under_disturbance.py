@@ -214,3 +214,13 @@ def test_a_named_disturbance_is_searched_under_and_kept(monkeypatch, caplog):
     assert "searched again" not in caplog.text
     assert [round(2 * np.pi * r.frequency_hz, 1) for r in model.resonances_] == [2.4]
     assert "Matern" in repr(model.noise_kernel_)
+
+
+def test_without_terms_or_colour_the_disturbance_is_checked_once(caplog):
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, 0.8 ** np.arange(60))[:600:3] + 0.01 * rng.standard_normal(200)
+    with caplog.at_level(logging.INFO, logger="gpmultirate.fit"):
+        model = gm.FIRGaussianProcess("auto", factor=3, order=60).fit(u, y)
+    assert model.resonances_ == [] and model.noise_kernel_ == "white"
+    assert caplog.text.count("noise: a fixed disturbance gains") == 1
