@@ -829,7 +829,10 @@ def _scan_candidates(scans) -> list:
     for k, (gain, sigma, omegas, alphas) in enumerate(scans):
         distinct = np.ones(omegas.shape[0], dtype=bool)
         if k == best[1]:
-            ratio = np.abs(np.log(np.maximum(omegas, 1e-300) / best[3]))
+            # frequencies below the grid's first step count as that step (no ratio to zero)
+            floor = np.min(omegas[omegas > 0.0], initial=np.inf)
+            floor = floor if np.isfinite(floor) else 1.0
+            ratio = np.abs(np.log(np.maximum(omegas, floor) / max(best[3], floor)))
             distinct = ratio > np.log(RUNNER_UP_SPAN)
         if not distinct.any():
             continue

@@ -224,3 +224,12 @@ def test_without_terms_or_colour_the_disturbance_is_checked_once(caplog):
         model = gm.FIRGaussianProcess("auto", factor=3, order=60).fit(u, y)
     assert model.resonances_ == [] and model.noise_kernel_ == "white"
     assert caplog.text.count("noise: a fixed disturbance gains") == 1
+
+
+def test_a_best_candidate_at_zero_frequency_leaves_every_other_one_distinct():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division by zero
+        candidates = _scan_candidates([scans_of([(0.0, 30.0), (1.0, 20.0)])])
+    assert [round(c[3], 1) for c in candidates] == [0.0, 1.0]
