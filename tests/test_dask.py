@@ -53,7 +53,9 @@ def on_cluster(client, function):
 
 
 def assert_ran_on_workers(client, stream, ran):
-    workers = set(client.scheduler_info()["workers"])
+    # the workers as the client reaches them (the scheduler's summary of workers can be
+    # empty for a moment after a run)
+    workers = set(client.run(lambda: None))
     assert len(stream) >= 2 and {task["worker"] for task in stream} <= workers
     assert sum(ran.values()) == len(stream)  # the workers saw what the scheduler logged
 
