@@ -52,8 +52,8 @@ def test_white_noise_there_is_the_disturbance_here(problem):
     kernel = C(2.0) * DC(0.8, 0.7)
     whitened = WhitenedObservation(op, N)
     g = 0.7
-    value = float(LogEvidence(whitened, whitened.whiten(y), kernel, g, "fixed")(
-        LogEvidence(whitened, whitened.whiten(y), kernel, g, "fixed").theta))
+    evidence = LogEvidence(whitened, whitened.whiten(y), kernel, g, "fixed")
+    value = float(evidence(evidence.theta))
     lags = np.arange(op.order, dtype=float)[:, None]
     covariance = op.matrix @ kernel(lags) @ op.matrix.T + g * N
     sign, logdet = np.linalg.slogdet(covariance)

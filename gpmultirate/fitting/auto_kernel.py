@@ -119,7 +119,8 @@ def search_under_disturbance(experiment, kernel, noise_level: float, noise_bound
         if result is not None:
             kernel, noise_level = evidence.split(result.x)
     start = (kernel, noise_level, result)
-    white_score = evidence.posterior(kernel, noise_level).log_marginal_likelihood
+    moved = evidence.moved_to(kernel, noise_level)
+    white_score = float(moved(moved.theta))  # the log evidence alone, no posterior formed
     first = choose_disturbance(experiment, kernel, noise_level, noise_bounds, white_score,
                                settings, experiment_at=experiment_at)
     if first is None or first.noise_model is None:

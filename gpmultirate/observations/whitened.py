@@ -5,8 +5,8 @@ known up to a factor (a disturbance model's shape, tuned once), the
 Cholesky factor ``N = L L^T`` turns them into ``L^{-1} y = (L^{-1} Phi) g +
 w`` with ``cov(w)`` a multiple of the identity: a problem with white noise
 and the regressor ``L^{-1} Phi``.  Every tool that assumes white noise (the
-resonance search of :mod:`gpmultirate.resonances`, its scans and its
-held-out check) then works under the disturbance unchanged.  ``L`` is lower
+resonance search of :mod:`gpmultirate.resonances`, its scans, refinements
+and pruning) then works under the disturbance unchanged.  ``L`` is lower
 triangular, so the ``m``-th whitened sample is the innovation of ``y_m``
 given the samples before it: the samples keep their order, and contiguous
 blocks of them stay contiguous in time.
@@ -18,6 +18,7 @@ import numpy as np
 from scipy import linalg
 
 from gpmultirate.observations.base import Observation
+from gpmultirate.validation import check_array
 
 __all__ = ["WhitenedObservation"]
 
@@ -64,12 +65,10 @@ class WhitenedObservation(Observation):
             raise ValueError("observation must have a regressor on the integer lags to be "
                              "whitened; readings between the ticks have none")
         M = observation.n_outputs
-        N = np.asarray(noise_covariance, dtype=float)
+        N = check_array(noise_covariance, "noise_covariance", rows=M, ndims=(2,))
         if N.shape != (M, M):
             raise ValueError(f"noise_covariance must be of shape ({M}, {M}), the slow "
                              f"samples'; got {N.shape}")
-        if not np.all(np.isfinite(N)):
-            raise ValueError("noise_covariance must be finite")
         try:
             self._factor = linalg.cholesky(N, lower=True, check_finite=False)
         except linalg.LinAlgError as error:
